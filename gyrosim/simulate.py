@@ -1,0 +1,200 @@
+"""Simulate a hand-held calibration session: schedule + hand → MuJoCo → truth ``Recording``.
+
+``simulate_truth`` returns a Recording whose ``gyro``/``acc`` equal the truth (the sensor error
+model corrupts them afterwards).  Physics runs at ``physics_rate_hz`` (default 1 kHz); the output
+is point-sampled every ``substeps`` physics steps at ``rate_hz``.  If ``physics_rate_hz`` is not a
+multiple of ``rate_hz``, the physics step is shortened to 1 / (rate_hz · ⌈physics/rate⌉) so that
+samples fall exactly on physics steps (noted in ``meta['physics_rate_hz']``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from . import __version__
+from .errors import GyrosimError
+from .hand import Hand, HandMotion, load_hand
+from .recording import FRAMES, Recording, Truth
+from .rotations import quat_conjugate, quat_rotate
+from .scene import ArmPose, HandScene
+from .schedule import Schedule, load_schedule
+
+__all__ = ["SimulationGrid", "simulation_grid", "simulate_truth"]
+
+
+@dataclass(frozen=True)
+class SimulationGrid:
+    """Time grids of a session: physics steps and output samples (s)."""
+
+    rate_hz: float
+    physics_rate_hz: float
+    substeps: int
+    n_samples: int
+
+    @property
+    def dt_physics_s(self) -> float:
+        return 1.0 / self.physics_rate_hz
+
+    @property
+    def t_physics_s(self) -> np.ndarray:
+        """Physics step times (s) up to the last sample (inclusive)."""
+        return np.arange((self.n_samples - 1) * self.substeps + 1) * self.dt_physics_s
+
+    @property
+    def t_samples_s(self) -> np.ndarray:
+        return np.arange(self.n_samples) * (self.substeps * self.dt_physics_s)
+
+
+def simulation_grid(duration_s: float, rate_hz: float, physics_rate_hz: float = 1000.0) -> SimulationGrid:
+    """Choose physics step and sample count; rejects a rate above the physics rate."""
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise GyrosimError(f"rate must be a positive number of Hz, got {rate_hz}")
+    if not (math.isfinite(physics_rate_hz) and physics_rate_hz > 0):
+        raise GyrosimError(f"physics rate must be a positive number of Hz, got {physics_rate_hz}")
+    if rate_hz > physics_rate_hz:
+        raise GyrosimError(
+            f"output rate {rate_hz:g} Hz is above the physics rate {physics_rate_hz:g} Hz: "
+            "lower --rate or raise --physics-rate"
+        )
+    ratio = physics_rate_hz / rate_hz
+    substeps = round(ratio)
+    if abs(ratio - substeps) > 1e-9 * ratio:
+        substeps = math.ceil(ratio)
+        physics_rate_hz = rate_hz * substeps
+    n = int(math.floor(duration_s * rate_hz + 1e-9)) + 1
+    return SimulationGrid(rate_hz, physics_rate_hz, substeps, n)
+
+
+def simulate_truth(
+    schedule: Schedule | str,
+    hand: Hand | str = "ideal",
+    rate_hz: float = 100.0,
+    *,
+    seed: int | None = None,
+    rng: np.random.Generator | None = None,
+    physics_rate_hz: float = 1000.0,
+    scene: HandScene | None = None,
+    progress: Callable[[int], None] | None = None,
+    chunk_steps: int = 20000,
+) -> Recording:
+    """Simulate one session and return its truth Recording (``gyro``/``acc`` = truth).
+
+    Args:
+        schedule: a :class:`Schedule` or a built-in name / TOML path.
+        hand: a :class:`Hand` or a preset name / TOML path.
+        rate_hz: output sample rate (Hz), ≤ physics rate.
+        seed: seed for ``numpy.random.default_rng`` (ignored if ``rng`` is given).
+        rng: the Generator every random draw comes from.
+        physics_rate_hz: MuJoCo step rate (Hz).
+        scene: a loaded :class:`HandScene` to reuse (its timestep is set here).
+        progress: called with the number of physics steps done after each chunk.
+        chunk_steps: physics steps per pipeline chunk (results do not depend on the progress
+            callback, but do depend, at rounding level, on this value).
+    """
+    if isinstance(schedule, (str, Path)):
+        schedule = load_schedule(schedule)
+    if isinstance(hand, (str, Path)):
+        hand = load_hand(hand)
+    if rng is None:
+        rng = np.random.default_rng(seed)
+    grid = simulation_grid(schedule.duration_s, rate_hz, physics_rate_hz)
+    scene = scene or HandScene()
+    scene.model.opt.timestep = grid.dt_physics_s
+
+    # one physics step beyond the last sample: the rate at t_k is ½(ω_k + ω_{k+1}) (scene docstring)
+    t_phys = np.append(grid.t_physics_s, grid.t_physics_s[-1] + grid.dt_physics_s)
+    n_steps = t_phys.size
+    noise = hand.draw_noise(n_steps, grid.dt_physics_s, rng)
+    pivot_start = scene.pivot_start_m(schedule.initial_quat_nb, hand.pivot_offset_m)
+    rows = np.arange(grid.n_samples) * grid.substeps
+    sens = np.empty((n_steps, scene.model.nsensordata))
+    sampled: list[tuple[HandMotion, ArmPose]] = []
+
+    # Pipeline: the main thread prepares chunk c+1 (motion, arm IK, controls: numpy) while one
+    # worker thread steps chunk c in MuJoCo (C, GIL released).  Chunks run strictly in order on
+    # that single worker, so the result is the same as a sequential run.
+    state: list[np.ndarray] = []
+
+    def run(a: int, ctrl: np.ndarray) -> None:
+        final, sd = scene.step_chunk(state[-1], ctrl)
+        sens[a : a + ctrl.shape[0]] = sd
+        state.append(final)
+        if progress is not None:
+            progress(ctrl.shape[0])
+
+    previous = None
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pending = []
+        for a in range(0, n_steps, chunk_steps):
+            b = min(n_steps, a + chunk_steps)
+            motion = hand.motion_chunk(schedule, t_phys[a:b], noise.rows(a, b), previous)
+            previous = (motion.quat_nb[-1], motion.omega_body_rad_s[-1])
+            arm = scene.arm_pose(motion, pivot_start)
+            ctrl = scene.controls(motion, arm, pivot_start)
+            if a == 0:
+                state.append(scene.initial_state(motion, ctrl[0], pivot_start))
+            pending.append(pool.submit(run, a, ctrl))
+            keep = rows[(rows >= a) & (rows < b)] - a
+            sampled.append((motion.rows(0, 0) if keep.size == 0 else _pick(motion, keep), _pick_arm(arm, keep)))
+        for fut in pending:
+            fut.result()  # re-raise any MuJoCo error
+
+    s = scene.sensor_slices
+    omega = 0.5 * (sens[rows, s["imu_gyro"]] + sens[rows + 1, s["imu_gyro"]])
+    f_b = sens[rows, s["imu_acc"]]
+    quat = sens[rows, s["imu_quat"]]
+    quat = quat * np.where(quat[:, :1] < 0, -1.0, 1.0)
+    pos = sens[rows, s["imu_acc_pos"]]
+    omega_schedule = np.concatenate([m.omega_schedule_body_rad_s for m, _ in sampled])
+    segment_index = np.concatenate([m.segment_index for m, _ in sampled])
+    wrist = np.concatenate([arm.wrist_m for _, arm in sampled])
+    elbow = np.concatenate([arm.elbow_m for _, arm in sampled])
+    g_up_body = quat_rotate(quat_conjugate(quat), np.array([0.0, 0.0, scene.gravity_m_s2]))
+    truth = Truth(
+        omega_body_rad_s=omega,
+        specific_force_body_m_s2=f_b,
+        quat_nb=quat,
+        position_nav_m=pos,
+        extra={
+            "external_acc": f_b - g_up_body,
+            "omega_schedule": omega_schedule,
+            "segment_index": segment_index.astype(float),
+            "wrist_position": wrist,
+            "elbow_position": elbow,
+        },
+    )
+    meta = {
+        "rate_hz": float(grid.rate_hz),
+        "physics_rate_hz": float(grid.physics_rate_hz),
+        "frames": FRAMES,
+        "schedule": json.dumps(schedule.to_dict(), sort_keys=True),
+        "hand": json.dumps(hand.to_dict(), sort_keys=True),
+        "sensor_model": json.dumps({"gyro": [], "accelerometer": [], "note": "truth, no sensor errors"}),
+        "seed": -1 if seed is None else int(seed),
+        "version": __version__,
+        "gravity_m_s2": scene.gravity_m_s2,
+        "source": "gyrosim simulation (MuJoCo hand-held scene)",
+        "model": scene.model_path.name,
+    }
+    return Recording(
+        t_s=grid.t_samples_s,
+        gyro_rad_s=omega,
+        acc_m_s2=f_b,
+        truth=truth,
+        meta=meta,
+    )
+
+
+def _pick(motion: HandMotion, idx: np.ndarray) -> HandMotion:
+    return HandMotion(**{f: (v if f == "pivot_body_m" else v[idx]) for f, v in vars(motion).items()})
+
+
+def _pick_arm(arm: ArmPose, idx: np.ndarray) -> ArmPose:
+    return ArmPose(*(getattr(arm, f)[idx] for f in arm.__dataclass_fields__))

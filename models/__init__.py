@@ -1,0 +1,1 @@
+"""MJCF models, installed as the ``gyrosim.models`` package data (see pyproject.toml)."""
