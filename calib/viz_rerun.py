@@ -1,0 +1,88 @@
+"""Everything calib shows in rerun lives here; estimators never import rerun.
+
+Timeline ``sensor_time`` (s, the recording's own clock).  Entities:
+
+* ``imu/gyro/{x,y,z}`` (rad/s) and ``imu/acc/{x,y,z}`` (m/s²): the recorded samples, body frame;
+* ``truth/external_acc/{x,y,z}`` (m/s², body) when the recording has truth;
+* ``world/board``: the board's pose (truth attitude body→ENU, position of the accelerometer site)
+  with a box the size of the IMU board; ``world/arm``: shoulder–elbow–wrist line of the hand model.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from gyrosim.recording import Recording
+
+TIMELINE = "sensor_time"
+AXES = ("x", "y", "z")
+
+
+def _series(stream: rr.RecordingStream, path: str, t: np.ndarray, values: np.ndarray) -> None:
+    for i, ax in enumerate(AXES):
+        stream.send_columns(
+            f"{path}/{ax}",
+            indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+            columns=rr.Scalars.columns(scalars=values[:, i]),
+        )
+
+
+def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: float = 25.0) -> None:
+    """Log raw samples, truth disturbances and the 3-D pose of board and arm."""
+    t = rec.t_s
+    _series(stream, "imu/gyro", t, rec.gyro_rad_s)
+    _series(stream, "imu/acc", t, rec.acc_m_s2)
+    truth = rec.truth
+    if truth is None or truth.quat_nb is None:
+        return
+    if "external_acc" in truth.extra:
+        _series(stream, "truth/external_acc", t, truth.extra["external_acc"])
+    step = max(1, int(round(rec.rate_hz / pose_rate_hz)))
+    sel = slice(None, None, step)
+    q = truth.quat_nb[sel]
+    pos = truth.position_nav_m[sel] if truth.position_nav_m is not None else np.zeros((q.shape[0], 3))
+    stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    stream.log("world/board/pcb", rr.Boxes3D(half_sizes=[0.02, 0.015, 0.0008], colors=[20, 120, 40]), static=True)
+    stream.log("world/board/axes", rr.Arrows3D(vectors=np.eye(3) * 0.05, colors=[[255, 0, 0], [0, 255, 0], [0, 0, 255]]), static=True)
+    stream.send_columns(
+        "world/board",
+        indexes=[rr.TimeColumn(TIMELINE, duration=t[sel])],
+        columns=rr.Transform3D.columns(translation=pos, quaternion=q[:, [1, 2, 3, 0]]),
+    )
+    if "wrist_position" in truth.extra and "elbow_position" in truth.extra:
+        wrist = truth.extra["wrist_position"][sel]
+        elbow = truth.extra["elbow_position"][sel]
+        shoulder = np.array([0.18, 0.0, 1.42])
+        for k, tk in enumerate(t[sel]):
+            stream.set_time(TIMELINE, duration=float(tk))
+            stream.log("world/arm", rr.LineStrips3D([[shoulder, elbow[k], wrist[k], pos[k]]], radii=0.02, colors=[200, 160, 140]))
+
+
+def blueprint() -> rrb.Blueprint:
+    """Open on the signals and the 3-D view."""
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="imu/gyro", name="gyro (rad/s)"),
+                rrb.TimeSeriesView(origin="imu/acc", name="accelerometer (m/s²)"),
+                rrb.TimeSeriesView(origin="truth/external_acc", name="external acceleration (m/s², truth)"),
+            ),
+            rrb.Spatial3DView(origin="world", name="hand and board"),
+        ),
+        collapse_panels=True,
+    )
+
+
+def save_session_rrd(path: str | Path, rec: Recording, application_id: str = "gyrosim_calib") -> Path:
+    """Write ``rec`` to an .rrd file (open with ``rerun PATH``)."""
+    path = Path(path)
+    stream = rr.RecordingStream(application_id)
+    stream.save(str(path))
+    stream.send_blueprint(blueprint())
+    log_recording(stream, rec)
+    stream.flush()
+    return path

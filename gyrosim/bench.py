@@ -1,0 +1,64 @@
+"""Speed benchmark: a full gyrosim session against bare ``mujoco.rollout`` on the same model.
+
+Both run in the same process on the same inputs: "bare" is one ``rollout`` call over the session's
+precomputed open-loop controls (MuJoCo alone); "gyrosim" is :func:`simulate_truth` end to end
+(hand motion, inverse kinematics, feedforward wrench, rollout, sampling).  Overhead is reported as
+a ratio against bare MuJoCo measured in the same run (best of ``repeats``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from mujoco import rollout as mj_rollout
+
+from .hand import load_hand
+from .scene import CONTROL_SPEC, HandScene
+from .schedule import load_schedule
+from .simulate import simulate_truth, simulation_grid
+
+
+def _best(fn, repeats: int) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def run_bench(repeats: int = 3, schedule: str = "zhou2020", hand: str = "typical", rate_hz: float = 100.0) -> dict[str, float]:
+    """Print and return the speed table (steps/s, samples/s, overhead ratio)."""
+    sched = load_schedule(schedule)
+    hnd = load_hand(hand)
+    scene = HandScene()
+    grid = simulation_grid(sched.duration_s, rate_hz)
+    t = np.append(grid.t_physics_s, grid.t_physics_s[-1] + grid.dt_physics_s)
+    motion = hnd.motion(sched, t, np.random.default_rng(0))
+    p0 = scene.pivot_start_m(sched.initial_quat_nb, hnd.pivot_offset_m)
+    ctrl = scene.controls(motion, scene.arm_pose(motion, p0), p0)
+    state0 = scene.initial_state(motion, ctrl[0], p0)
+
+    def bare() -> None:
+        mj_rollout.rollout(scene.model, scene.data, state0[None], ctrl[None], control_spec=CONTROL_SPEC)
+
+    def ours() -> None:
+        simulate_truth(sched, hnd, rate_hz, seed=0, scene=scene)
+
+    bare(), ours()  # warm-up
+    t_bare = _best(bare, repeats)
+    t_ours = _best(ours, repeats)
+    steps = ctrl.shape[0]
+    rows = [
+        ("bare mujoco.rollout", t_bare),
+        ("gyrosim simulate_truth", t_ours),
+    ]
+    print(f"schedule {sched.name} ({sched.duration_s:.0f} s), hand {hnd.name}, physics "
+          f"{grid.physics_rate_hz:g} Hz, output {rate_hz:g} Hz; best of {repeats}")
+    print(f"{'':<24} {'wall s':>8} {'steps/s':>12} {'samples/s':>12} {'× bare':>8}")
+    for name, sec in rows:
+        print(f"{name:<24} {sec:8.3f} {steps / sec:12.0f} {grid.n_samples / sec:12.0f} {sec / t_bare:8.3f}")
+    overhead = t_ours / t_bare - 1.0
+    print(f"overhead over bare MuJoCo: {100 * overhead:.1f}% (target ≤ 20%)")
+    return {"bare_s": t_bare, "ours_s": t_ours, "overhead": overhead}

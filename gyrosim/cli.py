@@ -1,0 +1,135 @@
+"""``gyrosim`` command line: thin wrappers over library calls (each is a function a user can call)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .errors import GyrosimError
+from .hand import hand_preset_names, load_hand
+from .recording import save_hdf5
+from .schedule import builtin_schedule_names, load_schedule
+
+
+def _check_writable(path: Path) -> None:
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise GyrosimError(f"cannot write {path}: folder {folder} does not exist; create it first")
+    probe = folder / f".{path.name}.probe"
+    try:
+        probe.touch()
+        probe.unlink()
+    except OSError as exc:
+        raise GyrosimError(f"cannot write {path}: {exc.strerror}; choose a writable folder") from exc
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .simulate import simulate_truth
+
+    out = Path(args.out)
+    _check_writable(out)  # fail before minutes of simulation, not after
+    schedule = load_schedule(args.schedule)
+    hand = load_hand(args.hand)
+    from .simulate import simulation_grid
+
+    grid = simulation_grid(schedule.duration_s, args.rate, args.physics_rate)
+    with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating", disable=args.quiet, leave=False) as bar:
+        rec = simulate_truth(
+            schedule, hand, args.rate, seed=args.seed, physics_rate_hz=args.physics_rate, progress=bar.update
+        )
+    save_hdf5(rec, out)
+    if not args.quiet:
+        ext = rec.truth.extra["external_acc"]
+        dw = rec.truth.omega_body_rad_s - rec.truth.extra["omega_schedule"]
+        print(
+            f"wrote {out}: {rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s), "
+            f"schedule {schedule.name}, hand {hand.name}, seed {args.seed}; "
+            f"external acc RMS {math.sqrt(np.mean(np.sum(ext**2, 1))):.4f} m/s², "
+            f"rate disturbance RMS {math.degrees(math.sqrt(np.mean(np.sum(dw**2, 1)))):.3f} °/s"
+        )
+    return 0
+
+
+def cmd_hands(args: argparse.Namespace) -> int:
+    schedule = load_schedule(args.schedule)
+    print(f"hand presets on schedule {schedule.name} (expected RMS over the session)")
+    print(f"{'preset':<9} {'ext acc m/s²':>13} {'of which pivot':>15} {'rate dist °/s':>14}  description")
+    rows = [(load_hand(name), ) for name in hand_preset_names()]
+    rows = sorted(((h, h.expected_disturbance(schedule)) for (h,) in rows), key=lambda r: r[1]["external_acc_rms_m_s2"])
+    for hand, e in rows:
+        name = hand.name
+        print(
+            f"{name:<9} {e['external_acc_rms_m_s2']:>13.4f} {e['pivot_acc_rms_m_s2']:>15.4f} "
+            f"{math.degrees(e['rate_disturbance_rms_rad_s']):>14.3f}  {hand.description}"
+        )
+    return 0
+
+
+def cmd_schedules(args: argparse.Namespace) -> int:
+    for name in builtin_schedule_names():
+        s = load_schedule(name)
+        print(f"{name:<14} {s.duration_s:7.1f} s  {len(s.segments):3d} segments  {s.description}")
+    if args.show:
+        s = load_schedule(args.show)
+        print(json.dumps(s.to_dict(), indent=2))
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import run_bench
+
+    run_bench(repeats=args.repeats, schedule=args.schedule, hand=args.hand, rate_hz=args.rate)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="gyrosim", description="Virtual hand-held IMU in MuJoCo.")
+    p.add_argument("--version", action="version", version=f"gyrosim {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("simulate", help="simulate a hand-held session and write an HDF5 recording")
+    s.add_argument("--schedule", default="zhou2020", help="built-in name or TOML path (default zhou2020)")
+    s.add_argument("--hand", default="typical", help="ideal|steady|typical|shaky or a TOML path")
+    s.add_argument("--rate", type=float, default=100.0, help="output sample rate, Hz (default 100)")
+    s.add_argument("--physics-rate", type=float, default=1000.0, help="MuJoCo step rate, Hz (default 1000)")
+    s.add_argument("--seed", type=int, default=0, help="seed of the random generator (default 0)")
+    s.add_argument("--out", required=True, help="output .h5 path")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_simulate)
+
+    h = sub.add_parser("hands", help="list hand presets with the disturbances they produce")
+    h.add_argument("--schedule", default="zhou2020")
+    h.set_defaults(func=cmd_hands)
+
+    sc = sub.add_parser("schedules", help="list built-in schedules")
+    sc.add_argument("--show", help="print one schedule as JSON")
+    sc.set_defaults(func=cmd_schedules)
+
+    b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
+    b.add_argument("--repeats", type=int, default=3)
+    b.add_argument("--schedule", default="zhou2020")
+    b.add_argument("--hand", default="typical")
+    b.add_argument("--rate", type=float, default=100.0)
+    b.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except GyrosimError as exc:
+        print(f"gyrosim: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,49 @@
+"""The model must load from an installed wheel as well as from the checkout (issue 2)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_model_loads_from_the_checkout():
+    from gyrosim.scene import HandScene
+
+    scene = HandScene()
+    assert scene.model.nsensor == 4 and scene.model_path.name == "handheld.xml"
+    assert {scene.model.site(i).name for i in range(scene.model.nsite)} >= {"imu_gyro", "imu_acc"}
+
+
+@pytest.mark.slow
+def test_model_and_data_ship_in_the_wheel_and_load_from_it(tmp_path):
+    pytest.importorskip("setuptools")
+    wheel_dir = tmp_path / "wheel"
+    build = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(wheel_dir), str(ROOT)],
+        capture_output=True, text=True,
+    )
+    assert build.returncode == 0, build.stderr
+    (wheel,) = wheel_dir.glob("*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for required in ("gyrosim/models/handheld.xml", "gyrosim/schedules/zhou2020.toml",
+                     "gyrosim/presets/hands/typical.toml", "calib/cli.py"):
+        assert required in names, required
+    target = tmp_path / "site"
+    inst = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
+                          capture_output=True, text=True)
+    assert inst.returncode == 0, inst.stderr
+    # run from an unrelated folder with only the installed copy on the path
+    code = ("from gyrosim.scene import HandScene; from gyrosim.simulate import simulate_truth; "
+            "s = HandScene(); print(s.model_path); r = simulate_truth('static', 'ideal', 50, scene=s); print(r.n)")
+    env = {**os.environ, "PYTHONPATH": str(target)}
+    run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    model_path, n = run.stdout.split()
+    assert Path(model_path).is_relative_to(target) and int(n) == 3001
