@@ -1,0 +1,878 @@
+"""One vocabulary of sensor error effects: simulated by gyrosim, estimated by calib.
+
+An :class:`Effect` is a named, parameterised term of a triad's measurement model.  Two stages:
+
+* **error** effects add a term computed from the *true* input x (rate or specific force) and
+  the context (the other triad's truth, temperature, attitude, magnetic field, time):
+
+      y = x + Σ_i δ_i(x, ctx; θ_i)                          (Zhou 2020 eq. 1 for the first four)
+
+  so their order does not matter and the classic linear model ω̃ = (I + S + N) ω + b + ε is the
+  sum of the ``scale_factor``, ``nonorthogonality``, ``bias`` and ``white_noise`` terms;
+* **output** effects then transform the sensor's output in order (bandwidth, latency, jitter,
+  quantization, saturation): y ← T_j(y).
+
+Every effect knows (a) how to corrupt (:meth:`Effect.delta` / :meth:`Effect.transform`), (b) how
+the output depends on x (``delta_dx``, used to invert the model: compensation) and on its
+parameters (:meth:`Effect.sensitivity`, used to fit it and to test it as a candidate against a
+residual).  Stochastic effects (noise processes) draw from the ``numpy.random.Generator`` the
+caller passes.  Random unit-to-unit parameters (turn-on bias, scale tolerance, ...) are given as
+``<param>_sigma`` next to the nominal value and are drawn by :meth:`Effect.realize`.
+
+Frames: x and δ in the body frame (RFU); the Earth rate uses the attitude body→ENU.  Parameters
+are SI (rad/s, m/s², s, Hz, °C); presets convert datasheet units with :mod:`gyrosim.units`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, ClassVar
+
+import numpy as np
+from scipy import fft as sp_fft
+from scipy import signal as sp_signal
+from scipy.interpolate import CubicSpline
+
+from .errors import GyrosimError
+from .rotations import quat_conjugate, quat_rotate
+
+__all__ = [
+    "SignalContext",
+    "Effect",
+    "EFFECTS",
+    "effect_from_dict",
+]
+
+EARTH_RATE_RAD_S = 7.2921150e-5  # WGS-84 ω_ie
+
+
+@dataclass(frozen=True)
+class SignalContext:
+    """What effects may depend on, all sampled at ``t_s`` (s).
+
+    ``omega_true_rad_s`` and ``specific_force_true_m_s2`` in the body frame (RFU);
+    ``temperature_c`` the sensor temperature (°C); ``quat_nb`` attitude body→ENU;
+    ``mag_body_ut`` the magnetic field at the sensor (µT, body frame).
+    """
+
+    t_s: np.ndarray
+    omega_true_rad_s: np.ndarray
+    specific_force_true_m_s2: np.ndarray
+    temperature_c: np.ndarray | None = None
+    quat_nb: np.ndarray | None = None
+    mag_body_ut: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return int(self.t_s.shape[0])
+
+    @property
+    def rate_hz(self) -> float:
+        return float(1.0 / np.median(np.diff(self.t_s)))
+
+    @property
+    def dt_s(self) -> float:
+        return float(np.median(np.diff(self.t_s)))
+
+    def rows(self, sl: slice) -> "SignalContext":
+        """The samples in ``sl`` (views, no copies)."""
+        return SignalContext(*(None if v is None else v[sl] for v in (
+            self.t_s, self.omega_true_rad_s, self.specific_force_true_m_s2, self.temperature_c, self.quat_nb, self.mag_body_ut)))
+
+    def require(self, name: str, effect: str) -> np.ndarray:
+        v = getattr(self, name)
+        if v is None:
+            raise GyrosimError(f"effect {effect!r} needs {name} in the context; the recording has none")
+        return v
+
+
+def _vec(v: Any, n: int = 3, name: str = "parameter") -> np.ndarray:
+    a = np.array(v, dtype=float).reshape(-1)
+    if a.size == 1 and n > 1:
+        a = np.full(n, float(a[0]))
+    if a.size != n:
+        raise GyrosimError(f"{name} needs {n} values, got {a.size}")
+    if not np.all(np.isfinite(a)):
+        raise GyrosimError(f"{name} has NaN/inf values {a.tolist()}: every parameter must be finite")
+    return a
+
+
+@dataclass(frozen=True)
+class Effect:
+    """Base class. Subclasses declare ``kind``, ``stage``, ``quantity`` and ``param_fields``."""
+
+    kind: ClassVar[str] = ""
+    stage: ClassVar[str] = "error"  # "error" (additive on truth) or "output" (transform, in order)
+    stochastic: ClassVar[bool] = False
+    invertible: ClassVar[bool] = True  # an exact compensation exists (deterministic effects)
+    triads: ClassVar[tuple[str, ...]] = ("gyro", "accelerometer")
+    param_fields: ClassVar[tuple[str, ...]] = ()
+    pointwise: ClassVar[bool] = False  # δ_k depends on sample k only (can run in cache-sized blocks)
+
+    # ---------------------------------------------------------------- parameters
+    def params(self) -> np.ndarray:
+        """Flat parameter vector θ (SI), in ``param_fields`` order."""
+        if not self.param_fields:
+            return np.zeros(0)
+        return np.concatenate([np.atleast_1d(np.asarray(getattr(self, f), dtype=float)).ravel() for f in self.param_fields])
+
+    def param_names(self) -> list[str]:
+        names = []
+        for f in self.param_fields:
+            a = np.atleast_1d(np.asarray(getattr(self, f)))
+            names += [f"{self.kind}.{f}[{i}]" for i in range(a.size)] if a.size > 1 else [f"{self.kind}.{f}"]
+        return names
+
+    def with_params(self, theta: np.ndarray) -> "Effect":
+        """A copy with parameters θ (same layout as :meth:`params`)."""
+        theta = np.asarray(theta, dtype=float)
+        out, i = {}, 0
+        for f in self.param_fields:
+            cur = np.atleast_1d(np.asarray(getattr(self, f), dtype=float))
+            out[f] = theta[i : i + cur.size].reshape(cur.shape) if cur.ndim else float(theta[i])
+            i += cur.size
+        return replace(self, **out)
+
+    def realize(self, rng: np.random.Generator) -> "Effect":
+        """Draw the unit-to-unit random parameters (``<p>_sigma``) of one device; sigmas become 0."""
+        changes: dict[str, Any] = {}
+        for f in self.param_fields:
+            sig_name = f"{f}_sigma"
+            if hasattr(self, sig_name):
+                sig = np.asarray(getattr(self, sig_name), dtype=float)
+                if np.any(sig):
+                    nominal = np.asarray(getattr(self, f), dtype=float)
+                    changes[f] = nominal + sig * rng.standard_normal(nominal.shape)
+                    changes[sig_name] = np.zeros_like(sig)
+        return replace(self, **changes) if changes else self
+
+    # ---------------------------------------------------------------- forward
+    def delta(self, x: np.ndarray, ctx: SignalContext, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Error-stage term δ(x, ctx) (N, 3) added to the true signal x."""
+        raise NotImplementedError
+
+    def delta_dx(self, x: np.ndarray, ctx: SignalContext) -> np.ndarray | None:
+        """∂δ/∂x (N, 3, 3), or None when δ does not depend on x."""
+        return None
+
+    def add_delta(self, y: np.ndarray, x: np.ndarray, ctx: SignalContext, rng: np.random.Generator | None) -> None:
+        """y += δ(x, ctx) in place (hot effects override it to avoid temporaries)."""
+        y += self.delta(x, ctx, rng)
+
+    def psd_two_sided(self, f_hz: np.ndarray) -> np.ndarray | None:
+        """Two-sided PSD (3, F) of a stationary Gaussian noise effect, else None.
+
+        Effects that return one are synthesised together by :func:`spectral_noise`: the sum of
+        independent Gaussian processes is the Gaussian process with the summed PSD, so one
+        frequency-domain draw and one inverse FFT replace one draw per effect.
+        """
+        return None
+
+    def transform(self, y: np.ndarray, ctx: SignalContext, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Output-stage transform of the sensor output y (N, 3)."""
+        raise NotImplementedError
+
+    def inverse(self, y: np.ndarray, ctx: SignalContext) -> np.ndarray:
+        """Undo :meth:`transform` (output stage)."""
+        raise GyrosimError(f"effect {self.kind!r} cannot be undone")
+
+    # ---------------------------------------------------------------- estimation
+    def sensitivity(self, x: np.ndarray, ctx: SignalContext) -> np.ndarray:
+        """∂y/∂θ (N, 3, P) at the current parameters.
+
+        Default: central finite differences of the forward model (exact for linear-in-θ
+        effects up to rounding); linear effects override it with the closed form.
+        """
+        if self.stochastic:
+            raise GyrosimError(f"{self.kind!r} is a random process: it has no parameter sensitivity")
+        theta = self.params()
+        out = np.empty(x.shape + (theta.size,))
+        for j in range(theta.size):
+            h = 1e-6 * max(1.0, abs(theta[j]))
+            tp, tm = theta.copy(), theta.copy()
+            tp[j] += h
+            tm[j] -= h
+            out[..., j] = (self.with_params(tp)._forward(x, ctx) - self.with_params(tm)._forward(x, ctx)) / (2 * h)
+        return out
+
+    def _forward(self, x: np.ndarray, ctx: SignalContext) -> np.ndarray:
+        return x + self.delta(x, ctx) if self.stage == "error" else self.transform(x, ctx)
+
+    # ---------------------------------------------------------------- serialisation
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"effect": self.kind}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            d[f.name] = np.asarray(v).tolist() if isinstance(v, (np.ndarray, list, tuple)) else v
+        return d
+
+
+# ================================================================ error-stage effects
+@dataclass(frozen=True)
+class Bias(Effect):
+    """Constant bias: δ = b.  ``value_sigma`` draws a turn-on bias per run (b ~ N(value, σ²)).
+
+    Units: rad/s (gyro) or m/s² (accelerometer).  Zhou 2020 eq. 1, §3.2.
+    """
+
+    kind: ClassVar[str] = "bias"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", _vec(self.value, name="bias value"))
+        object.__setattr__(self, "value_sigma", _vec(self.value_sigma, name="bias sigma"))
+
+    def delta(self, x, ctx, rng=None):
+        return np.broadcast_to(self.value, x.shape).copy()
+
+    def add_delta(self, y, x, ctx, rng=None):
+        y += self.value
+
+    def sensitivity(self, x, ctx):
+        return np.broadcast_to(np.eye(3), x.shape + (3,)).copy()
+
+
+def _check_invertible(m: np.ndarray, kind: str, value: np.ndarray) -> None:
+    """(I + N) must stay a proper, well-conditioned axis set: det > 0.1 and cond < 100."""
+    det = float(np.linalg.det(m))
+    if not det > 0.1 or np.linalg.cond(m) > 100:
+        raise GyrosimError(
+            f"{kind} {np.round(value, 6).tolist()} makes the axis matrix singular or flips an axis "
+            f"(det(I + N) = {det:.3g}); real non-orthogonality is a few 1e-2 at most: check units (% vs fraction)"
+        )
+
+
+def _nonortho_matrix(g: np.ndarray) -> np.ndarray:
+    gx, gy, gz = g
+    return np.array([[0.0, gz, gy], [gz, 0.0, gx], [gy, gx, 0.0]])
+
+
+@dataclass(frozen=True)
+class ScaleFactor(Effect):
+    """Scale-factor error: δ = S x, S = diag(Sx, Sy, Sz) (dimensionless).  Zhou 2020 eq. 2."""
+
+    kind: ClassVar[str] = "scale_factor"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", _vec(self.value, name="scale factor"))
+        object.__setattr__(self, "value_sigma", _vec(self.value_sigma, name="scale factor sigma"))
+
+    def delta(self, x, ctx, rng=None):
+        return x * self.value
+
+    def add_delta(self, y, x, ctx, rng=None):
+        y += x * self.value
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(np.diag(self.value), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = x[:, i]
+        return out
+
+
+@dataclass(frozen=True)
+class NonOrthogonality(Effect):
+    """Non-orthogonality in the paper's symmetric form (Zhou 2020 eq. 2): δ = N x,
+
+        N = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]]   (dimensionless, small-angle rad).
+
+    ∂(N x)/∂Gx = (0, x_z, x_y), ∂/∂Gy = (x_z, 0, x_x), ∂/∂Gz = (x_y, x_x, 0).
+    """
+
+    kind: ClassVar[str] = "nonorthogonality"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", _vec(self.value, name="non-orthogonality"))
+        object.__setattr__(self, "value_sigma", _vec(self.value_sigma, name="non-orthogonality sigma"))
+        _check_invertible(np.eye(3) + _nonortho_matrix(self.value), self.kind, self.value)
+
+    def delta(self, x, ctx, rng=None):
+        return x @ _nonortho_matrix(self.value).T
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(_nonortho_matrix(self.value), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        out[:, 1, 0], out[:, 2, 0] = x[:, 2], x[:, 1]
+        out[:, 0, 1], out[:, 2, 1] = x[:, 2], x[:, 0]
+        out[:, 0, 2], out[:, 1, 2] = x[:, 1], x[:, 0]
+        return out
+
+
+_MISALIGN_IDX = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+
+
+@dataclass(frozen=True)
+class Misalignment(Effect):
+    """General 6-parameter misalignment/cross-coupling: δ = M x, M off-diagonal with
+    value = [m_xy, m_xz, m_yx, m_yz, m_zx, m_zy] (row = sensing axis, column = input axis)."""
+
+    kind: ClassVar[str] = "misalignment"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros(6))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", _vec(self.value, 6, "misalignment"))
+        object.__setattr__(self, "value_sigma", _vec(self.value_sigma, 6, "misalignment sigma"))
+        _check_invertible(np.eye(3) + self.matrix(), self.kind, self.value)
+
+    def matrix(self) -> np.ndarray:
+        m = np.zeros((3, 3))
+        for k, (i, j) in enumerate(_MISALIGN_IDX):
+            m[i, j] = self.value[k]
+        return m
+
+    def delta(self, x, ctx, rng=None):
+        return x @ self.matrix().T
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(self.matrix(), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (6,))
+        for k, (i, j) in enumerate(_MISALIGN_IDX):
+            out[:, i, k] = x[:, j]
+        return out
+
+
+@dataclass(frozen=True)
+class ScaleNonlinearity(Effect):
+    """Quadratic scale nonlinearity per axis: δ_i = k_i x_i |x_i| (odd-symmetric, so it is a
+    true nonlinearity and not a bias).  k in 1/(rad/s) or 1/(m/s²); a datasheet "nonlinearity
+    ±p % of full scale R" gives k = p/100 / R (the error at full scale is p % of R)."""
+
+    kind: ClassVar[str] = "scale_nonlinearity"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", _vec(self.value, name="nonlinearity"))
+        object.__setattr__(self, "value_sigma", _vec(self.value_sigma, name="nonlinearity sigma"))
+
+    def delta(self, x, ctx, rng=None):
+        return self.value * x * np.abs(x)
+
+    def delta_dx(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = 2 * self.value[i] * np.abs(x[:, i])
+        return out
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = x[:, i] * np.abs(x[:, i])
+        return out
+
+
+@dataclass(frozen=True)
+class GSensitivity(Effect):
+    """Gyro sensitivity to specific force: δ = K f, K 3×3 in (rad/s)/(m/s²) (gyro only)."""
+
+    kind: ClassVar[str] = "g_sensitivity"
+    pointwise: ClassVar[bool] = True
+    triads: ClassVar[tuple[str, ...]] = ("gyro",)
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+    def __post_init__(self) -> None:
+        for name in ("value", "value_sigma"):
+            v = np.array(getattr(self, name), dtype=float)
+            v = np.diag(v) if v.shape == (3,) else v.reshape(3, 3)
+            if not np.all(np.isfinite(v)):
+                raise GyrosimError("g-sensitivity has NaN/inf values")
+            object.__setattr__(self, name, v)
+
+    def delta(self, x, ctx, rng=None):
+        return ctx.specific_force_true_m_s2 @ self.value.T
+
+    def sensitivity(self, x, ctx):
+        f = ctx.specific_force_true_m_s2
+        out = np.zeros(x.shape + (9,))
+        for i in range(3):
+            out[:, i, 3 * i : 3 * i + 3] = f
+        return out
+
+
+def _poly(t: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
+    """Σ_p c[:, p] ΔT^(p+1) for coefficient matrix (3, P) → (N, 3)."""
+    powers = np.stack([t ** (p + 1) for p in range(coeffs.shape[1])], axis=1)  # (N, P)
+    return powers @ coeffs.T
+
+
+@dataclass(frozen=True)
+class TemperatureBias(Effect):
+    """Bias over temperature: δ = Σ_{p=1..P} c_p (T − T_ref)^p, coefficients (3, P) in
+    rad/s/°C^p or m/s²/°C^p.  Valid on ``range_c``; a temperature outside it is an error."""
+
+    kind: ClassVar[str] = "temperature_bias"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("coefficients",)
+    coefficients: np.ndarray = field(default_factory=lambda: np.zeros((3, 1)))
+    coefficients_sigma: np.ndarray = field(default_factory=lambda: np.zeros((3, 1)))
+    t_ref_c: float = 25.0
+    range_c: tuple[float, float] = (-40.0, 85.0)
+
+    def __post_init__(self) -> None:
+        for name in ("coefficients", "coefficients_sigma"):
+            c = np.array(getattr(self, name), dtype=float)
+            c = c.reshape(3, -1) if c.size % 3 == 0 and c.ndim != 2 else c
+            if c.ndim == 1:
+                c = np.tile(c[:, None], (3, 1)) if c.size == 1 else c.reshape(3, -1)
+            if not np.all(np.isfinite(c)):
+                raise GyrosimError(f"{self.kind}: coefficients must be finite")
+            object.__setattr__(self, name, c)
+
+    def _dT(self, ctx: SignalContext) -> np.ndarray:
+        temp = ctx.require("temperature_c", self.kind)
+        lo, hi = self.range_c
+        if np.nanmin(temp) < lo - 1e-9 or np.nanmax(temp) > hi + 1e-9:
+            raise GyrosimError(
+                f"{self.kind}: temperature {np.nanmin(temp):.1f}–{np.nanmax(temp):.1f} °C leaves the model's "
+                f"valid range {lo:g}–{hi:g} °C; the preset cannot extrapolate"
+            )
+        return temp - self.t_ref_c
+
+    def delta(self, x, ctx, rng=None):
+        return _poly(self._dT(ctx), self.coefficients)
+
+    def sensitivity(self, x, ctx):
+        dT = self._dT(ctx)
+        P = self.coefficients.shape[1]
+        out = np.zeros(x.shape + (3 * P,))
+        for i in range(3):
+            for p in range(P):
+                out[:, i, i * P + p] = dT ** (p + 1)
+        return out
+
+
+@dataclass(frozen=True)
+class TemperatureScale(TemperatureBias):
+    """Scale factor over temperature: δ = diag(Σ_p s_p (T − T_ref)^p) x, s in 1/°C^p."""
+
+    kind: ClassVar[str] = "temperature_scale"
+
+    def delta(self, x, ctx, rng=None):
+        return x * _poly(self._dT(ctx), self.coefficients)
+
+    def delta_dx(self, x, ctx):
+        s = _poly(self._dT(ctx), self.coefficients)
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = s[:, i]
+        return out
+
+    def sensitivity(self, x, ctx):
+        # ∂δ_i/∂s_ip = x_i ΔT^p: the bias sensitivity times the input on that axis
+        return super().sensitivity(x, ctx) * x[:, :, None]
+
+
+@dataclass(frozen=True)
+class ThermalHysteresis(Effect):
+    """Heating/cooling hysteresis: a bias proportional to the low-passed temperature rate,
+    δ = h · LP_τ(dT/dt), h in (rad/s)/(°C/s) or (m/s²)/(°C/s); the bias lags differently when
+    warming (dT/dt > 0) and cooling (< 0), which opens the loop of a bias-vs-T plot."""
+
+    kind: ClassVar[str] = "thermal_hysteresis"
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tau_s: float = 300.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", _vec(self.value, name="hysteresis"))
+        object.__setattr__(self, "value_sigma", _vec(self.value_sigma, name="hysteresis sigma"))
+        if not (math.isfinite(self.tau_s) and self.tau_s > 0):
+            raise GyrosimError("thermal_hysteresis: tau_s must be > 0 s")
+
+    def regressor(self, ctx: SignalContext) -> np.ndarray:
+        temp = ctx.require("temperature_c", self.kind)
+        rate = np.gradient(temp, ctx.t_s)
+        a = math.exp(-ctx.dt_s / self.tau_s)
+        return sp_signal.lfilter([1 - a], [1, -a], rate, zi=[a * rate[0]])[0]
+
+    def delta(self, x, ctx, rng=None):
+        return np.outer(self.regressor(ctx), self.value)
+
+    def sensitivity(self, x, ctx):
+        r = self.regressor(ctx)
+        return np.broadcast_to(np.eye(3), x.shape + (3,)) * r[:, None, None]
+
+
+@dataclass(frozen=True)
+class EarthRate(Effect):
+    """Earth rotation seen by the gyro: δ = C_nᵇ ω_ieⁿ, ω_ieⁿ = Ω (0, cos L, sin L) in ENU,
+    Ω = 7.2921150e-5 rad/s (15.04 °/h), L = latitude.  Needs the attitude; gyro only."""
+
+    kind: ClassVar[str] = "earth_rate"
+    pointwise: ClassVar[bool] = True
+    triads: ClassVar[tuple[str, ...]] = ("gyro",)
+    param_fields: ClassVar[tuple[str, ...]] = ("latitude_rad",)
+    latitude_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.latitude_rad) and abs(self.latitude_rad) <= math.pi / 2):
+            raise GyrosimError("earth_rate: latitude must be within ±90°")
+
+    def delta(self, x, ctx, rng=None):
+        q = ctx.require("quat_nb", self.kind)
+        w_n = EARTH_RATE_RAD_S * np.array([0.0, math.cos(self.latitude_rad), math.sin(self.latitude_rad)])
+        return quat_rotate(quat_conjugate(q), np.broadcast_to(w_n, x.shape))
+
+
+@dataclass(frozen=True)
+class MagneticSensitivity(Effect):
+    """Gyro bias from the magnetic field (Faraday effect in FOG coils, seed 001): δ = K B_b,
+    K 3×3 in (rad/s)/µT; unshielded FOG ~1e4 °/(h·T), POS grade 1–10 °/(h·T).  Gyro only."""
+
+    kind: ClassVar[str] = "magnetic_sensitivity"
+    pointwise: ClassVar[bool] = True
+    triads: ClassVar[tuple[str, ...]] = ("gyro",)
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+    def __post_init__(self) -> None:
+        v = np.array(self.value, dtype=float)
+        v = np.diag(v) if v.shape == (3,) else v.reshape(3, 3)
+        if not np.all(np.isfinite(v)):
+            raise GyrosimError("magnetic_sensitivity has NaN/inf values")
+        object.__setattr__(self, "value", v)
+
+    def delta(self, x, ctx, rng=None):
+        return ctx.require("mag_body_ut", self.kind) @ self.value.T
+
+    def sensitivity(self, x, ctx):
+        b = ctx.require("mag_body_ut", self.kind)
+        out = np.zeros(x.shape + (9,))
+        for i in range(3):
+            out[:, i, 3 * i : 3 * i + 3] = b
+        return out
+
+
+# ---------------------------------------------------------------- random processes
+def _need_rng(rng: np.random.Generator | None, kind: str) -> np.random.Generator:
+    if rng is None:
+        raise GyrosimError(f"{kind} is random: pass a numpy.random.Generator (rng=...)")
+    return rng
+
+
+def spectral_noise(effects: list["Effect"], n: int, fs: float, rng: np.random.Generator) -> np.ndarray:
+    """One (N, 3) realisation of the summed stationary Gaussian processes of ``effects``.
+
+    Spectrum drawn directly in the frequency domain: for the two-sided PSD S(f), the rFFT bin k
+    of a length-n real sequence has E|X_k|² = n f_s S(f_k) (n f_s S for k = 0 and Nyquist,
+    which are real), so X_k = √(n f_s S(f_k)/2) (g₁ + i g₂) for 0 < k < n/2; irfft then gives
+    E[x²] = Σ S Δf over [−f_s/2, f_s/2], the discrete white sequence of σ² = N² f_s for S = N².
+    The DC bin is zero (a constant belongs to the bias effect).
+    """
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    psd = sum(e.psd_two_sided(f) for e in effects)  # (3, F)
+    amp = np.sqrt(psd * (n * fs / 2.0))
+    g = rng.standard_normal((3, f.size, 2)).view(complex)[..., 0]  # g₁ + i g₂ without temporaries
+    spec = g
+    spec *= amp
+    spec[:, 0] = 0.0
+    if n % 2 == 0:  # Nyquist bin of a real signal is real: E|X|² = n f_s S with one real normal
+        spec[:, -1] = np.sqrt(2.0) * spec[:, -1].real
+    return sp_fft.irfft(spec, n=n, axis=1, workers=-1).T
+
+
+@dataclass(frozen=True)
+class WhiteNoise(Effect):
+    """White measurement noise: ARW (gyro) or VRW (accelerometer).
+
+    ``density`` is the IEEE-952 coefficient N (rad/s/√Hz = rad/√s, or m/s²/√Hz): the Allan
+    deviation is N/√τ and each sample gets σ = N √f_s (see :mod:`gyrosim.units`).
+    """
+
+    kind: ClassVar[str] = "white_noise"
+    stochastic: ClassVar[bool] = True
+    invertible: ClassVar[bool] = False
+    param_fields: ClassVar[tuple[str, ...]] = ("density",)
+    density: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        d = _vec(self.density, name="noise density")
+        if np.any(d < 0):
+            raise GyrosimError(f"noise density must be >= 0, got {d.tolist()}")
+        object.__setattr__(self, "density", d)
+
+    def delta(self, x, ctx, rng=None):
+        rng = _need_rng(rng, self.kind)
+        return rng.standard_normal(x.shape) * (self.density * math.sqrt(ctx.rate_hz))
+
+    def psd_two_sided(self, f_hz):
+        return np.broadcast_to((self.density**2)[:, None], (3, f_hz.size))
+
+
+@dataclass(frozen=True)
+class BiasInstability(Effect):
+    """Bias instability: a first-order Gauss–Markov process (``model = "gauss_markov"``) or
+    flicker (1/f) noise (``model = "flicker"``), sized by the datasheet bias instability B.
+
+    * Gauss–Markov, exact discretisation: b_{k+1} = φ b_k + σ √(1 − φ²) w_k, φ = e^{−Δt/τ},
+      stationary σ = B / 0.664 so that the Allan-deviation bump (≈ 0.62 σ at τ ≈ 1.9 τ_c) sits
+      near B's floor; starts from its stationary distribution.
+    * Flicker: white noise shaped to the two-sided PSD S(f) = B² / (2π f) (IEEE Std 952 Annex C
+      convention, as the ARW N²) for 1/T ≤ f ≤ f_s/2; its Allan deviation is flat at
+      √(2 ln 2/π) B = 0.664 B for 1/f_s ≪ τ ≪ T.
+    """
+
+    kind: ClassVar[str] = "bias_instability"
+    stochastic: ClassVar[bool] = True
+    invertible: ClassVar[bool] = False
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tau_s: float = 100.0
+    model: str = "flicker"
+
+    def __post_init__(self) -> None:
+        v = _vec(self.value, name="bias instability")
+        if np.any(v < 0):
+            raise GyrosimError("bias instability must be >= 0")
+        object.__setattr__(self, "value", v)
+        if self.model not in ("flicker", "gauss_markov"):
+            raise GyrosimError(f"bias_instability model {self.model!r}: use 'flicker' or 'gauss_markov'")
+        if not (math.isfinite(self.tau_s) and self.tau_s > 0):
+            raise GyrosimError("bias_instability tau_s must be > 0 s")
+
+    def delta(self, x, ctx, rng=None):
+        rng = _need_rng(rng, self.kind)
+        n, fs = x.shape[0], ctx.rate_hz
+        if self.model == "gauss_markov":
+            phi = math.exp(-1.0 / (fs * self.tau_s))
+            sigma = self.value / 0.664
+            w = rng.standard_normal(x.shape) * sigma * math.sqrt(1 - phi**2)
+            w[0] = rng.standard_normal(3) * sigma
+            return sp_signal.lfilter([1.0], [1.0, -phi], w, axis=0)
+        return spectral_noise([self], n, fs, rng)
+
+    def psd_two_sided(self, f_hz):
+        if self.model != "flicker":
+            return None
+        out = np.zeros((3, f_hz.size))
+        pos = f_hz > 0
+        out[:, pos] = (self.value**2)[:, None] / (2 * math.pi * f_hz[pos])
+        return out
+
+
+@dataclass(frozen=True)
+class RandomWalk(Effect):
+    """Rate random walk (gyro) / acceleration random walk: the Wiener process
+    b_k = Σ K √Δt w_j starting at 0 at power-on, so σ_A(τ) = K √(τ/3); K in rad/s/√s or m/s²/√s.
+    (Not synthesised spectrally: a periodic 1/f² spectrum lacks the power below 1/T and biased
+    K low by 3.5 % over 2 h in our Monte Carlo.)"""
+
+    kind: ClassVar[str] = "random_walk"
+    stochastic: ClassVar[bool] = True
+    invertible: ClassVar[bool] = False
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        v = _vec(self.value, name="random walk")
+        if np.any(v < 0):
+            raise GyrosimError("random walk must be >= 0")
+        object.__setattr__(self, "value", v)
+
+    def delta(self, x, ctx, rng=None):
+        rng = _need_rng(rng, self.kind)
+        steps = rng.standard_normal((3, x.shape[0]))  # (3, N): cumsum along contiguous rows
+        steps[:, 0] = 0.0
+        np.cumsum(steps, axis=1, out=steps)
+        steps *= (self.value * math.sqrt(ctx.dt_s))[:, None]
+        return steps.T
+
+
+# ================================================================ output-stage effects
+@dataclass(frozen=True)
+class Bandwidth(Effect):
+    """First-order low-pass of the sensor output (its digital low-pass filter), exact
+    discretisation y_k = a y_{k−1} + (1 − a) u_k, a = exp(−2π f_c Δt), started at steady state
+    (y_0 = u_0).  Inverse: u_k = (y_k − a y_{k−1}) / (1 − a), exact."""
+
+    kind: ClassVar[str] = "bandwidth"
+    stage: ClassVar[str] = "output"
+    param_fields: ClassVar[tuple[str, ...]] = ("cutoff_hz",)
+    cutoff_hz: float = 50.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
+            raise GyrosimError("bandwidth cutoff_hz must be > 0 Hz")
+
+    def _a(self, ctx: SignalContext) -> float:
+        return math.exp(-2 * math.pi * self.cutoff_hz * ctx.dt_s)
+
+    def transform(self, y, ctx, rng=None):
+        a = self._a(ctx)
+        rows = np.ascontiguousarray(y.T)  # filter along contiguous rows
+        return sp_signal.lfilter([1 - a], [1, -a], rows, axis=1, zi=a * rows[:, :1])[0].T
+
+    def inverse(self, y, ctx):
+        a = self._a(ctx)
+        u = np.empty_like(y)
+        u[0] = y[0]
+        u[1:] = (y[1:] - a * y[:-1]) / (1 - a)
+        return u
+
+
+@dataclass(frozen=True)
+class TimeOffset(Effect):
+    """Latency: the output at t is the input at t − d (d in s, may be fractional and negative),
+    applied as a Fourier phase shift (band-limited interpolation; the record is treated as
+    periodic, so start and end should be at rest).  Inverse: the shift by −d, exact.
+    Linearised sensitivity ∂y/∂d = −ẋ."""
+
+    kind: ClassVar[str] = "time_offset"
+    stage: ClassVar[str] = "output"
+    param_fields: ClassVar[tuple[str, ...]] = ("delay_s",)
+    delay_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.delay_s):
+            raise GyrosimError("time_offset delay_s must be finite")
+
+    @staticmethod
+    def _shift(y: np.ndarray, d: float, dt: float) -> np.ndarray:
+        """y(t − d) by multiplying the spectrum with e^{−i2πfd}.  For an even length the Nyquist
+        bin cannot carry a phase in a real signal (irfft keeps its real part), so signals with
+        energy at f_s/2 are not shifted exactly there; physical IMU signals have none."""
+        n = y.shape[0]
+        f = np.fft.rfftfreq(n, dt)
+        spec = np.fft.rfft(y, axis=0) * np.exp(-2j * np.pi * f * d)[:, None]
+        return np.fft.irfft(spec, n=n, axis=0)
+
+    def transform(self, y, ctx, rng=None):
+        return self._shift(y, self.delay_s, ctx.dt_s)
+
+    def inverse(self, y, ctx):
+        return self._shift(y, -self.delay_s, ctx.dt_s)
+
+
+@dataclass(frozen=True)
+class Jitter(Effect):
+    """Sample-time jitter: the sensor samples at t_k + ε_k, ε_k ~ N(0, σ²) (σ in s); the output
+    is the signal interpolated there (cubic spline).  Random, not invertible."""
+
+    kind: ClassVar[str] = "jitter"
+    stage: ClassVar[str] = "output"
+    stochastic: ClassVar[bool] = True
+    invertible: ClassVar[bool] = False
+    param_fields: ClassVar[tuple[str, ...]] = ("sigma_s",)
+    sigma_s: float = 0.0
+
+    def transform(self, y, ctx, rng=None):
+        rng = _need_rng(rng, self.kind)
+        t = ctx.t_s
+        eps = rng.standard_normal(t.shape) * self.sigma_s
+        return CubicSpline(t, y, axis=0)(np.clip(t + eps, t[0], t[-1]))
+
+
+@dataclass(frozen=True)
+class Quantization(Effect):
+    """Quantization to a least significant bit: y = LSB · round(y / LSB).  Deterministic but
+    information-losing: compensation leaves it (error ≤ LSB/2, RMS LSB/√12)."""
+
+    kind: ClassVar[str] = "quantization"
+    pointwise: ClassVar[bool] = True
+    stage: ClassVar[str] = "output"
+    invertible: ClassVar[bool] = False
+    param_fields: ClassVar[tuple[str, ...]] = ("lsb",)
+    lsb: np.ndarray = field(default_factory=lambda: np.full(3, 1e-6))
+
+    def __post_init__(self) -> None:
+        v = _vec(self.lsb, name="LSB")
+        if np.any(v <= 0):
+            raise GyrosimError("quantization lsb must be > 0")
+        object.__setattr__(self, "lsb", v)
+
+    def transform(self, y, ctx, rng=None):
+        out = y * (1.0 / self.lsb)
+        np.round(out, out=out)
+        out *= self.lsb
+        return out
+
+    def inverse(self, y, ctx):
+        return y
+
+
+@dataclass(frozen=True)
+class Saturation(Effect):
+    """Output clipped to ±range.  Compensation cannot recover clipped samples: it raises
+    (:meth:`check`) naming how many samples sit at the rails."""
+
+    kind: ClassVar[str] = "saturation"
+    pointwise: ClassVar[bool] = True
+    stage: ClassVar[str] = "output"
+    invertible: ClassVar[bool] = False
+    param_fields: ClassVar[tuple[str, ...]] = ("range",)
+    range: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
+
+    def __post_init__(self) -> None:
+        v = np.array(self.range, dtype=float).reshape(-1)
+        v = np.full(3, v[0]) if v.size == 1 else v
+        if v.size != 3 or np.any(np.isnan(v)) or np.any(v <= 0):
+            raise GyrosimError("saturation range must be 3 positive values")
+        object.__setattr__(self, "range", v)
+
+    def transform(self, y, ctx, rng=None):
+        return np.minimum(np.maximum(y, -self.range), self.range)
+
+    def saturated(self, y: np.ndarray) -> np.ndarray:
+        return np.abs(y) >= self.range * (1 - 1e-12)
+
+    def inverse(self, y, ctx):
+        bad = self.saturated(y)
+        if bad.any():
+            raise GyrosimError(
+                f"{int(bad.any(axis=1).sum())} sample(s) sit at the ±{self.range.tolist()} rails (saturated): "
+                "their true value is unknown; exclude them before calibrating"
+            )
+        return y
+
+
+EFFECTS: dict[str, type[Effect]] = {
+    cls.kind: cls
+    for cls in (
+        Bias, ScaleFactor, NonOrthogonality, Misalignment, ScaleNonlinearity, GSensitivity,
+        TemperatureBias, TemperatureScale, ThermalHysteresis, EarthRate, MagneticSensitivity,
+        WhiteNoise, BiasInstability, RandomWalk, Bandwidth, TimeOffset, Jitter, Quantization, Saturation,
+    )
+}
+
+
+def effect_from_dict(d: dict[str, Any]) -> Effect:
+    """Rebuild an effect from :meth:`Effect.to_dict` output (SI values)."""
+    d = dict(d)
+    kind = d.pop("effect", None)
+    if kind not in EFFECTS:
+        raise GyrosimError(f"unknown effect {kind!r}; known: {', '.join(EFFECTS)}")
+    cls = EFFECTS[kind]
+    names = {f.name for f in fields(cls)}
+    bad = set(d) - names
+    if bad:
+        raise GyrosimError(f"effect {kind!r}: unknown key(s) {sorted(bad)}; allowed: {sorted(names)}")
+    if "range_c" in d:
+        d["range_c"] = tuple(d["range_c"])
+    return cls(**d)

@@ -1,0 +1,291 @@
+"""A sensor model = an ordered list of effects per triad (gyro, accelerometer), plus presets.
+
+Forward (simulation), per triad with true input x:
+
+    u = x + Σ_{error effects} δ_i(x, ctx)        (order-free; stationary Gaussian noises —
+                                                   white, flicker — drawn jointly from their
+                                                   summed PSD, see effects.spectral_noise)
+    y = T_m ∘ … ∘ T_1 (u)                          (output effects, in list order)
+
+Compensation (estimation) undoes the deterministic part: the output effects in reverse order
+(bandwidth and latency exactly; quantization left as is; saturated samples rejected), then
+u = x + Σδ_i(x) is solved for x by Newton's method with J = I + Σ ∂δ_i/∂x (one step when every
+effect is linear in x).  Random effects cannot be undone and are left as noise.
+
+Presets are TOML files in ``gyrosim/presets/sensors/`` written in datasheet units; see
+:func:`load_sensor` and the README for the layout.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .effects import EFFECTS, Effect, SignalContext, effect_from_dict, spectral_noise
+from .errors import GyrosimError, PresetError
+from .thermal import ThermalModel
+from .units import to_si
+
+__all__ = ["SensorModel", "load_sensor", "sensor_preset_names", "TRIADS"]
+
+TRIADS = ("gyro", "accelerometer")
+_BLOCK = 8192  # samples per block for pointwise effects (3 × 8192 doubles = 192 kB per array)
+
+# unit quantity of each effect's main parameter, per triad (for presets in datasheet units)
+_QUANTITY: dict[str, dict[str, str]] = {
+    "bias": {"gyro": "rate", "accelerometer": "acceleration"},
+    "scale_factor": {"gyro": "fraction", "accelerometer": "fraction"},
+    "nonorthogonality": {"gyro": "fraction", "accelerometer": "fraction"},
+    "misalignment": {"gyro": "fraction", "accelerometer": "fraction"},
+    "scale_nonlinearity": {"gyro": "per_rate", "accelerometer": "per_acceleration"},
+    "g_sensitivity": {"gyro": "rate_per_acceleration"},
+    "temperature_bias": {"gyro": "rate", "accelerometer": "acceleration"},  # per °C^p
+    "temperature_scale": {"gyro": "fraction", "accelerometer": "fraction"},  # per °C^p
+    "thermal_hysteresis": {"gyro": "rate", "accelerometer": "acceleration"},  # per (°C/s)
+    "earth_rate": {"gyro": "angle"},
+    "magnetic_sensitivity": {"gyro": "rate_per_tesla"},
+    "white_noise": {"gyro": "rate_density", "accelerometer": "acceleration_density"},
+    "bias_instability": {"gyro": "rate", "accelerometer": "acceleration"},
+    "random_walk": {"gyro": "rate_random_walk", "accelerometer": "acceleration_random_walk"},
+    "bandwidth": {"gyro": "frequency", "accelerometer": "frequency"},
+    "time_offset": {"gyro": "time", "accelerometer": "time"},
+    "jitter": {"gyro": "time", "accelerometer": "time"},
+    "quantization": {"gyro": "rate", "accelerometer": "acceleration"},
+    "saturation": {"gyro": "rate", "accelerometer": "acceleration"},
+}
+_MAIN_FIELD = {cls.kind: cls.param_fields[0] for cls in EFFECTS.values()}
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """Effects of the gyro and accelerometer triads, an optional thermal model, and provenance."""
+
+    name: str = "truth"
+    gyro: tuple[Effect, ...] = ()
+    accelerometer: tuple[Effect, ...] = ()
+    thermal: ThermalModel | None = None
+    temperature_range_c: tuple[float, float] = (-40.0, 85.0)
+    description: str = ""
+    source: str = ""
+    notes: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for triad in TRIADS:
+            for e in getattr(self, triad):
+                if triad not in e.triads:
+                    raise PresetError(f"sensor {self.name!r}: effect {e.kind!r} does not apply to the {triad}")
+
+    def effects(self, triad: str) -> tuple[Effect, ...]:
+        if triad not in TRIADS:
+            raise GyrosimError(f"triad must be one of {TRIADS}, got {triad!r}")
+        return getattr(self, triad)
+
+    def realize(self, rng: np.random.Generator) -> "SensorModel":
+        """One device of this model: unit-to-unit random parameters (``*_sigma``) drawn."""
+        streams = rng.spawn(2)
+        out = {}
+        for triad, r in zip(TRIADS, streams):
+            effs = self.effects(triad)
+            subs = r.spawn(len(effs)) if effs else []
+            out[triad] = tuple(e.realize(s) for e, s in zip(effs, subs))
+        return SensorModel(self.name, out["gyro"], out["accelerometer"], self.thermal,
+                           self.temperature_range_c, self.description, self.source, dict(self.notes))
+
+    # ---------------------------------------------------------------- forward
+    def apply_triad(self, triad: str, x: np.ndarray, ctx: SignalContext, rng: np.random.Generator) -> np.ndarray:
+        """Corrupt the true signal x (N, 3) of one triad. ``x`` is not modified."""
+        effs = self.effects(triad)
+        streams = rng.spawn(len(effs) + 1) if effs else []
+        y = np.array(x, dtype=float, copy=True)
+        spectral = [e for e in effs if e.stage == "error" and e.psd_two_sided(np.zeros(1)) is not None]
+        if all(e.kind == "white_noise" for e in spectral):
+            spectral = []  # white alone: a plain per-sample draw is cheaper than a spectrum
+        if spectral:  # stationary Gaussian noises: one joint frequency-domain draw (effects.spectral_noise)
+            y += spectral_noise(spectral, x.shape[0], ctx.rate_hz, streams[-1])
+        error = [(e, r) for e, r in zip(effs, streams) if e.stage == "error" and e not in spectral]
+        for e, r in error:
+            if not e.pointwise:
+                e.add_delta(y, x, ctx, r)
+        # pointwise effects run block by block, so their passes over the data stay in cache
+        pointwise = [e for e, _ in error if e.pointwise]
+        if pointwise:
+            for start in range(0, x.shape[0], _BLOCK):
+                sl = slice(start, start + _BLOCK)
+                sub = ctx.rows(sl)
+                for e in pointwise:
+                    e.add_delta(y[sl], x[sl], sub, None)
+        for e, r in zip(effs, streams):
+            if e.stage == "output":
+                y = e.transform(y, ctx, r)
+        return y
+
+    def apply(self, ctx: SignalContext, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(gyro rad/s, accelerometer m/s²) measured from the truth in ``ctx``."""
+        self.check_temperature(ctx)
+        g_rng, a_rng = rng.spawn(2)
+        return (
+            self.apply_triad("gyro", ctx.omega_true_rad_s, ctx, g_rng),
+            self.apply_triad("accelerometer", ctx.specific_force_true_m_s2, ctx, a_rng),
+        )
+
+    def check_temperature(self, ctx: SignalContext) -> None:
+        if ctx.temperature_c is None:
+            return
+        lo, hi = self.temperature_range_c
+        t = ctx.temperature_c
+        if np.nanmin(t) < lo or np.nanmax(t) > hi:
+            raise GyrosimError(
+                f"sensor {self.name!r} is specified for {lo:g}–{hi:g} °C but the temperature reaches "
+                f"{np.nanmin(t):.1f}–{np.nanmax(t):.1f} °C"
+            )
+
+    # ---------------------------------------------------------------- inverse
+    def compensate_triad(
+        self, triad: str, y: np.ndarray, ctx: SignalContext, *, tol: float = 1e-15, max_iter: int = 30
+    ) -> np.ndarray:
+        """Undo the deterministic effects of one triad: returns the estimated true signal."""
+        effs = self.effects(triad)
+        u = np.array(y, dtype=float, copy=True)
+        for e in reversed([e for e in effs if e.stage == "output"]):
+            if not e.stochastic:
+                u = e.inverse(u, ctx)
+        det = [e for e in effs if e.stage == "error" and not e.stochastic]
+        if not det:
+            return u
+        x = u.copy()
+        scale = max(1.0, float(np.abs(u).max()))
+        for _ in range(max_iter):
+            r = x + sum(e.delta(x, ctx) for e in det) - u
+            jac = np.broadcast_to(np.eye(3), x.shape + (3,)).copy()
+            for e in det:
+                d = e.delta_dx(x, ctx)
+                if d is not None:
+                    jac = jac + d
+            x = x - np.linalg.solve(jac, r[..., None])[..., 0]
+            if np.abs(r).max() <= tol * scale:
+                break
+        return x
+
+    # ---------------------------------------------------------------- description
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "notes": self.notes,
+            "temperature_range_c": list(self.temperature_range_c),
+            "thermal": self.thermal.to_dict() if self.thermal else None,
+            "gyro": [e.to_dict() for e in self.gyro],
+            "accelerometer": [e.to_dict() for e in self.accelerometer],
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "SensorModel":
+        """Inverse of :meth:`to_dict` (SI values, as stored in recordings)."""
+        return cls(
+            name=d.get("name", "model"),
+            gyro=tuple(effect_from_dict(e) for e in d.get("gyro", [])),
+            accelerometer=tuple(effect_from_dict(e) for e in d.get("accelerometer", [])),
+            thermal=ThermalModel(**d["thermal"]) if d.get("thermal") else None,
+            temperature_range_c=tuple(d.get("temperature_range_c", (-40.0, 85.0))),
+            description=d.get("description", ""),
+            source=d.get("source", ""),
+            notes=dict(d.get("notes", {})),
+        )
+
+
+# ================================================================ presets in datasheet units
+def _effect_from_preset(triad: str, raw: dict[str, Any], where: str) -> Effect:
+    raw = dict(raw)
+    kind = raw.pop("effect", None)
+    if kind not in EFFECTS:
+        raise PresetError(f"{where}: unknown effect {kind!r}; known: {', '.join(EFFECTS)}")
+    unit = raw.pop("unit", None)
+    raw.pop("note", None)
+    quantity = _QUANTITY[kind].get(triad)
+    if quantity is None:
+        raise PresetError(f"{where}: effect {kind!r} does not apply to the {triad}")
+    main = _MAIN_FIELD[kind]
+    if unit is None:
+        raise PresetError(f"{where}: effect {kind!r} needs a unit for {main!r} (e.g. one of its accepted units)")
+    if kind == "white_noise":
+        convention = raw.pop("convention", "ieee952")
+        if convention not in ("ieee952", "one-sided"):
+            raise PresetError(f"{where}: white_noise convention must be 'ieee952' or 'one-sided'")
+    else:
+        convention = "ieee952"
+    try:
+        for key in (main, f"{main}_sigma"):
+            if key in raw:
+                v = np.asarray(raw[key], dtype=float)
+                raw[key] = np.asarray(to_si(v.ravel().tolist(), unit, quantity)).reshape(v.shape)
+    except GyrosimError as exc:
+        raise PresetError(f"{where}: {exc}") from exc
+    if convention == "one-sided":
+        raw[main] = np.asarray(raw[main]) / np.sqrt(2.0)
+    if kind == "earth_rate" and "latitude" in raw:
+        raw["latitude_rad"] = float(np.asarray(to_si(raw.pop("latitude"), unit, "angle")))
+    try:
+        return effect_from_dict({"effect": kind, **raw})
+    except (TypeError, GyrosimError) as exc:
+        raise PresetError(f"{where}: {exc}") from exc
+
+
+_SENSOR_KEYS = {"name", "description", "source", "notes", "temperature_range_c", "thermal", "gyro", "accelerometer"}
+
+
+def sensor_from_toml_dict(data: dict[str, Any], default_name: str) -> SensorModel:
+    """Build a :class:`SensorModel` from a preset table in datasheet units."""
+    bad = set(data) - _SENSOR_KEYS
+    if bad:
+        raise PresetError(f"sensor preset {default_name!r}: unknown key(s) {sorted(bad)}; allowed: {sorted(_SENSOR_KEYS)}")
+    effects = {}
+    for triad in TRIADS:
+        effects[triad] = tuple(
+            _effect_from_preset(triad, raw, f"sensor {default_name!r} {triad} effect {i + 1}")
+            for i, raw in enumerate(data.get(triad, []))
+        )
+    thermal = ThermalModel(**data["thermal"]) if "thermal" in data else None
+    return SensorModel(
+        name=str(data.get("name", default_name)),
+        gyro=effects["gyro"],
+        accelerometer=effects["accelerometer"],
+        thermal=thermal,
+        temperature_range_c=tuple(data.get("temperature_range_c", (-40.0, 85.0))),
+        description=str(data.get("description", "")),
+        source=str(data.get("source", "")),
+        notes={str(k): str(v) for k, v in data.get("notes", {}).items()},
+    )
+
+
+def sensor_preset_names() -> list[str]:
+    folder = resources.files("gyrosim") / "presets" / "sensors"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_sensor(name_or_path: str | Path) -> SensorModel:
+    """Load a sensor preset by name (``mpu9250``, ``zhou2020_sim``, ...) or a TOML path."""
+    name = str(name_or_path)
+    if name in sensor_preset_names():
+        text = (resources.files("gyrosim") / "presets" / "sensors" / f"{name}.toml").read_text()
+    elif Path(name).is_file():
+        text = Path(name).read_text()
+        name = Path(name).stem
+    else:
+        raise PresetError(
+            f"unknown sensor preset {name!r}; use one of {', '.join(sensor_preset_names())} or a TOML path"
+        )
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise PresetError(f"sensor preset {name!r} is not valid TOML: {exc}") from exc
+    return sensor_from_toml_dict(data, name)
