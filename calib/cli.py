@@ -26,7 +26,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from gyrosim.hand import load_hand
     from gyrosim.recording import save_hdf5
     from gyrosim.schedule import load_schedule
-    from gyrosim.simulate import simulate_truth, simulation_grid
+    from gyrosim.sensor_model import load_sensor
+    from gyrosim.simulate import simulate, simulation_grid
 
     from .viz_rerun import save_session_rrd
 
@@ -34,9 +35,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     schedule = load_schedule(args.schedule)
     hand = load_hand(args.hand)
+    sensor = load_sensor(args.sensor)
     grid = simulation_grid(schedule.duration_s, args.rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating session", leave=False) as bar:
-        rec = simulate_truth(schedule, hand, args.rate, seed=args.seed, progress=bar.update)
+        rec = simulate(schedule, hand, sensor, args.rate, seed=args.seed, progress=bar.update)
     rec_path = save_hdf5(rec, out / "session.h5")
     expected = hand.expected_disturbance(schedule)
     ext = _rms(rec.truth.extra["external_acc"])
@@ -45,15 +47,18 @@ def cmd_demo(args: argparse.Namespace) -> int:
         "recording": rec_path.name,
         "schedule": schedule.name,
         "hand": hand.name,
+        "sensor": sensor.name,
         "seed": args.seed,
         "rate_hz": args.rate,
         "duration_s": rec.duration_s,
         "external_acc_rms_m_s2": {"measured": ext, "expected": expected["external_acc_rms_m_s2"]},
         "rate_disturbance_rms_rad_s": {"measured": rate, "expected": expected["rate_disturbance_rms_rad_s"]},
+        "gyro_error_rms_rad_s": _rms(rec.gyro_rad_s - rec.truth.omega_body_rad_s),
+        "acc_error_rms_m_s2": _rms(rec.acc_m_s2 - rec.truth.specific_force_body_m_s2),
     }
     (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
     md = [
-        f"# Hand-held session: {schedule.name}, hand `{hand.name}`, seed {args.seed}",
+        f"# Hand-held session: {schedule.name}, hand `{hand.name}`, sensor `{sensor.name}`, seed {args.seed}",
         "",
         f"{rec.n} samples at {args.rate:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo; recording `{rec_path.name}`.",
         "",
@@ -61,6 +66,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
         "|---|---|---|",
         f"| external acceleration (m/s²) | {ext:.4f} | {expected['external_acc_rms_m_s2']:.4f} |",
         f"| rate disturbance (°/s) | {math.degrees(rate):.3f} | {math.degrees(expected['rate_disturbance_rms_rad_s']):.3f} |",
+        "",
+        f"Sensor `{sensor.name}` ({sensor.description}): gyro error RMS "
+        f"{math.degrees(report['gyro_error_rms_rad_s']):.3f} °/s, accelerometer error RMS "
+        f"{report['acc_error_rms_m_s2']:.4f} m/s² before calibration.",
         "",
     ]
     (out / "report.md").write_text("\n".join(md))
@@ -83,7 +92,7 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     print(f"  temperature: {'yes' if rec.temp_c is not None else 'no'}, "
           f"magnetometer: {'yes' if rec.mag_ut is not None else 'no'}, "
           f"truth: {', '.join(rec.truth.channels()) if rec.truth else 'none'}")
-    for key in ("schedule", "hand", "seed", "source", "version"):
+    for key in ("schedule", "hand", "sensor", "seed", "source", "version"):
         if key in rec.meta:
             v = rec.meta[key]
             print(f"  {key}: {v['name'] if isinstance(v, dict) and 'name' in v else v}")
@@ -98,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default="out", help="output folder (default ./out)")
     d.add_argument("--schedule", default="zhou2020")
     d.add_argument("--hand", default="typical")
+    d.add_argument("--sensor", default="zhou2020_sim", help="sensor preset or TOML (default: Zhou 2020 Table 7)")
     d.add_argument("--rate", type=float, default=100.0)
     d.add_argument("--seed", type=int, default=1)
     d.set_defaults(func=cmd_demo)

@@ -32,18 +32,18 @@ def _check_writable(path: Path) -> None:
 def cmd_simulate(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from .simulate import simulate_truth
+    from .sensor_model import load_sensor
+    from .simulate import simulate, simulation_grid
 
     out = Path(args.out)
     _check_writable(out)  # fail before minutes of simulation, not after
     schedule = load_schedule(args.schedule)
     hand = load_hand(args.hand)
-    from .simulate import simulation_grid
-
+    sensor = load_sensor(args.sensor) if args.sensor else None
     grid = simulation_grid(schedule.duration_s, args.rate, args.physics_rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating", disable=args.quiet, leave=False) as bar:
-        rec = simulate_truth(
-            schedule, hand, args.rate, seed=args.seed, physics_rate_hz=args.physics_rate, progress=bar.update
+        rec = simulate(
+            schedule, hand, sensor, args.rate, seed=args.seed, physics_rate_hz=args.physics_rate, progress=bar.update
         )
     save_hdf5(rec, out)
     if not args.quiet:
@@ -51,7 +51,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         dw = rec.truth.omega_body_rad_s - rec.truth.extra["omega_schedule"]
         print(
             f"wrote {out}: {rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s), "
-            f"schedule {schedule.name}, hand {hand.name}, seed {args.seed}; "
+            f"schedule {schedule.name}, hand {hand.name}, sensor {sensor.name if sensor else 'none (truth)'}, "
+            f"seed {args.seed}; "
             f"external acc RMS {math.sqrt(np.mean(np.sum(ext**2, 1))):.4f} m/s², "
             f"rate disturbance RMS {math.degrees(math.sqrt(np.mean(np.sum(dw**2, 1)))):.3f} °/s"
         )
@@ -83,10 +84,26 @@ def cmd_schedules(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
-    from .bench import run_bench
+def cmd_sensors(args: argparse.Namespace) -> int:
+    from .sensor_model import load_sensor, sensor_preset_names
 
-    run_bench(repeats=args.repeats, schedule=args.schedule, hand=args.hand, rate_hz=args.rate)
+    for name in sensor_preset_names():
+        m = load_sensor(name)
+        print(f"{name:<22} gyro: {', '.join(e.kind for e in m.gyro)}")
+        print(f"{'':<22} accelerometer: {', '.join(e.kind for e in m.accelerometer)}")
+        print(f"{'':<22} {m.description}")
+    if args.show:
+        print(json.dumps(load_sensor(args.show).to_dict(), indent=2))
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import run_bench, run_sensor_bench
+
+    if args.what in ("all", "scene"):
+        run_bench(repeats=args.repeats, schedule=args.schedule, hand=args.hand, rate_hz=args.rate)
+    if args.what in ("all", "sensor"):
+        run_sensor_bench(repeats=max(args.repeats, 3), sensor=args.sensor)
     return 0
 
 
@@ -100,6 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--hand", default="typical", help="ideal|steady|typical|shaky or a TOML path")
     s.add_argument("--rate", type=float, default=100.0, help="output sample rate, Hz (default 100)")
     s.add_argument("--physics-rate", type=float, default=1000.0, help="MuJoCo step rate, Hz (default 1000)")
+    s.add_argument("--sensor", default=None, help="sensor preset or TOML path (default: none, /gyro = truth)")
     s.add_argument("--seed", type=int, default=0, help="seed of the random generator (default 0)")
     s.add_argument("--out", required=True, help="output .h5 path")
     s.add_argument("--quiet", action="store_true")
@@ -113,8 +131,15 @@ def build_parser() -> argparse.ArgumentParser:
     sc.add_argument("--show", help="print one schedule as JSON")
     sc.set_defaults(func=cmd_schedules)
 
+    se = sub.add_parser("sensors", help="list sensor presets and their effects")
+    se.add_argument("--show", help="print one preset (SI values) as JSON")
+    se.set_defaults(func=cmd_sensors)
+
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
+    b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",
+                   help="scene: simulation vs bare mujoco.rollout; sensor: error model vs bare numpy")
     b.add_argument("--repeats", type=int, default=3)
+    b.add_argument("--sensor", default="mpu9250")
     b.add_argument("--schedule", default="zhou2020")
     b.add_argument("--hand", default="typical")
     b.add_argument("--rate", type=float, default=100.0)

@@ -26,7 +26,11 @@ from .rotations import quat_conjugate, quat_rotate
 from .scene import ArmPose, HandScene
 from .schedule import Schedule, load_schedule
 
-__all__ = ["SimulationGrid", "simulation_grid", "simulate_truth"]
+__all__ = ["SimulationGrid", "simulation_grid", "simulate_truth", "simulate", "apply_sensor", "EARTH_FIELD_ENU_UT"]
+
+# Geomagnetic field at the simulated site (µT, ENU): 48° N, central Europe (WMM-class values:
+# 20 µT north, 44 µT down); only effects that need a magnetic field read it.
+EARTH_FIELD_ENU_UT = np.array([1.5, 20.0, -44.0])
 
 
 @dataclass(frozen=True)
@@ -198,3 +202,72 @@ def _pick(motion: HandMotion, idx: np.ndarray) -> HandMotion:
 
 def _pick_arm(arm: ArmPose, idx: np.ndarray) -> ArmPose:
     return ArmPose(*(getattr(arm, f)[idx] for f in arm.__dataclass_fields__))
+
+
+def signal_context(rec: Recording) -> "SignalContext":
+    """The :class:`~gyrosim.effects.SignalContext` of a truth recording (magnetic field from
+    :data:`EARTH_FIELD_ENU_UT` rotated into the body frame)."""
+    from .effects import SignalContext
+
+    t = rec.truth
+    if t is None or t.omega_body_rad_s is None or t.specific_force_body_m_s2 is None:
+        raise GyrosimError("applying a sensor model needs a recording with truth omega and specific force")
+    mag = quat_rotate(quat_conjugate(t.quat_nb), EARTH_FIELD_ENU_UT) if t.quat_nb is not None else None
+    return SignalContext(
+        t_s=rec.t_s,
+        omega_true_rad_s=t.omega_body_rad_s,
+        specific_force_true_m_s2=t.specific_force_body_m_s2,
+        temperature_c=rec.temp_c,
+        quat_nb=t.quat_nb,
+        mag_body_ut=mag,
+    )
+
+
+def apply_sensor(
+    truth: Recording, sensor: "SensorModel | str", rng: np.random.Generator, *, realize: bool = True
+) -> Recording:
+    """Corrupt a truth recording with a sensor model; returns a new Recording (input untouched).
+
+    Draws one device (``sensor.realize``) unless ``realize`` is False, computes the sensor
+    temperature from the model's thermal model (power-on at the first sample), and stores the
+    device's exact model (drawn values, SI) as JSON in ``meta['sensor_model']``.
+    Random streams: ``rng.spawn(2)`` → (device draw, measurement noise).
+    """
+    from .sensor_model import SensorModel, load_sensor
+
+    model: SensorModel = load_sensor(sensor) if isinstance(sensor, (str, Path)) else sensor
+    device_rng, noise_rng = rng.spawn(2)
+    device = model.realize(device_rng) if realize else model
+    temp = device.thermal.temperature(truth.t_s) if device.thermal is not None else truth.temp_c
+    with_temp = truth.with_signals(temp_c=temp)
+    ctx = signal_context(with_temp)
+    gyro, acc = device.apply(ctx, noise_rng)
+    meta = dict(truth.meta)
+    meta["sensor_model"] = device.to_json()
+    meta["sensor"] = device.name
+    return with_temp.with_signals(gyro_rad_s=gyro, acc_m_s2=acc, meta=meta)
+
+
+def simulate(
+    schedule: Schedule | str = "zhou2020",
+    hand: Hand | str = "typical",
+    sensor: "SensorModel | str | None" = None,
+    rate_hz: float = 100.0,
+    *,
+    seed: int | None = None,
+    physics_rate_hz: float = 1000.0,
+    scene: HandScene | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> Recording:
+    """Simulate a session and (if ``sensor`` is given) corrupt it with one drawn device.
+
+    Seeding: ``default_rng(seed).spawn(2)`` → (hand motion, sensor), so the truth of a seed is
+    the same with or without a sensor model.
+    """
+    hand_rng, sensor_rng = np.random.default_rng(seed).spawn(2)
+    rec = simulate_truth(schedule, hand, rate_hz, rng=hand_rng, physics_rate_hz=physics_rate_hz,
+                         scene=scene, progress=progress)
+    rec = rec.with_signals(meta={**rec.meta, "seed": -1 if seed is None else int(seed)})
+    if sensor is None:
+        return rec
+    return apply_sensor(rec, sensor, sensor_rng)
