@@ -62,6 +62,11 @@ class SignalContext:
     temperature_c: np.ndarray | None = None
     quat_nb: np.ndarray | None = None
     mag_body_ut: np.ndarray | None = None
+    dt_s: float = 0.0  # nominal sample interval (s); 0 → median of Δt, computed once
+
+    def __post_init__(self) -> None:
+        if not self.dt_s:
+            object.__setattr__(self, "dt_s", float(np.median(np.diff(self.t_s))))
 
     @property
     def n(self) -> int:
@@ -69,16 +74,13 @@ class SignalContext:
 
     @property
     def rate_hz(self) -> float:
-        return float(1.0 / np.median(np.diff(self.t_s)))
-
-    @property
-    def dt_s(self) -> float:
-        return float(np.median(np.diff(self.t_s)))
+        return 1.0 / self.dt_s
 
     def rows(self, sl: slice) -> "SignalContext":
-        """The samples in ``sl`` (views, no copies)."""
+        """The samples in ``sl`` (views, no copies), same nominal Δt."""
         return SignalContext(*(None if v is None else v[sl] for v in (
-            self.t_s, self.omega_true_rad_s, self.specific_force_true_m_s2, self.temperature_c, self.quat_nb, self.mag_body_ut)))
+            self.t_s, self.omega_true_rad_s, self.specific_force_true_m_s2, self.temperature_c, self.quat_nb,
+            self.mag_body_ut)), dt_s=self.dt_s)
 
     def require(self, name: str, effect: str) -> np.ndarray:
         v = getattr(self, name)
@@ -156,9 +158,28 @@ class Effect:
         """∂δ/∂x (N, 3, 3), or None when δ does not depend on x."""
         return None
 
+    def affine(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(A, c) if δ = A x + c with constant A (3×3) and c (3,), else None.  A sensor model sums
+        these over effects and applies them in one pass (exact: the terms simply add)."""
+        return None
+
     def add_delta(self, y: np.ndarray, x: np.ndarray, ctx: SignalContext, rng: np.random.Generator | None) -> None:
         """y += δ(x, ctx) in place (hot effects override it to avoid temporaries)."""
         y += self.delta(x, ctx, rng)
+
+    def coarse_step_s(self, white_density: np.ndarray, dt_s: float) -> float | None:
+        """For a slow random process: the longest grid step on which it may be drawn and then
+        linearly interpolated, given the white-noise density N of the same triad.
+
+        The step Δc is chosen so that above the coarse Nyquist frequency 1/(2Δc) the process's PSD
+        is below 1 % of the white PSD N²: what the coarse grid omits is < 1 % of the noise already
+        there.  None: not a slow process (draw it per sample).
+        """
+        return None
+
+    def delta_on_grid(self, n: int, dt_s: float, rng: np.random.Generator) -> np.ndarray:
+        """(n, 3) realisation on a uniform grid of step ``dt_s`` (slow processes only)."""
+        raise NotImplementedError
 
     def psd_two_sided(self, f_hz: np.ndarray) -> np.ndarray | None:
         """Two-sided PSD (3, F) of a stationary Gaussian noise effect, else None.
@@ -232,6 +253,9 @@ class Bias(Effect):
     def add_delta(self, y, x, ctx, rng=None):
         y += self.value
 
+    def affine(self):
+        return np.zeros((3, 3)), self.value
+
     def sensitivity(self, x, ctx):
         return np.broadcast_to(np.eye(3), x.shape + (3,)).copy()
 
@@ -271,6 +295,9 @@ class ScaleFactor(Effect):
     def add_delta(self, y, x, ctx, rng=None):
         y += x * self.value
 
+    def affine(self):
+        return np.diag(self.value), np.zeros(3)
+
     def delta_dx(self, x, ctx):
         return np.broadcast_to(np.diag(self.value), x.shape + (3,))
 
@@ -303,6 +330,9 @@ class NonOrthogonality(Effect):
 
     def delta(self, x, ctx, rng=None):
         return x @ _nonortho_matrix(self.value).T
+
+    def affine(self):
+        return _nonortho_matrix(self.value), np.zeros(3)
 
     def delta_dx(self, x, ctx):
         return np.broadcast_to(_nonortho_matrix(self.value), x.shape + (3,))
@@ -342,6 +372,9 @@ class Misalignment(Effect):
 
     def delta(self, x, ctx, rng=None):
         return x @ self.matrix().T
+
+    def affine(self):
+        return self.matrix(), np.zeros(3)
 
     def delta_dx(self, x, ctx):
         return np.broadcast_to(self.matrix(), x.shape + (3,))
@@ -622,6 +655,11 @@ class WhiteNoise(Effect):
         rng = _need_rng(rng, self.kind)
         return rng.standard_normal(x.shape) * (self.density * math.sqrt(ctx.rate_hz))
 
+    def add_delta(self, y, x, ctx, rng=None):
+        w = _need_rng(rng, self.kind).standard_normal(x.shape)
+        w *= self.density * math.sqrt(ctx.rate_hz)
+        y += w
+
     def psd_two_sided(self, f_hz):
         return np.broadcast_to((self.density**2)[:, None], (3, f_hz.size))
 
@@ -658,15 +696,28 @@ class BiasInstability(Effect):
             raise GyrosimError("bias_instability tau_s must be > 0 s")
 
     def delta(self, x, ctx, rng=None):
-        rng = _need_rng(rng, self.kind)
-        n, fs = x.shape[0], ctx.rate_hz
+        return self.delta_on_grid(x.shape[0], ctx.dt_s, _need_rng(rng, self.kind))
+
+    def delta_on_grid(self, n, dt_s, rng):
         if self.model == "gauss_markov":
-            phi = math.exp(-1.0 / (fs * self.tau_s))
+            phi = math.exp(-dt_s / self.tau_s)
             sigma = self.value / 0.664
-            w = rng.standard_normal(x.shape) * sigma * math.sqrt(1 - phi**2)
+            w = rng.standard_normal((n, 3)) * sigma * math.sqrt(1 - phi**2)
             w[0] = rng.standard_normal(3) * sigma
             return sp_signal.lfilter([1.0], [1.0, -phi], w, axis=0)
-        return spectral_noise([self], n, fs, rng)
+        return spectral_noise([self], n, 1.0 / dt_s, rng)
+
+    def coarse_step_s(self, white_density, dt_s):
+        # flicker: B²/(2π f) ≤ 0.01 N²  ⇔  f ≥ 100 B²/(2π N²);  Gauss–Markov (σ², τ): its PSD
+        # 2σ²τ/(1 + (2πfτ)²) ≤ 2σ²/(τ(2πf)²) ≤ 0.01 N²  ⇔  f ≥ √(200 σ²/τ)/(2π N)
+        if np.any(white_density <= 0):
+            return None
+        if self.model == "flicker":
+            f_min = float(np.max(100 * self.value**2 / (2 * math.pi * white_density**2)))
+        else:
+            sigma = self.value / 0.664
+            f_min = float(np.max(np.sqrt(200 * sigma**2 / self.tau_s) / (2 * math.pi * white_density)))
+        return 1.0 / (2.0 * f_min) if f_min > 0 else None
 
     def psd_two_sided(self, f_hz):
         if self.model != "flicker":
@@ -697,12 +748,21 @@ class RandomWalk(Effect):
         object.__setattr__(self, "value", v)
 
     def delta(self, x, ctx, rng=None):
-        rng = _need_rng(rng, self.kind)
-        steps = rng.standard_normal((3, x.shape[0]))  # (3, N): cumsum along contiguous rows
+        return self.delta_on_grid(x.shape[0], ctx.dt_s, _need_rng(rng, self.kind))
+
+    def delta_on_grid(self, n, dt_s, rng):
+        steps = rng.standard_normal((3, n))  # (3, N): cumsum along contiguous rows
         steps[:, 0] = 0.0
         np.cumsum(steps, axis=1, out=steps)
-        steps *= (self.value * math.sqrt(ctx.dt_s))[:, None]
+        steps *= (self.value * math.sqrt(dt_s))[:, None]
         return steps.T
+
+    def coarse_step_s(self, white_density, dt_s):
+        # K²/(2πf)² ≤ 0.01 N²  ⇔  f ≥ 10 K / (2π N)
+        if np.any(white_density <= 0):
+            return None
+        f_min = float(np.max(10 * self.value / (2 * math.pi * white_density)))
+        return 1.0 / (2.0 * f_min) if f_min > 0 else None
 
 
 # ================================================================ output-stage effects
@@ -726,8 +786,7 @@ class Bandwidth(Effect):
 
     def transform(self, y, ctx, rng=None):
         a = self._a(ctx)
-        rows = np.ascontiguousarray(y.T)  # filter along contiguous rows
-        return sp_signal.lfilter([1 - a], [1, -a], rows, axis=1, zi=a * rows[:, :1])[0].T
+        return sp_signal.lfilter([1 - a], [1, -a], y, axis=0, zi=a * y[:1])[0]
 
     def inverse(self, y, ctx):
         a = self._a(ctx)
@@ -809,7 +868,7 @@ class Quantization(Effect):
 
     def transform(self, y, ctx, rng=None):
         out = y * (1.0 / self.lsb)
-        np.round(out, out=out)
+        np.rint(out, out=out)
         out *= self.lsb
         return out
 
@@ -837,7 +896,9 @@ class Saturation(Effect):
         object.__setattr__(self, "range", v)
 
     def transform(self, y, ctx, rng=None):
-        return np.minimum(np.maximum(y, -self.range), self.range)
+        out = np.maximum(y, -self.range)
+        np.minimum(out, self.range, out=out)
+        return out
 
     def saturated(self, y: np.ndarray) -> np.ndarray:
         return np.abs(y) >= self.range * (1 - 1e-12)

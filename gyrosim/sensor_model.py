@@ -2,9 +2,10 @@
 
 Forward (simulation), per triad with true input x:
 
-    u = x + Σ_{error effects} δ_i(x, ctx)        (order-free; stationary Gaussian noises —
-                                                   white, flicker — drawn jointly from their
-                                                   summed PSD, see effects.spectral_noise)
+    u = x + Σ_{error effects} δ_i(x, ctx)        (order-free; slow random processes — flicker,
+                                                   random walk, Gauss–Markov — are drawn on a
+                                                   coarse grid where the triad's white noise
+                                                   hides what it omits, Effect.coarse_step_s)
     y = T_m ∘ … ∘ T_1 (u)                          (output effects, in list order)
 
 Compensation (estimation) undoes the deterministic part: the output effects in reverse order
@@ -27,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .effects import EFFECTS, Effect, SignalContext, effect_from_dict, spectral_noise
+from .effects import EFFECTS, Effect, SignalContext, effect_from_dict
 from .errors import GyrosimError, PresetError
 from .thermal import ThermalModel
 from .units import to_si
@@ -101,19 +102,32 @@ class SensorModel:
     def apply_triad(self, triad: str, x: np.ndarray, ctx: SignalContext, rng: np.random.Generator) -> np.ndarray:
         """Corrupt the true signal x (N, 3) of one triad. ``x`` is not modified."""
         effs = self.effects(triad)
-        streams = rng.spawn(len(effs) + 1) if effs else []
+        streams = rng.spawn(len(effs)) if effs else []
         y = np.array(x, dtype=float, copy=True)
-        spectral = [e for e in effs if e.stage == "error" and e.psd_two_sided(np.zeros(1)) is not None]
-        if all(e.kind == "white_noise" for e in spectral):
-            spectral = []  # white alone: a plain per-sample draw is cheaper than a spectrum
-        if spectral:  # stationary Gaussian noises: one joint frequency-domain draw (effects.spectral_noise)
-            y += spectral_noise(spectral, x.shape[0], ctx.rate_hz, streams[-1])
-        error = [(e, r) for e, r in zip(effs, streams) if e.stage == "error" and e not in spectral]
+        white = sum((e.density for e in effs if e.kind == "white_noise"), np.zeros(3))
+        error = [(e, r) for e, r in zip(effs, streams) if e.stage == "error"]
         for e, r in error:
-            if not e.pointwise:
+            if e.pointwise:
+                continue
+            step = e.coarse_step_s(white, ctx.dt_s) if e.stochastic else None
+            factor = int(step // ctx.dt_s) if step is not None else 1
+            if factor >= 4:  # slow process: draw on a coarse grid, interpolate linearly (Effect.coarse_step_s)
+                y += _upsample_linear(e.delta_on_grid((x.shape[0] - 1) // factor + 2, factor * ctx.dt_s, r),
+                                      factor, x.shape[0])
+            else:
                 e.add_delta(y, x, ctx, r)
-        # pointwise effects run block by block, so their passes over the data stay in cache
-        pointwise = [e for e, _ in error if e.pointwise]
+        # constant affine effects (bias, scale, non-orthogonality, misalignment): one pass
+        affine = [(e, e.affine()) for e, _ in error if e.pointwise and e.affine() is not None]
+        if affine:
+            a_sum = sum(a for _, (a, _) in affine)
+            c_sum = sum(c for _, (_, c) in affine)
+            for j in range(3):  # y += x A^T + c, column by column (cheaper than a (N,3)x(3,3) matmul)
+                if np.any(a_sum[:, j]):
+                    y += x[:, j : j + 1] * a_sum[:, j]
+            y += c_sum
+        grouped = {id(e) for e, _ in affine}
+        # other pointwise effects run block by block, so their passes over the data stay in cache
+        pointwise = [e for e, _ in error if e.pointwise and id(e) not in grouped]
         if pointwise:
             for start in range(0, x.shape[0], _BLOCK):
                 sl = slice(start, start + _BLOCK)
@@ -201,6 +215,13 @@ class SensorModel:
             source=d.get("source", ""),
             notes=dict(d.get("notes", {})),
         )
+
+
+def _upsample_linear(coarse: np.ndarray, factor: int, n: int) -> np.ndarray:
+    """Linear interpolation of (m, 3) samples at step ``factor`` onto the first n fine samples."""
+    frac = (np.arange(factor) / factor)[None, :, None]
+    fine = coarse[:-1, None, :] + (coarse[1:] - coarse[:-1])[:, None, :] * frac
+    return fine.reshape(-1, 3)[:n]
 
 
 # ================================================================ presets in datasheet units
