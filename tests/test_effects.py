@@ -121,9 +121,10 @@ def test_allan_deviation_recovers_the_mpu9250_noise_terms(tmp_path):
     """2 h static at 100 Hz, all three gyro axes pooled.
 
     Expected Allan confidence for this length (Monte Carlo over 12 seeds, README "Allan"):
-    N ±0.1 %, B ±2.2 %, K ±8.2 % (1σ), all unbiased.  N and B are held to the 10 % asked for
-    (≥ 4.5σ).  K cannot be: its information in 2 h is ~T/τ_cross ≈ 100 RRW-dominated samples, so
-    "within 10 %" holds for only ~78 % of 2-hour records; it is held to 25 % (3σ) here.
+    N ±0.1 %, B ±2.8 %, K ±10.7 % (1σ), unbiased within the Monte Carlo error.  N and B are held
+    to the 10 % asked for (≥ 3.5σ).  K cannot be: its information in 2 h is ~T/τ_cross ≈ 100
+    RRW-dominated samples, so "within 10 %" holds for only ~65 % of 2-hour records; it is held to
+    32 % (3σ) here.
     """
     from calib.allan import allan_deviation, fit_noise_terms, plot_allan
 
@@ -137,7 +138,7 @@ def test_allan_deviation_recovers_the_mpu9250_noise_terms(tmp_path):
     truth = {e.kind: e for e in noise.gyro}
     assert fit.arw == pytest.approx(truth["white_noise"].density[0], rel=0.10)
     assert fit.bias_instability == pytest.approx(truth["bias_instability"].value[0], rel=0.10)
-    assert fit.rate_random_walk == pytest.approx(truth["random_walk"].value[0], rel=0.25)
+    assert fit.rate_random_walk == pytest.approx(truth["random_walk"].value[0], rel=0.32)
     png = plot_allan(curves, fit, tmp_path / "allan.png", unit_scale=3600 / DEG, unit="°/h")
     assert png.stat().st_size > 10_000
 
