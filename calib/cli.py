@@ -79,6 +79,43 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_run(args: argparse.Namespace) -> int:
+    """Calibrate a recording; print the result; write JSON and .rrd if asked."""
+    from .calibrate import calibrate, true_gyro_parameters
+    from .inputs import load_recording
+
+    for out in (args.json, args.rrd):
+        if out and not Path(out).resolve().parent.is_dir():
+            raise GyrosimError(f"cannot write {out}: its folder does not exist")
+    rec = load_recording(args.recording, gyro_unit=args.gyro_unit, acc_unit=args.acc_unit)
+    result = calibrate(rec, args.method, external_acc_allowance_m_s2=args.external_acc)
+    d = result.to_dict()
+    g = d["gyro"]
+    print(f"{args.recording}: method {result.method}, rest {d['rest_segments'][:3]}{' …' if len(d['rest_segments']) > 3 else ''}")
+    for name, key, scale, unit in (("bias", "bias_rad_s", 180 / math.pi, "°/s"), ("scale factor", "scale_factor", 1, ""),
+                                   ("non-orthogonality", "nonorthogonality", 1, "")):
+        v = np.asarray(g[key]) * scale
+        s = np.asarray(g["std"][key]) * scale
+        print(f"  {name:<18} " + "  ".join(f"{a:+.5f}±{b:.5f}" for a, b in zip(v, s)) + f" {unit}")
+    truth = true_gyro_parameters(rec)
+    if truth is not None:
+        err_s = result.scale_factor - truth["scale_factor"]
+        err_g = result.nonorthogonality - truth["nonorthogonality"]
+        print(f"  error vs truth: S {np.round(err_s, 5).tolist()}, G {np.round(err_g, 5).tolist()}")
+        d["truth"] = {k: v.tolist() for k, v in truth.items()}
+    for w in result.warnings:
+        print(f"  warning: {w}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(d, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    if args.rrd:
+        from .viz_rerun import save_calibration_rrd
+
+        save_calibration_rrd(args.rrd, rec, result, truth)
+        print(f"wrote {args.rrd}; open it with:  rerun {args.rrd}")
+    return 0
+
+
 def cmd_inspect(args: argparse.Namespace) -> int:
     """Summarise a recording: length, rate, channels, truth and the hand's disturbance if known."""
     from gyrosim.recording import load_hdf5
@@ -111,6 +148,16 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--rate", type=float, default=100.0)
     d.add_argument("--seed", type=int, default=1)
     d.set_defaults(func=cmd_demo)
+    r = sub.add_parser("run", help="calibrate a recording (HDF5 or CSV): bias, scale factor, non-orthogonality")
+    r.add_argument("recording")
+    r.add_argument("--method", default="kf", choices=("kf",))
+    r.add_argument("--json", help="write the result as JSON")
+    r.add_argument("--rrd", help="write a rerun recording (P converging, estimates, signals)")
+    r.add_argument("--gyro-unit", default="rad/s", help="unit of the gyro columns (rad/s, deg/s)")
+    r.add_argument("--acc-unit", default="m/s^2", help="unit of the accelerometer columns (m/s^2, g)")
+    r.add_argument("--external-acc", type=float, default=None,
+                   help="allowance for the hand's external acceleration, m/s² RMS (default: from the rest data)")
+    r.set_defaults(func=cmd_run)
     i = sub.add_parser("inspect", help="summarise a recording")
     i.add_argument("recording")
     i.set_defaults(func=cmd_inspect)

@@ -5,7 +5,11 @@ Timeline ``sensor_time`` (s, the recording's own clock).  Entities:
 * ``imu/gyro/{x,y,z}`` (rad/s) and ``imu/acc/{x,y,z}`` (m/s²): the recorded samples, body frame;
 * ``truth/external_acc/{x,y,z}`` (m/s², body) when the recording has truth;
 * ``world/board``: the board's pose (truth attitude body→ENU, position of the accelerometer site)
-  with a box the size of the IMU board; ``world/arm``: shoulder–elbow–wrist line of the hand model.
+  with a box the size of the IMU board; ``world/arm``: shoulder–elbow–wrist line of the hand model;
+* ``calib/P/{phi,S,G}/{x,y,z}``: √diag(P) of the filter (rad; 1) after each update;
+* ``calib/estimate/{S,G}/{x,y,z}``: the estimates; ``calib/estimate/{S,G}/{x,y,z}_true``: the true
+  values as flat lines when the recording knows them (simulation);
+* ``calib/nis``: normalised innovation squared of the two attitude rows (expected 2).
 """
 
 from __future__ import annotations
@@ -60,6 +64,64 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
         for k, tk in enumerate(t[sel]):
             stream.set_time(TIMELINE, duration=float(tk))
             stream.log("world/arm", rr.LineStrips3D([[shoulder, elbow[k], wrist[k], pos[k]]], radii=0.02, colors=[200, 160, 140]))
+
+
+def log_calibration(stream: rr.RecordingStream, result, truth: dict | None = None) -> None:
+    """Log the filter's history: √diag(P), estimates (with truth lines) and NIS on ``sensor_time``."""
+    h = result.history.arrays()
+    t = h["t_s"]
+    sd = np.sqrt(h["p_diag"])
+    for block, cols in (("phi", slice(0, 3)), ("S", slice(3, 6)), ("G", slice(6, 9))):
+        _series(stream, f"calib/P/{block}", t, sd[:, cols])
+    _series(stream, "calib/estimate/S", t, h["scale"])
+    _series(stream, "calib/estimate/G", t, h["nonorthogonality"])
+    stream.send_columns("calib/nis", indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=rr.Scalars.columns(scalars=h["nis"]))
+    if truth is not None:
+        ends = np.array([t[0], t[-1]])
+        for name, key in (("S", "scale_factor"), ("G", "nonorthogonality")):
+            for i, ax in enumerate(AXES):
+                stream.send_columns(
+                    f"calib/estimate/{name}/{ax}_true",
+                    indexes=[rr.TimeColumn(TIMELINE, duration=ends)],
+                    columns=rr.Scalars.columns(scalars=np.full(2, truth[key][i])),
+                )
+
+
+def calibration_blueprint() -> rrb.Blueprint:
+    """Open on P converging and the estimates, with the raw signals and the 3-D view beside."""
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="calib/P/S", name="√P scale factor"),
+                rrb.TimeSeriesView(origin="calib/P/G", name="√P non-orthogonality"),
+                rrb.TimeSeriesView(origin="calib/P/phi", name="√P attitude (rad)"),
+            ),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="calib/estimate/S", name="scale factor (— true)"),
+                rrb.TimeSeriesView(origin="calib/estimate/G", name="non-orthogonality (— true)"),
+                rrb.TimeSeriesView(origin="calib/nis", name="NIS (expected 2)"),
+            ),
+            rrb.Vertical(
+                rrb.Spatial3DView(origin="world", name="hand and board"),
+                rrb.TimeSeriesView(origin="imu/gyro", name="gyro (rad/s)"),
+                rrb.TimeSeriesView(origin="imu/acc", name="accelerometer (m/s²)"),
+            ),
+        ),
+        collapse_panels=True,
+    )
+
+
+def save_calibration_rrd(path: str | Path, rec: Recording, result, truth: dict | None = None,
+                         application_id: str = "gyrosim_calib") -> Path:
+    """Write the recording and the calibration run to an .rrd (open with ``rerun PATH``)."""
+    path = Path(path)
+    stream = rr.RecordingStream(application_id)
+    stream.save(str(path))
+    stream.send_blueprint(calibration_blueprint())
+    log_recording(stream, rec)
+    log_calibration(stream, result, truth)
+    stream.flush()
+    return path
 
 
 def blueprint() -> rrb.Blueprint:

@@ -1,0 +1,165 @@
+"""Static (rest) detection and bias by averaging over rest (Zhou 2020 §3.2, eq. 3).
+
+Rest detection, thresholds from the recording's own noise, not magic numbers:
+
+1. sliding windows of ``window_s`` (default 0.5 s, w samples); per window the summed variance of
+   the three gyro axes v_g and of the three accelerometer axes v_a;
+2. noise floors σ²_g, σ²_a = the 10th percentile of v over the session (the quietest windows: at
+   rest their variance is sensor noise plus hand tremor, both of which the bias average removes);
+3. a window is at rest when v ≤ σ² · q, q = χ²₀.₉₉₉(ν)/ν = 4.6 with ν = 4: at rest the signal
+   may be narrowband hand tremor (8–12 Hz), which has only ~2·4 Hz·0.5 s = 4 degrees of freedom
+   in a window, so the variance test is loose and only rejects clear motion; both triads must
+   pass;
+   and when its gyro mean m lies at the rest level: w‖m − b₀‖² / (σ²_g/3) ≤ χ²₀.₉₉₉(3) = 16.3,
+   b₀ the densest cluster of the low-variance windows' means (the unknown bias).  The mean test
+   is what separates a slow smooth rotation from rest when the gyro noise is large (Zhou's
+   Table 7 noise: 5 °/s per sample hides a 0.2 rad/s change within a window);
+4. runs of rest windows, merged across gaps shorter than one window, at least
+   ``min_segment_s`` long are rest segments.
+
+Limit: a constant-rate rotation about the vertical for a whole recording looks exactly like a
+biased gyro at rest to these tests (gravity stays put); a calibration session starts at rest.
+
+Bias (§3.2): the mean gyro output over the first rest segment; its standard error from batch
+means (10 batches), which stays honest when tremor makes the samples correlated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from gyrosim.errors import RecordingError
+from gyrosim.recording import Recording
+
+__all__ = ["RestSegments", "detect_rest", "BiasEstimate", "static_bias"]
+
+
+@dataclass(frozen=True)
+class RestSegments:
+    """Rest segments as sample index ranges [start, stop) and times (s), with the thresholds used."""
+
+    index_ranges: tuple[tuple[int, int], ...]
+    times_s: tuple[tuple[float, float], ...]
+    window_samples: int
+    gyro_floor_rad2_s2: float
+    acc_floor_m2_s4: float
+    quantile_factor: float
+
+    @property
+    def mask(self) -> np.ndarray:
+        n = self.index_ranges[-1][1] if self.index_ranges else 0
+        m = np.zeros(n, dtype=bool)
+        for a, b in self.index_ranges:
+            m[a:b] = True
+        return m
+
+    def to_list(self) -> list[list[float]]:
+        return [[round(a, 6), round(b, 6)] for a, b in self.times_s]
+
+
+def _sliding_var(x: np.ndarray, w: int) -> np.ndarray:
+    """Summed per-axis variance over centred windows of w samples (edges use the nearest full window)."""
+    c1 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    c2 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x * x, axis=0)])
+    s1 = c1[w:] - c1[:-w]
+    s2 = c2[w:] - c2[:-w]
+    var = np.maximum(s2 / w - (s1 / w) ** 2, 0.0).sum(axis=1) * w / (w - 1)
+    half = w // 2
+    out = np.empty(x.shape[0])
+    out[half : half + var.size] = var
+    out[:half] = var[0]
+    out[half + var.size :] = var[-1]
+    return out
+
+
+def _sliding_mean(x: np.ndarray, w: int) -> np.ndarray:
+    c1 = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    m = (c1[w:] - c1[:-w]) / w
+    half = w // 2
+    out = np.empty_like(x)
+    out[half : half + m.shape[0]] = m
+    out[:half] = m[0]
+    out[half + m.shape[0] :] = m[-1]
+    return out
+
+
+def _densest(points: np.ndarray, radius: float) -> np.ndarray:
+    """The point with the most neighbours within ``radius`` (the mode of a 3-D cloud)."""
+    if points.shape[0] == 0:
+        return np.zeros(3)
+    if points.shape[0] > 2000:
+        points = points[:: points.shape[0] // 2000 + 1]
+    d2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=2)
+    k = int(np.argmax(np.sum(d2 <= radius**2, axis=1)))
+    return points[np.sum((points - points[k]) ** 2, axis=1) <= radius**2].mean(axis=0)
+
+
+def detect_rest(rec: Recording, window_s: float = 0.5, min_segment_s: float = 1.0) -> RestSegments:
+    """Find the rest segments of ``rec`` (see module docstring)."""
+    fs = rec.rate_hz
+    w = max(5, int(round(window_s * fs)))
+    if rec.n < 4 * w:
+        raise RecordingError(f"recording of {rec.n} samples is too short for rest detection (need ≥ {4 * w})")
+    # remove a running offset so slow drifts do not count as motion: variance is offset-free already
+    vg = _sliding_var(rec.gyro_rad_s, w)
+    va = _sliding_var(rec.acc_m_s2, w)
+    floor_g = float(np.percentile(vg, 10))
+    floor_a = float(np.percentile(va, 10))
+    dof = 4  # narrowband tremor: ~4 degrees of freedom per window (module docstring)
+    q = float(stats.chi2.ppf(0.999, dof) / dof)
+    quiet = (vg <= floor_g * q) & (va <= floor_a * q)
+    means = _sliding_mean(rec.gyro_rad_s, w)
+    level = _densest(means[quiet][:: max(1, w // 2)], math.sqrt(floor_g / 3 / w) * math.sqrt(stats.chi2.ppf(0.999, 3)))
+    dist2 = np.sum((means - level) ** 2, axis=1) * w / (floor_g / 3)
+    rest = quiet & (dist2 <= stats.chi2.ppf(0.999, 3))
+    edges = np.diff(np.concatenate([[0], rest.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    if starts.size > 1:  # merge runs split by a few rejected windows (0.1 % false alarms per window)
+        keep = np.concatenate([[True], starts[1:] - stops[:-1] > w])
+        starts = starts[keep]
+        stops = np.concatenate([stops[:-1][keep[1:]], stops[-1:]])
+    min_len = int(math.ceil(min_segment_s * fs))
+    ranges = tuple((int(a), int(b)) for a, b in zip(starts, stops) if b - a >= min_len)
+    times = tuple((float(rec.t_s[a]), float(rec.t_s[b - 1])) for a, b in ranges)
+    return RestSegments(ranges, times, w, floor_g, floor_a, q)
+
+
+@dataclass(frozen=True)
+class BiasEstimate:
+    """Gyro bias (rad/s, body frame) with its standard error, and the samples it came from."""
+
+    value_rad_s: np.ndarray
+    std_rad_s: np.ndarray
+    index_range: tuple[int, int]
+    time_range_s: tuple[float, float]
+
+
+def static_bias(rec: Recording, rest: RestSegments, min_rest_s: float = 2.0) -> BiasEstimate:
+    """Zhou 2020 eq. 3: b = mean of the gyro over the first rest segment.
+
+    Raises RecordingError if there is no rest segment, or the first is shorter than ``min_rest_s``
+    (its average would carry the motion edges and too little data; the message gives what it
+    would have achieved).
+    """
+    if not rest.index_ranges:
+        raise RecordingError(
+            "no rest period found: the bias is the average of the gyro at rest (Zhou 2020 §3.2); start the "
+            f"session with ≥ {min_rest_s:g} s of holding still, or give the bias yourself"
+        )
+    a, b = rest.index_ranges[0]
+    seg = rec.gyro_rad_s[a:b]
+    dur = float(rec.t_s[b - 1] - rec.t_s[a])
+    batches = np.array_split(seg, 10)
+    means = np.array([m.mean(axis=0) for m in batches])
+    std = means.std(axis=0, ddof=1) / math.sqrt(len(batches))
+    if dur < min_rest_s:
+        raise RecordingError(
+            f"the first rest period lasts {dur:.2f} s (t = {rec.t_s[a]:.2f}–{rec.t_s[b - 1]:.2f} s), shorter than "
+            f"the {min_rest_s:g} s needed; its bias would be uncertain to ±{np.degrees(std.max()):.3f} °/s: "
+            "hold still longer at the start"
+        )
+    return BiasEstimate(seg.mean(axis=0), std, (a, b), (float(rec.t_s[a]), float(rec.t_s[b - 1])))
