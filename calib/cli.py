@@ -20,7 +20,7 @@ def _rms(x: np.ndarray) -> float:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """The main job: simulate the hand-held zhou2020 session, write recording, report and .rrd."""
+    """The main job: simulate the hand-held session, calibrate it, write recording, report and .rrd."""
     from tqdm import tqdm
 
     from gyrosim.hand import load_hand
@@ -29,7 +29,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from gyrosim.sensor_model import load_sensor
     from gyrosim.simulate import simulate, simulation_grid
 
-    from .viz_rerun import save_session_rrd
+    from .calibrate import calibrate, true_gyro_parameters
+    from .report import write_session_report
+    from .viz_rerun import save_calibration_rrd
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -40,41 +42,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating session", leave=False) as bar:
         rec = simulate(schedule, hand, sensor, args.rate, seed=args.seed, progress=bar.update)
     rec_path = save_hdf5(rec, out / "session.h5")
-    expected = hand.expected_disturbance(schedule)
-    ext = _rms(rec.truth.extra["external_acc"])
-    rate = _rms(rec.truth.omega_body_rad_s - rec.truth.extra["omega_schedule"])
-    report = {
-        "recording": rec_path.name,
-        "schedule": schedule.name,
-        "hand": hand.name,
-        "sensor": sensor.name,
-        "seed": args.seed,
-        "rate_hz": args.rate,
-        "duration_s": rec.duration_s,
-        "external_acc_rms_m_s2": {"measured": ext, "expected": expected["external_acc_rms_m_s2"]},
-        "rate_disturbance_rms_rad_s": {"measured": rate, "expected": expected["rate_disturbance_rms_rad_s"]},
-        "gyro_error_rms_rad_s": _rms(rec.gyro_rad_s - rec.truth.omega_body_rad_s),
-        "acc_error_rms_m_s2": _rms(rec.acc_m_s2 - rec.truth.specific_force_body_m_s2),
-    }
-    (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
-    md = [
-        f"# Hand-held session: {schedule.name}, hand `{hand.name}`, sensor `{sensor.name}`, seed {args.seed}",
-        "",
-        f"{rec.n} samples at {args.rate:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo; recording `{rec_path.name}`.",
-        "",
-        "| disturbance at the IMU (RMS) | measured | expected from the hand preset |",
-        "|---|---|---|",
-        f"| external acceleration (m/s²) | {ext:.4f} | {expected['external_acc_rms_m_s2']:.4f} |",
-        f"| rate disturbance (°/s) | {math.degrees(rate):.3f} | {math.degrees(expected['rate_disturbance_rms_rad_s']):.3f} |",
-        "",
-        f"Sensor `{sensor.name}` ({sensor.description}): gyro error RMS "
-        f"{math.degrees(report['gyro_error_rms_rad_s']):.3f} °/s, accelerometer error RMS "
-        f"{report['acc_error_rms_m_s2']:.4f} m/s² before calibration.",
-        "",
-    ]
-    (out / "report.md").write_text("\n".join(md))
-    rrd = save_session_rrd(out / "session.rrd", rec)
-    print(f"wrote {rec_path}, {out / 'report.md'}, {out / 'report.json'} and {rrd}")
+    print(f"calibrating {rec.n} samples (Zhou 2020 filter) …", flush=True)
+    result = calibrate(rec, "kf")
+    truth = true_gyro_parameters(rec)
+    report = write_session_report(out, rec, result, truth, schedule=schedule, hand=hand, sensor=sensor, seed=args.seed)
+    rrd = save_calibration_rrd(out / "session.rrd", rec, result, truth)
+    print(f"wrote {rec_path}, {report}, {out / 'report.json'} and {rrd}")
     print(f"open the recording with:  rerun {rrd}")
     return 0
 
