@@ -10,8 +10,9 @@ Rest detection, thresholds from the recording's own noise, not magic numbers:
    may be narrowband hand tremor (8–12 Hz), which has only ~2·4 Hz·0.5 s = 4 degrees of freedom
    in a window, so the variance test is loose and only rejects clear motion; both triads must
    pass;
-   and when its gyro mean m lies at the rest level: w‖m − b₀‖² / (σ²_g/3) ≤ χ²₀.₉₉₉(3) = 16.3,
-   b₀ the densest cluster of the low-variance windows' means (the unknown bias).  The mean test
+   and when its gyro mean m lies at the rest level: w‖m − b₀(t)‖² / (σ²_g/3) ≤ χ²₀.₉₉₉(3) = 16.3,
+   b₀(t) the densest cluster of the low-variance windows' means within ±20 s (the unknown bias,
+   local because it drifts: a warming MPU-9250 moves it by 0.09 °/s over the zhou2020 session).  The mean test
    is what separates a slow smooth rotation from rest when the gyro noise is large (Zhou's
    Table 7 noise: 5 °/s per sample hides a 0.2 rad/s change within a window);
 4. runs of rest windows, merged across gaps shorter than one window, at least
@@ -98,6 +99,26 @@ def _densest(points: np.ndarray, radius: float) -> np.ndarray:
     return points[np.sum((points - points[k]) ** 2, axis=1) <= radius**2].mean(axis=0)
 
 
+def _local_level(t: np.ndarray, means: np.ndarray, quiet: np.ndarray, w: int, radius: float,
+                 half_span_s: float = 20.0, every_s: float = 5.0) -> np.ndarray:
+    """b₀(t): densest cluster of quiet-window means within ±half_span_s, every ``every_s`` (s),
+    carried to every sample from the nearest centre that has quiet windows."""
+    centres = np.arange(t[0], t[-1] + every_s, every_s)
+    idx = np.flatnonzero(quiet)[:: max(1, w // 2)]
+    levels = np.full((centres.size, 3), np.nan)
+    for i, c in enumerate(centres):
+        near = idx[np.abs(t[idx] - c) <= half_span_s]
+        if near.size:
+            levels[i] = _densest(means[near], radius)
+    ok = ~np.isnan(levels[:, 0])
+    if not ok.any():
+        return np.zeros_like(means)
+    nearest = np.abs(centres[:, None] - centres[ok][None, :]).argmin(axis=1)
+    levels = levels[ok][nearest]
+    pos = np.clip(np.round((t - centres[0]) / every_s).astype(int), 0, centres.size - 1)
+    return levels[pos]
+
+
 def detect_rest(rec: Recording, window_s: float = 0.5, min_segment_s: float = 1.0) -> RestSegments:
     """Find the rest segments of ``rec`` (see module docstring)."""
     fs = rec.rate_hz
@@ -113,7 +134,8 @@ def detect_rest(rec: Recording, window_s: float = 0.5, min_segment_s: float = 1.
     q = float(stats.chi2.ppf(0.999, dof) / dof)
     quiet = (vg <= floor_g * q) & (va <= floor_a * q)
     means = _sliding_mean(rec.gyro_rad_s, w)
-    level = _densest(means[quiet][:: max(1, w // 2)], math.sqrt(floor_g / 3 / w) * math.sqrt(stats.chi2.ppf(0.999, 3)))
+    radius = math.sqrt(floor_g / 3 / w) * math.sqrt(stats.chi2.ppf(0.999, 3))
+    level = _local_level(rec.t_s, means, quiet, w, radius)
     dist2 = np.sum((means - level) ** 2, axis=1) * w / (floor_g / 3)
     rest = quiet & (dist2 <= stats.chi2.ppf(0.999, 3))
     edges = np.diff(np.concatenate([[0], rest.astype(np.int8), [0]]))
