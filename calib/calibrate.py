@@ -13,8 +13,10 @@
    in all.  Each pass relinearises at a better point and the prior's pull vanishes at the fixed
    point (prior centred on the estimate), so the iteration is Gauss–Newton on the batch
    likelihood: the estimator that reaches the Cramér–Rao bound in our Monte Carlo;
-6. consistency and observability verdicts: a parameter whose posterior σ is still more than half
-   its prior σ was not made observable by the motion (named in ``warnings``); the normalised
+6. observability, before the filter runs: the stripped observability matrix of the recording's own
+   motion (gyro integrated from the initial attitude; :mod:`calib.observability`) names every
+   parameter in its null space (``unobservable: …``); after the filter, a parameter whose
+   posterior σ is still above half its prior is named ``weakly observable``.  The normalised
    innovation squared (NIS) of the two attitude rows, averaged over 1 s windows, is compared with
    its χ² band: a filter that leaves the band for long has diverged or is mis-modelled.
 """
@@ -141,7 +143,36 @@ def prepare(
         from .inputs import _saturated
 
         saturated = _saturated(rec.gyro_rad_s) | _saturated(rec.acc_m_s2)
-    return Prepared(bias, rest, config, q0, a, saturated, check.warnings)
+    warnings = list(check.warnings)
+    unobs = motion_unobservable(rec, bias.value_rad_s, a)
+    if unobs:
+        warnings.append(
+            f"unobservable: {', '.join(unobs)}: the recording's motion leaves them in the null space of the "
+            "stripped observability matrix (Zhou 2020 §4); add rotations about horizontal axes (scale factors) "
+            "and about the vertical (non-orthogonality), Zhou 2020 Table 5"
+        )
+    return Prepared(bias, rest, config, q0, a, saturated, tuple(warnings))
+
+
+def motion_unobservable(rec: Recording, bias_rad_s: np.ndarray, start: int) -> list[str]:
+    """Filter parameters the recording's motion cannot observe (:func:`calib.observability.parameter_gram`).
+
+    Rates and accelerometer averaged over 2 s (calibration rotations live below 1 Hz; gyro noise
+    would otherwise put g·σ_ω into every column: 0.85 m/s² per sample for Table 7's reading A),
+    sampled at ~10 Hz; null space = less excitation than a 0.01 rad/s rotation gives.
+    """
+    from .observability import parameter_gram, unobservable_parameters
+
+    step = max(1, int(round(rec.rate_hz / 10.0)))
+    win = max(1, int(round(2.0 * rec.rate_hz)))
+    kernel = np.ones(win) / win
+
+    def smooth(x: np.ndarray) -> np.ndarray:
+        return np.stack([np.convolve(x[:, i], kernel, mode="same") for i in range(3)], axis=1)[::step]
+
+    w = smooth(rec.gyro_rad_s[start:] - bias_rad_s)
+    f = smooth(rec.acc_m_s2[start:])
+    return unobservable_parameters(parameter_gram(w, f), float(np.median(np.linalg.norm(f, axis=1))))
 
 
 def calibrate(
@@ -180,11 +211,12 @@ def calibrate(
     p = np.diag(filt.kf.P)
     std = np.sqrt(p)
     p0 = np.array([config.prior_attitude_rad] * 3 + [config.prior_scale] * 3 + [config.prior_nonorthogonality] * 3)
-    weak = [STATE_NAMES[i] for i in range(3, 9) if std[i] > 0.5 * p0[i]]
+    named = " ".join(w for w in warnings if w.startswith("unobservable"))
+    weak = [STATE_NAMES[i] for i in range(3, 9) if std[i] > 0.5 * p0[i] and STATE_NAMES[i] not in named]
     if weak:
         warnings.append(
-            f"unobservable: {', '.join(weak)} (posterior σ > half the prior): the motion did not excite "
-            "them; add rotations about horizontal axes (scale factors) and about the vertical (Zhou 2020 Table 5)"
+            f"weakly observable: {', '.join(weak)} (posterior σ > half the prior): the motion barely excited "
+            "them for this noise level; rotate longer or faster about the axes Zhou 2020 Table 5 names"
         )
     nis = np.asarray(filt.history.nis)
     nis = nis[np.isfinite(nis)]

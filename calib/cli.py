@@ -109,6 +109,41 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     return 0
 
 
+# Zhou 2020 Tables 10–11: the rotations they analyse and the states they remove
+TABLE_10_11 = {
+    "z vertical": (("G_x", "G_y"), [9.8, 9.8, 8.524092, 8.50978], [9.8, 9.8, 0.61935, 0.375294]),
+    "x vertical": (("G_y", "G_z"), [9.8, 9.8, 9.23949, 9.23464], [9.8, 9.8, 0.395472, 0.255418]),
+    "x horizontal": (("S_x", "G_y", "G_z"), [9.8, 9.8, 4.792952, 4.644314], [9.8, 9.8, 0.525420, 0.000069]),
+    "y horizontal": (("S_y", "G_x", "G_z"), [9.8, 9.8, 8.065646, 8.017878], [9.8, 9.8, 0.236580, 0.000045]),
+    "z horizontal": (("S_z", "G_x", "G_y"), [9.8, 9.8, 8.096383, 7.994556], [9.8, 9.8, 0.715018, 0.000171]),
+}
+
+
+def cmd_observability(args: argparse.Namespace) -> int:
+    """Per-segment SOM singular values and observable parameters; Tables 10–11 side by side."""
+    from gyrosim.schedule import load_schedule
+
+    from .observability import segment_observability
+
+    sched = load_schedule(args.schedule)
+    without = {}
+    for i, seg in enumerate(sched.segments):
+        for key, (states, _, _) in TABLE_10_11.items():
+            if seg.label.startswith(key):
+                without[i] = [states]
+    rows = segment_observability(sched, args.rate, without)
+    print(f"stripped observability per segment of {sched.name} (singular values in m/s², RMS over the segment)")
+    for i, r in enumerate(rows):
+        sv = r.singular_values[r.singular_values > 1e-9]
+        print(f"{i:2d} {r.label[:44]:<44} σ = {np.round(sv, 3).tolist()}  observable: {', '.join(r.observable) or '—'}")
+        for states, v in r.without.items():
+            key = next(k for k in TABLE_10_11 if r.label.startswith(k))
+            _, paper_full, paper_wo = TABLE_10_11[key]
+            print(f"{'':47}without {', '.join(states)}: σ = {np.round(v[v > 1e-9], 3).tolist()}"
+                  f"   paper: full {paper_full}, without {paper_wo}")
+    return 0
+
+
 def cmd_inspect(args: argparse.Namespace) -> int:
     """Summarise a recording: length, rate, channels, truth and the hand's disturbance if known."""
     from gyrosim.recording import load_hdf5
@@ -163,6 +198,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="keep only the accelerometer's white noise (Zhou §3.3.2 assumes a calibrated accelerometer)")
     mc.add_argument("--json")
     mc.set_defaults(func=cmd_montecarlo)
+    ob = sub.add_parser("observability", help="observability of each schedule segment (Zhou 2020 §4, Tables 5, 10, 11)")
+    ob.add_argument("--schedule", default="zhou2020")
+    ob.add_argument("--rate", type=float, default=100.0)
+    ob.set_defaults(func=cmd_observability)
     i = sub.add_parser("inspect", help="summarise a recording")
     i.add_argument("recording")
     i.set_defaults(func=cmd_inspect)

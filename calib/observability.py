@@ -1,0 +1,128 @@
+"""Observability of the Zhou 2020 filter (§4): stripped observability matrix (SOM) per segment.
+
+For the model of :mod:`calib.kalman` (state [φ, S, G], continuous A = F/Δt, H = [[g_up×], 0, 0]),
+the paper's observability test stacks N₀ = H and N₁ = N₀ A + dN₀/dt = H A (eq. 15–16; H is
+constant).  For a rotation at rate ω (body) with attitude C:
+
+    H A = [0, −[g_up×] C M⁻¹ diag(ω), −[g_up×] C M⁻¹ J_G(ω)]
+
+so a parameter is observable in a segment when its column of H A has a horizontal component:
+rotating about the vertical z excites Gx, Gy (|column| = g|ω|), about a horizontal axis one scale
+factor together with two non-orthogonalities (Zhou Table 5).
+
+Over a segment the SOM stacks [N₀; N₁] at every sample and divides by √n, so its singular values
+are RMS values over the segment (g for the two levelling rows, g·ω_RMS for an excited direction);
+the paper evaluates one instant at an unstated rate, so its Tables 10–11 values (8.52 for a z
+rotation) match ours in structure, not digit for digit.  "Without" a set of states deletes their
+columns: the singular values that collapse show what those states contributed (Tables 10–11).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyrosim.rotations import quat_to_matrix, skew
+from gyrosim.schedule import Schedule
+
+from .kalman import STATE_NAMES, jacobian_nonorthogonality
+
+__all__ = ["som", "parameter_gram", "SegmentObservability", "segment_observability", "unobservable_states",
+           "unobservable_parameters"]
+
+G0 = 9.80665
+
+
+def som(omega_body_rad_s: np.ndarray, quat_nb: np.ndarray, gravity_m_s2: float = G0,
+        m_inv: np.ndarray | None = None) -> np.ndarray:
+    """Normalised stripped observability matrix (6n × 9 stacked [N₀; N₁] / √n)."""
+    w = np.asarray(omega_body_rad_s, float)
+    c = quat_to_matrix(np.asarray(quat_nb, float))
+    n = w.shape[0]
+    m_inv = np.eye(3) if m_inv is None else m_inv
+    gx = skew(np.array([0.0, 0.0, gravity_m_s2]))
+    n0 = np.hstack([gx, np.zeros((3, 6))])
+    rows = np.empty((n, 6, 9))
+    rows[:, :3] = n0
+    cm = np.einsum("nij,jk->nik", c, m_inv)
+    rows[:, 3:, 0:3] = 0.0
+    rows[:, 3:, 3:6] = -np.einsum("ij,njk->nik", gx, cm * w[:, None, :])
+    jg = np.stack([jacobian_nonorthogonality(wk) for wk in w])
+    rows[:, 3:, 6:9] = -np.einsum("ij,njk,nkl->nil", gx, cm, jg)
+    return rows.reshape(6 * n, 9) / np.sqrt(n)
+
+
+def _names_to_cols(names: tuple[str, ...]) -> list[int]:
+    return [STATE_NAMES.index(n) for n in names]
+
+
+def unobservable_states(matrix: np.ndarray, rel_tol: float = 1e-3, share: float = 0.5) -> list[str]:
+    """States whose unit vector lies mostly (> ``share``) in the SOM's numerical null space."""
+    _, sv, vt = np.linalg.svd(matrix, full_matrices=True)
+    sv_full = np.concatenate([sv, np.zeros(vt.shape[0] - sv.size)])
+    null = vt[sv_full < rel_tol * sv_full.max()]
+    if null.size == 0:
+        return []
+    proj = np.sum(null**2, axis=0)  # |P_null e_i|²
+    return [STATE_NAMES[i] for i in range(vt.shape[1]) if proj[i] > share**2]
+
+
+@dataclass(frozen=True)
+class SegmentObservability:
+    """One schedule segment: SOM singular values (full and with states removed) and the verdict."""
+
+    label: str
+    kind: str
+    singular_values: np.ndarray
+    observable: tuple[str, ...]
+    without: dict[tuple[str, ...], np.ndarray]
+
+
+def segment_observability(schedule: Schedule, rate_hz: float = 100.0,
+                          without: dict[int, tuple[str, ...]] | None = None) -> list[SegmentObservability]:
+    """SOM per segment of the commanded (ideal-hand) motion of ``schedule``.
+
+    ``without``: {segment index: state names to delete} for the Tables 10–11 comparison.
+    """
+    out = []
+    for i, seg in enumerate(schedule.segments):
+        t0, t1 = schedule.boundaries_s[i], schedule.boundaries_s[i + 1]
+        t = np.arange(t0, t1, 1.0 / rate_hz)
+        kin = schedule.kinematics(t)
+        mat = som(kin.omega_body_rad_s, kin.quat_nb)
+        sv = np.linalg.svd(mat, compute_uv=False)
+        params_unobs = set(unobservable_states(mat))
+        observable = tuple(n for n in STATE_NAMES[3:] if n not in params_unobs)
+        extra = {}
+        for names in (without or {}).get(i, ()):
+            keep = [j for j in range(9) if j not in _names_to_cols(names)]
+            extra[names] = np.linalg.svd(mat[:, keep], compute_uv=False)
+        out.append(SegmentObservability(seg.label or seg.kind, seg.kind, sv, observable, extra))
+    return out
+
+
+def parameter_gram(omega_body_rad_s: np.ndarray, gravity_body: np.ndarray) -> np.ndarray:
+    """Gram matrix (6 × 6) of the SOM's parameter block, from body-frame quantities only.
+
+    N₀ rows act on φ only and N₁ rows on (S, G) only, so the SOM's Gram matrix is block-diagonal;
+    in the parameter block the attitude cancels, [g×] C = C [g_b×] with g_b the gravity in the
+    body frame (what a resting accelerometer reads):  Σ_k X_kᵀ [g_b×]ᵀ [g_b×] X_k / n,
+    X_k = [diag(ω_k), J_G(ω_k)].  No attitude integration is needed.
+    """
+    w = np.asarray(omega_body_rad_s, float)
+    gb = np.asarray(gravity_body, float)
+    x = np.concatenate([np.einsum("ij,nj->nij", np.eye(3), w), np.stack([jacobian_nonorthogonality(v) for v in w])], axis=2)
+    rows = np.einsum("nij,njk->nik", skew(gb), x)  # (n, 3, 6)
+    return np.einsum("nij,nik->jk", rows, rows) / w.shape[0]
+
+
+def unobservable_parameters(gram: np.ndarray, gravity_m_s2: float = G0, rel_tol: float = 1e-2, share: float = 0.5) -> list[str]:
+    """Filter parameters (S_*, G_*) mostly in the null space of ``gram``: eigenvalues below
+    (rel_tol · g)², i.e. less excitation than a rotation of rel_tol rad/s gives."""
+    vals, vecs = np.linalg.eigh(gram)
+    null = vecs[:, vals < (rel_tol * gravity_m_s2) ** 2]
+    if null.size == 0:
+        return []
+    proj = np.sum(null**2, axis=1)
+    return [STATE_NAMES[3 + i] for i in range(6) if proj[i] > share**2]
