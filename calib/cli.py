@@ -45,7 +45,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(f"calibrating {rec.n} samples (Zhou 2020 filter) …", flush=True)
     result = calibrate(rec, "kf")
     truth = true_gyro_parameters(rec)
-    report = write_session_report(out, rec, result, truth, schedule=schedule, hand=hand, sensor=sensor, seed=args.seed)
+    from .validation import validate_attitude
+
+    print("validating the attitude on a free-style session of the same device …", flush=True)
+    validation = validate_attitude(rec, result, hand=hand.name, seed=args.seed + 1000)
+    report = write_session_report(out, rec, result, truth, schedule=schedule, hand=hand, sensor=sensor, seed=args.seed,
+                                  validation=validation)
     rrd = save_calibration_rrd(out / "session.rrd", rec, result, truth)
     print(f"wrote {rec_path}, {report}, {out / 'report.json'} and {rrd}")
     print(f"open the recording with:  rerun {rrd}")
@@ -144,6 +149,41 @@ def cmd_observability(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Filter speed: filterpy against the compiled batched kernel, same data, same run."""
+    import time
+
+    from gyrosim.simulate import simulate
+
+    from .calibrate import calibrate, prepare
+    from .fastkf import run_batch
+
+    rec = simulate("zhou2020", "ideal", "zhou2020_sim", 100.0, seed=0)
+    prep = prepare(rec)
+    a = prep.start
+    g = (rec.gyro_rad_s - prep.bias.value_rad_s)[None, a:]
+    acc = rec.acc_m_s2[None, a:]
+    n = g.shape[1]
+    run_batch(g[:, :100], acc[:, :100], rec.t_s[a : a + 100], prep.quat0_nb[None], prep.config, rec.rate_hz)  # compile
+    t0 = time.perf_counter()
+    ref = calibrate(rec, "kf")
+    t_fp = time.perf_counter() - t0
+    rows = [("filterpy filter (whole calibrate)", t_fp, 1)]
+    for b in (1, args.batch):
+        t0 = time.perf_counter()
+        out = run_batch(np.repeat(g, b, 0), np.repeat(acc, b, 0), rec.t_s[a:], np.repeat(prep.quat0_nb[None], b, 0),
+                        prep.config, rec.rate_hz)
+        rows.append((f"compiled kernel, batch {b}", time.perf_counter() - t0, b))
+    diff = max(np.abs(out.scale[0] - ref.scale_factor).max(), np.abs(out.nonorthogonality[0] - ref.nonorthogonality).max())
+    print(f"Zhou filter on zhou2020 ({n} samples); max |fast − filterpy| = {diff:.1e}")
+    print(f"{'':<36} {'s':>8} {'µs/filter-sample':>17} {'× filterpy':>11}")
+    base = t_fp / n
+    for name, sec, b in rows:
+        per = sec / (n * b)
+        print(f"{name:<36} {sec:8.3f} {per * 1e6:17.2f} {base / per:11.1f}")
+    return 0
+
+
 def cmd_inspect(args: argparse.Namespace) -> int:
     """Summarise a recording: length, rate, channels, truth and the hand's disturbance if known."""
     from gyrosim.recording import load_hdf5
@@ -202,6 +242,9 @@ def build_parser() -> argparse.ArgumentParser:
     ob.add_argument("--schedule", default="zhou2020")
     ob.add_argument("--rate", type=float, default=100.0)
     ob.set_defaults(func=cmd_observability)
+    be = sub.add_parser("bench", help="filter speed: filterpy vs the compiled batched kernel (same run)")
+    be.add_argument("--batch", type=int, default=50)
+    be.set_defaults(func=cmd_bench)
     i = sub.add_parser("inspect", help="summarise a recording")
     i.add_argument("recording")
     i.set_defaults(func=cmd_inspect)

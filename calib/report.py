@@ -49,7 +49,8 @@ def plot_convergence(result, truth: dict | None, path: Path) -> Path:
     return path
 
 
-def write_session_report(out: Path, rec: Recording, result, truth: dict | None, *, schedule, hand, sensor, seed: int) -> Path:
+def write_session_report(out: Path, rec: Recording, result, truth: dict | None, *, schedule, hand, sensor, seed: int,
+                         validation=None) -> Path:
     """Write ``report.md``, ``report.json`` and ``convergence.png`` into ``out``."""
     expected = hand.expected_disturbance(schedule)
     t = rec.truth
@@ -101,6 +102,17 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
     lines += ["", f"Rest segments (s): {cal['rest_segments']}", ""]
     lines += [f"- warning: {w}" for w in cal["warnings"]] or ["No warnings."]
     lines += ["", f"![convergence]({png.name})", ""]
+    if validation is not None:
+        lines += ["## Attitude validation (Zhou 2020 §5.2, Table 12)", "",
+                  "The same device turns freely for 70 s (schedule `freestyle`); the gyro is integrated from the true "
+                  "initial attitude with the bias removed only, and fully compensated, and compared with the truth:", "",
+                  validation.table(), ""]
+        report["attitude_validation_deg"] = {
+            "without": {"mean": validation.without_mean_deg.tolist(), "rms": validation.without_rms_deg.tolist()},
+            "with": {"mean": validation.with_mean_deg.tolist(), "rms": validation.with_rms_deg.tolist()},
+            "order": ["roll", "pitch", "heading"],
+        }
+        (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path
