@@ -34,6 +34,7 @@ from scipy import fft as sp_fft
 from scipy import signal as sp_signal
 from scipy.interpolate import CubicSpline
 
+from . import _kernels as kern
 from .errors import GyrosimError
 from .rotations import quat_conjugate, quat_rotate
 
@@ -76,12 +77,6 @@ class SignalContext:
     def rate_hz(self) -> float:
         return 1.0 / self.dt_s
 
-    def rows(self, sl: slice) -> "SignalContext":
-        """The samples in ``sl`` (views, no copies), same nominal Δt."""
-        return SignalContext(*(None if v is None else v[sl] for v in (
-            self.t_s, self.omega_true_rad_s, self.specific_force_true_m_s2, self.temperature_c, self.quat_nb,
-            self.mag_body_ut)), dt_s=self.dt_s)
-
     def require(self, name: str, effect: str) -> np.ndarray:
         v = getattr(self, name)
         if v is None:
@@ -110,7 +105,7 @@ class Effect:
     invertible: ClassVar[bool] = True  # an exact compensation exists (deterministic effects)
     triads: ClassVar[tuple[str, ...]] = ("gyro", "accelerometer")
     param_fields: ClassVar[tuple[str, ...]] = ()
-    pointwise: ClassVar[bool] = False  # δ_k depends on sample k only (can run in cache-sized blocks)
+    pointwise: ClassVar[bool] = False  # δ_k depends on sample k only (a single in-place pass)
 
     # ---------------------------------------------------------------- parameters
     def params(self) -> np.ndarray:
@@ -405,6 +400,9 @@ class ScaleNonlinearity(Effect):
     def delta(self, x, ctx, rng=None):
         return self.value * x * np.abs(x)
 
+    def add_delta(self, y, x, ctx, rng=None):
+        kern.add_nonlinearity(y, x, self.value)
+
     def delta_dx(self, x, ctx):
         out = np.zeros(x.shape + (3,))
         for i in range(3):
@@ -439,6 +437,9 @@ class GSensitivity(Effect):
 
     def delta(self, x, ctx, rng=None):
         return ctx.specific_force_true_m_s2 @ self.value.T
+
+    def add_delta(self, y, x, ctx, rng=None):
+        kern.add_matvec(y, np.ascontiguousarray(ctx.specific_force_true_m_s2), self.value)
 
     def sensitivity(self, x, ctx):
         f = ctx.specific_force_true_m_s2
@@ -490,6 +491,9 @@ class TemperatureBias(Effect):
     def delta(self, x, ctx, rng=None):
         return _poly(self._dT(ctx), self.coefficients)
 
+    def add_delta(self, y, x, ctx, rng=None):
+        kern.add_poly_bias(y, np.ascontiguousarray(self._dT(ctx)), self.coefficients)
+
     def sensitivity(self, x, ctx):
         dT = self._dT(ctx)
         P = self.coefficients.shape[1]
@@ -508,6 +512,9 @@ class TemperatureScale(TemperatureBias):
 
     def delta(self, x, ctx, rng=None):
         return x * _poly(self._dT(ctx), self.coefficients)
+
+    def add_delta(self, y, x, ctx, rng=None):
+        kern.add_poly_scale(y, x, np.ascontiguousarray(self._dT(ctx)), self.coefficients)
 
     def delta_dx(self, x, ctx):
         s = _poly(self._dT(ctx), self.coefficients)
@@ -595,6 +602,9 @@ class MagneticSensitivity(Effect):
     def delta(self, x, ctx, rng=None):
         return ctx.require("mag_body_ut", self.kind) @ self.value.T
 
+    def add_delta(self, y, x, ctx, rng=None):
+        kern.add_matvec(y, np.ascontiguousarray(ctx.require("mag_body_ut", self.kind)), self.value)
+
     def sensitivity(self, x, ctx):
         b = ctx.require("mag_body_ut", self.kind)
         out = np.zeros(x.shape + (9,))
@@ -656,9 +666,7 @@ class WhiteNoise(Effect):
         return rng.standard_normal(x.shape) * (self.density * math.sqrt(ctx.rate_hz))
 
     def add_delta(self, y, x, ctx, rng=None):
-        w = _need_rng(rng, self.kind).standard_normal(x.shape)
-        w *= self.density * math.sqrt(ctx.rate_hz)
-        y += w
+        kern.add_scaled(y, _need_rng(rng, self.kind).standard_normal(x.shape), self.density * math.sqrt(ctx.rate_hz))
 
     def psd_two_sided(self, f_hz):
         return np.broadcast_to((self.density**2)[:, None], (3, f_hz.size))
@@ -785,8 +793,7 @@ class Bandwidth(Effect):
         return math.exp(-2 * math.pi * self.cutoff_hz * ctx.dt_s)
 
     def transform(self, y, ctx, rng=None):
-        a = self._a(ctx)
-        return sp_signal.lfilter([1 - a], [1, -a], y, axis=0, zi=a * y[:1])[0]
+        return kern.lowpass(np.ascontiguousarray(y), self._a(ctx))
 
     def inverse(self, y, ctx):
         a = self._a(ctx)
@@ -867,10 +874,7 @@ class Quantization(Effect):
         object.__setattr__(self, "lsb", v)
 
     def transform(self, y, ctx, rng=None):
-        out = y * (1.0 / self.lsb)
-        np.rint(out, out=out)
-        out *= self.lsb
-        return out
+        return kern.quantize(np.ascontiguousarray(y), self.lsb)
 
     def inverse(self, y, ctx):
         return y
@@ -896,9 +900,7 @@ class Saturation(Effect):
         object.__setattr__(self, "range", v)
 
     def transform(self, y, ctx, rng=None):
-        out = np.maximum(y, -self.range)
-        np.minimum(out, self.range, out=out)
-        return out
+        return kern.saturate(np.ascontiguousarray(y), self.range)
 
     def saturated(self, y: np.ndarray) -> np.ndarray:
         return np.abs(y) >= self.range * (1 - 1e-12)

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ._kernels import add_affine, add_upsampled
 from .effects import EFFECTS, Effect, SignalContext, effect_from_dict
 from .errors import GyrosimError, PresetError
 from .thermal import ThermalModel
@@ -36,7 +37,6 @@ from .units import to_si
 __all__ = ["SensorModel", "load_sensor", "sensor_preset_names", "TRIADS"]
 
 TRIADS = ("gyro", "accelerometer")
-_BLOCK = 8192  # samples per block for pointwise effects (3 × 8192 doubles = 192 kB per array)
 
 # unit quantity of each effect's main parameter, per triad (for presets in datasheet units)
 _QUANTITY: dict[str, dict[str, str]] = {
@@ -103,7 +103,8 @@ class SensorModel:
         """Corrupt the true signal x (N, 3) of one triad. ``x`` is not modified."""
         effs = self.effects(triad)
         streams = rng.spawn(len(effs)) if effs else []
-        y = np.array(x, dtype=float, copy=True)
+        x = np.ascontiguousarray(x, dtype=float)
+        y = x.copy()
         white = sum((e.density for e in effs if e.kind == "white_noise"), np.zeros(3))
         error = [(e, r) for e, r in zip(effs, streams) if e.stage == "error"]
         for e, r in error:
@@ -112,8 +113,8 @@ class SensorModel:
             step = e.coarse_step_s(white, ctx.dt_s) if e.stochastic else None
             factor = int(step // ctx.dt_s) if step is not None else 1
             if factor >= 4:  # slow process: draw on a coarse grid, interpolate linearly (Effect.coarse_step_s)
-                y += _upsample_linear(e.delta_on_grid((x.shape[0] - 1) // factor + 2, factor * ctx.dt_s, r),
-                                      factor, x.shape[0])
+                coarse = e.delta_on_grid((x.shape[0] - 1) // factor + 2, factor * ctx.dt_s, r)
+                add_upsampled(y, np.ascontiguousarray(coarse), factor)
             else:
                 e.add_delta(y, x, ctx, r)
         # constant affine effects (bias, scale, non-orthogonality, misalignment): one pass
@@ -121,19 +122,11 @@ class SensorModel:
         if affine:
             a_sum = sum(a for _, (a, _) in affine)
             c_sum = sum(c for _, (_, c) in affine)
-            for j in range(3):  # y += x A^T + c, column by column (cheaper than a (N,3)x(3,3) matmul)
-                if np.any(a_sum[:, j]):
-                    y += x[:, j : j + 1] * a_sum[:, j]
-            y += c_sum
+            add_affine(y, x, np.asarray(a_sum, float), np.asarray(c_sum, float))
         grouped = {id(e) for e, _ in affine}
-        # other pointwise effects run block by block, so their passes over the data stay in cache
-        pointwise = [e for e, _ in error if e.pointwise and id(e) not in grouped]
-        if pointwise:
-            for start in range(0, x.shape[0], _BLOCK):
-                sl = slice(start, start + _BLOCK)
-                sub = ctx.rows(sl)
-                for e in pointwise:
-                    e.add_delta(y[sl], x[sl], sub, None)
+        for e, r in error:  # the other pointwise effects: one in-place pass each (gyrosim._kernels)
+            if e.pointwise and id(e) not in grouped:
+                e.add_delta(y, x, ctx, r)
         for e, r in zip(effs, streams):
             if e.stage == "output":
                 y = e.transform(y, ctx, r)
@@ -215,13 +208,6 @@ class SensorModel:
             source=d.get("source", ""),
             notes=dict(d.get("notes", {})),
         )
-
-
-def _upsample_linear(coarse: np.ndarray, factor: int, n: int) -> np.ndarray:
-    """Linear interpolation of (m, 3) samples at step ``factor`` onto the first n fine samples."""
-    frac = (np.arange(factor) / factor)[None, :, None]
-    fine = coarse[:-1, None, :] + (coarse[1:] - coarse[:-1])[:, None, :] * frac
-    return fine.reshape(-1, 3)[:n]
 
 
 # ================================================================ presets in datasheet units

@@ -286,3 +286,30 @@ def test_recording_stores_the_drawn_device_and_is_reproducible():
     np.testing.assert_array_equal(again.acc_m_s2, rec.acc_m_s2)
     np.testing.assert_array_equal(truth.truth.omega_body_rad_s, rec.truth.omega_body_rad_s)
     assert rec.temp_c is not None and rec.temp_c[-1] > rec.temp_c[0]
+
+
+def test_fast_kernels_equal_the_numpy_reference(ctx):
+    """Every effect's in-place fast path (gyrosim._kernels) equals its numpy definition."""
+    from scipy import signal as sp_signal
+
+    from gyrosim.effects import Saturation
+
+    x = np.ascontiguousarray(ctx.omega_true_rad_s)
+    for _, e in deterministic_effects():
+        if e.stage != "error":
+            continue
+        y = x.copy()
+        e.add_delta(y, x, ctx, None)
+        np.testing.assert_allclose(y, x + e.delta(x, ctx), rtol=0, atol=1e-15 * max(1.0, np.abs(x).max()))
+    bw = Bandwidth(cutoff_hz=41.0)
+    a = math.exp(-2 * math.pi * 41.0 * ctx.dt_s)
+    ref = sp_signal.lfilter([1 - a], [1, -a], x, axis=0, zi=a * x[:1])[0]
+    np.testing.assert_allclose(bw.transform(x, ctx), ref, rtol=0, atol=1e-14)
+    lsb = np.full(3, 0.015267 * DEG)
+    np.testing.assert_array_equal(Quantization(lsb=lsb).transform(x, ctx), np.rint(x * (1.0 / lsb)) * lsb)
+    np.testing.assert_array_equal(Saturation(range=[1.0] * 3).transform(x, ctx), np.clip(x, -1.0, 1.0))
+    # white noise: the kernel adds exactly σ·w for the same normals
+    wn = WhiteNoise(density=[1e-3, 2e-3, 3e-3])
+    y = np.zeros_like(x)
+    wn.add_delta(y, x, ctx, np.random.default_rng(4))
+    np.testing.assert_allclose(y, wn.delta(x, ctx, np.random.default_rng(4)), rtol=1e-15)
