@@ -252,12 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args))
-    except GyrosimError as exc:
-        print(f"calib: error: {exc}", file=sys.stderr)
-        return 2
+    from gyrosim.cli import run_cli
+
+    return run_cli(build_parser(), argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -36,31 +36,29 @@ def add_nonlinearity(y, x, k3):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _poly(coeff, i, d):  # pragma: no cover - compiled
+    """Σ_p c_ip d^(p+1)."""
+    acc, pw = 0.0, d
+    for p in range(coeff.shape[1]):
+        acc += coeff[i, p] * pw
+        pw *= d
+    return acc
+
+
+@njit(cache=True)
 def add_poly_bias(y, dt_c, coeff):  # pragma: no cover - compiled
     """y_i += Σ_p c_ip ΔT^(p+1)."""
-    P = coeff.shape[1]
     for k in range(y.shape[0]):
-        d = dt_c[k]
         for i in range(3):
-            acc, pw = 0.0, d
-            for p in range(P):
-                acc += coeff[i, p] * pw
-                pw *= d
-            y[k, i] += acc
+            y[k, i] += _poly(coeff, i, dt_c[k])
 
 
 @njit(cache=True)
 def add_poly_scale(y, x, dt_c, coeff):  # pragma: no cover - compiled
     """y_i += x_i Σ_p s_ip ΔT^(p+1)."""
-    P = coeff.shape[1]
     for k in range(y.shape[0]):
-        d = dt_c[k]
         for i in range(3):
-            acc, pw = 0.0, d
-            for p in range(P):
-                acc += coeff[i, p] * pw
-                pw *= d
-            y[k, i] += x[k, i] * acc
+            y[k, i] += x[k, i] * _poly(coeff, i, dt_c[k])
 
 
 @njit(cache=True)

@@ -35,15 +35,14 @@ child streams (``rng.spawn``), so switching one off does not change the others.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import asdict, dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import fft as sp_fft
 
+from ._presets import builtin_names, load_named_toml
 from .errors import PresetError
 from .rotations import (
     quat_cumulative_product,
@@ -326,8 +325,7 @@ class Hand:
 
 def hand_preset_names() -> list[str]:
     """Names of the hand presets shipped in ``gyrosim/presets/hands/*.toml``."""
-    folder = resources.files("gyrosim") / "presets" / "hands"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return builtin_names("presets", "hands")
 
 
 _HAND_KEYS = {f for f in Hand.__dataclass_fields__}
@@ -348,15 +346,5 @@ def hand_from_dict(data: dict[str, Any], default_name: str = "custom") -> Hand:
 
 def load_hand(name_or_path: str | Path) -> Hand:
     """Load a hand preset by name (``ideal``, ``steady``, ``typical``, ``shaky``) or TOML path."""
-    name = str(name_or_path)
-    if name in hand_preset_names():
-        text = (resources.files("gyrosim") / "presets" / "hands" / f"{name}.toml").read_text()
-    elif Path(name).is_file():
-        text = Path(name).read_text()
-        name = Path(name).stem
-    else:
-        raise PresetError(
-            f"unknown hand preset {name!r}; use one of {', '.join(hand_preset_names())} "
-            "or the path of a hand TOML file"
-        )
-    return hand_from_dict(tomllib.loads(text), default_name=name)
+    name, data = load_named_toml(("presets", "hands"), name_or_path, "hand preset", PresetError)
+    return hand_from_dict(data, default_name=name)

@@ -24,14 +24,13 @@ format (see :func:`load_schedule` and README).
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ._presets import builtin_names, load_named_toml
 from .errors import ScheduleError
 from .rotations import quat_from_rotvec, quat_multiply, quat_normalize
 
@@ -306,28 +305,10 @@ def schedule_from_dict(data: dict[str, Any], default_name: str = "custom") -> Sc
 
 def builtin_schedule_names() -> list[str]:
     """Names of the schedules shipped in ``gyrosim/schedules/*.toml``."""
-    folder = resources.files("gyrosim") / "schedules"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return builtin_names("schedules")
 
 
 def load_schedule(name_or_path: str | Path) -> Schedule:
     """Load a built-in schedule by name (e.g. ``zhou2020``) or a user TOML file by path."""
-    text: str
-    name = str(name_or_path)
-    if name in builtin_schedule_names():
-        text = (resources.files("gyrosim") / "schedules" / f"{name}.toml").read_text()
-        default = name
-    else:
-        path = Path(name)
-        if not path.is_file():
-            raise ScheduleError(
-                f"schedule {name!r} is neither a built-in ({', '.join(builtin_schedule_names())}) "
-                "nor an existing TOML file"
-            )
-        text = path.read_text()
-        default = path.stem
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScheduleError(f"schedule {name!r} is not valid TOML: {exc}") from exc
-    return schedule_from_dict(data, default_name=default)
+    name, data = load_named_toml(("schedules",), name_or_path, "schedule", ScheduleError)
+    return schedule_from_dict(data, default_name=name)

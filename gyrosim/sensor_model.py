@@ -20,9 +20,7 @@ Presets are TOML files in ``gyrosim/presets/sensors/`` written in datasheet unit
 from __future__ import annotations
 
 import json
-import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +28,7 @@ import numpy as np
 
 from ._kernels import add_affine, add_upsampled
 from .effects import EFFECTS, Effect, SignalContext, effect_from_dict
+from ._presets import builtin_names, load_named_toml
 from .errors import GyrosimError, PresetError
 from .thermal import ThermalModel
 from .units import to_si
@@ -275,24 +274,10 @@ def sensor_from_toml_dict(data: dict[str, Any], default_name: str) -> SensorMode
 
 
 def sensor_preset_names() -> list[str]:
-    folder = resources.files("gyrosim") / "presets" / "sensors"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return builtin_names("presets", "sensors")
 
 
 def load_sensor(name_or_path: str | Path) -> SensorModel:
     """Load a sensor preset by name (``mpu9250``, ``zhou2020_sim``, ...) or a TOML path."""
-    name = str(name_or_path)
-    if name in sensor_preset_names():
-        text = (resources.files("gyrosim") / "presets" / "sensors" / f"{name}.toml").read_text()
-    elif Path(name).is_file():
-        text = Path(name).read_text()
-        name = Path(name).stem
-    else:
-        raise PresetError(
-            f"unknown sensor preset {name!r}; use one of {', '.join(sensor_preset_names())} or a TOML path"
-        )
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise PresetError(f"sensor preset {name!r} is not valid TOML: {exc}") from exc
+    name, data = load_named_toml(("presets", "sensors"), name_or_path, "sensor preset", PresetError)
     return sensor_from_toml_dict(data, name)

@@ -14,7 +14,7 @@ import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -25,6 +25,10 @@ from .recording import FRAMES, Recording, Truth
 from .rotations import quat_conjugate, quat_rotate
 from .scene import ArmPose, HandScene
 from .schedule import Schedule, load_schedule
+
+if TYPE_CHECKING:
+    from .effects import SignalContext
+    from .sensor_model import SensorModel
 
 __all__ = ["SimulationGrid", "simulation_grid", "simulate_truth", "simulate", "apply_sensor", "EARTH_FIELD_ENU_UT"]
 
@@ -233,7 +237,7 @@ def apply_sensor(
     device's exact model (drawn values, SI) as JSON in ``meta['sensor_model']``.
     Random streams: ``rng.spawn(2)`` → (device draw, measurement noise).
     """
-    from .sensor_model import SensorModel, load_sensor
+    from .sensor_model import load_sensor
 
     model: SensorModel = load_sensor(sensor) if isinstance(sensor, (str, Path)) else sensor
     device_rng, noise_rng = rng.spawn(2)

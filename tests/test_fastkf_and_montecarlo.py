@@ -4,7 +4,6 @@ with consistent covariances (issue 4)."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from scipy import stats
 
 from calib.calibrate import calibrate, prepare
