@@ -138,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
     b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",
                    help="scene: simulation vs bare mujoco.rollout; sensor: error model vs bare numpy")
-    b.add_argument("--repeats", type=int, default=3)
+    b.add_argument("--repeats", type=int, default=5)
     b.add_argument("--sensor", default="mpu9250")
     b.add_argument("--schedule", default="zhou2020")
     b.add_argument("--hand", default="typical")

@@ -45,6 +45,7 @@ from scipy import fft as sp_fft
 from ._presets import builtin_names, load_named_toml
 from .errors import PresetError
 from .rotations import (
+    cross3,
     quat_cumulative_product,
     quat_from_rotvec,
     quat_multiply,
@@ -248,7 +249,7 @@ class Hand:
         omega_s = kin.omega_body_rad_s
         if noise.rotates:
             rot_beta = quat_from_rotvec(noise.beta_rad)
-            cross = np.cross(right_jacobian_apply(noise.beta_rad, noise.beta_dot_rad_s), omega_s)
+            cross = cross3(right_jacobian_apply(noise.beta_rad, noise.beta_dot_rad_s), omega_s)
             omega = quat_rotate(rot_beta, omega_s) + noise.omega_tremor_rad_s
             omega_dot = quat_rotate(rot_beta, kin.omega_dot_body_rad_s2 + cross) + noise.omega_dot_tremor_rad_s2
             if previous is None:
@@ -304,7 +305,7 @@ class Hand:
         kin = schedule.kinematics(t)
         r_b = -np.asarray(self.pivot_offset_m, dtype=float)
         w = kin.omega_body_rad_s
-        a_pivot = np.cross(kin.omega_dot_body_rad_s2, r_b) + np.cross(w, np.cross(w, r_b))
+        a_pivot = cross3(kin.omega_dot_body_rad_s2, r_b) + cross3(w, cross3(w, r_b))
         # translations of the schedule itself are commanded motion, also non-gravity
         a_pivot = a_pivot + quat_rotate(
             np.stack([kin.quat_nb[:, 0], -kin.quat_nb[:, 1], -kin.quat_nb[:, 2], -kin.quat_nb[:, 3]], -1),

@@ -22,7 +22,22 @@ __all__ = [
     "quat_from_two_vectors",
     "skew",
     "right_jacobian_apply",
+    "cross3",
 ]
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b for (..., 3) arrays by column arithmetic (np.cross spends most of its time on axis
+    bookkeeping for such small last axes)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
 
 
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -104,8 +119,8 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
     u = q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + q[..., :1] * t + np.cross(u, t)
+    t = 2.0 * cross3(u, v)
+    return v + q[..., :1] * t + cross3(u, t)
 
 
 def quat_angle_between(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -174,5 +189,5 @@ def right_jacobian_apply(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
     ts = np.where(small, 1.0, th)
     a = np.where(small, 0.5 - th**2 / 24.0, (1.0 - np.cos(ts)) / ts**2)
     b = np.where(small, 1.0 / 6.0 - th**2 / 120.0, (ts - np.sin(ts)) / ts**3)
-    c1 = np.cross(phi, v)
-    return v - a * c1 + b * np.cross(phi, c1)
+    c1 = cross3(phi, v)
+    return v - a * c1 + b * cross3(phi, c1)

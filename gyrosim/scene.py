@@ -39,6 +39,7 @@ from mujoco import rollout as mj_rollout
 from .errors import ReachError
 from .hand import HandMotion
 from .rotations import (
+    cross3,
     quat_from_rotvec,
     quat_from_two_vectors,
     quat_multiply,
@@ -247,9 +248,9 @@ class HandScene:
         a_n = quat_rotate(quat, wd_b)  # α_n = R ω̇_b  (d/dt(R ω_b) = R(ω_b×ω_b + ω̇_b))
         p_b = self.pivot_body_coords(motion)
         r_c = quat_rotate(quat, self.com_body_m - p_b)
-        acc_com = motion.pivot_acceleration_m_s2 + np.cross(a_n, r_c) + np.cross(w_n, np.cross(w_n, r_c))
+        acc_com = motion.pivot_acceleration_m_s2 + cross3(a_n, r_c) + cross3(w_n, cross3(w_n, r_c))
         ib = self.inertia_body_kg_m2
-        torque_b = wd_b @ ib.T + np.cross(w_b, w_b @ ib.T)
+        torque_b = wd_b @ ib.T + cross3(w_b, w_b @ ib.T)
         ctrl = np.zeros((n, self.ncontrol))
         xfrc = np.zeros((n, m.nbody, 6))
         xfrc[:, self.hand_id, :3] = self.mass_kg * acc_com
@@ -258,7 +259,7 @@ class HandScene:
 
         origin = self.body_origin_m(motion, pivot_start_m)
         r_o = -quat_rotate(quat, p_b)  # body origin relative to the pivot, world
-        a_origin = motion.pivot_acceleration_m_s2 + np.cross(a_n, r_o) + np.cross(w_n, np.cross(w_n, r_o))
+        a_origin = motion.pivot_acceleration_m_s2 + cross3(a_n, r_o) + cross3(w_n, cross3(w_n, r_o))
         c_v, c_a = self.weld_offsets()
         mpos = np.zeros((n, m.nmocap, 3))
         mquat = np.zeros((n, m.nmocap, 4))
@@ -279,7 +280,7 @@ class HandScene:
         w_b = motion.omega_body_rad_s - 0.5 * h * motion.omega_dot_body_rad_s2
         r_o = -quat_rotate(motion.quat_nb, self.pivot_body_coords(motion))
         v_pivot = motion.pivot_velocity_m_s - 0.5 * h * motion.pivot_acceleration_m_s2
-        return w_b, v_pivot + np.cross(quat_rotate(motion.quat_nb, w_b), r_o)
+        return w_b, v_pivot + cross3(quat_rotate(motion.quat_nb, w_b), r_o)
 
     def initial_state(self, motion: HandMotion, ctrl0: np.ndarray, pivot_start_m: np.ndarray) -> np.ndarray:
         """FULLPHYSICS state at the first step of ``motion`` (pose at t₀, velocities at t₀ − Δt/2)."""

@@ -138,10 +138,13 @@ def simulate_truth(
             progress(ctrl.shape[0])
 
     previous = None
+    # a small first chunk lets MuJoCo start at once; the rest overlap with the main thread
+    bounds = [0, min(n_steps, max(1, chunk_steps // 5))]
+    while bounds[-1] < n_steps:
+        bounds.append(min(n_steps, bounds[-1] + chunk_steps))
     with ThreadPoolExecutor(max_workers=1) as pool:
         pending = []
-        for a in range(0, n_steps, chunk_steps):
-            b = min(n_steps, a + chunk_steps)
+        for a, b in zip(bounds[:-1], bounds[1:]):
             motion = hand.motion_chunk(schedule, t_phys[a:b], noise.rows(a, b), previous)
             previous = (motion.quat_nb[-1], motion.omega_body_rad_s[-1])
             arm = scene.arm_pose(motion, pivot_start)

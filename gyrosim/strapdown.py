@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rotations import quat_cumulative_product, quat_from_rotvec, quat_normalize
+from .rotations import cross3, quat_cumulative_product, quat_from_rotvec, quat_normalize
 
 __all__ = ["integrate_gyro"]
 
@@ -26,6 +26,6 @@ def integrate_gyro(t_s: np.ndarray, omega_body_rad_s: np.ndarray, quat0_nb: np.n
     if w.shape != (t.size, 3):
         raise ValueError(f"omega must have shape ({t.size}, 3), got {w.shape}")
     dt = np.diff(t)[:, None]
-    phi = 0.5 * (w[:-1] + w[1:]) * dt + np.cross(w[:-1], w[1:]) * dt**2 / 12.0
+    phi = 0.5 * (w[:-1] + w[1:]) * dt + cross3(w[:-1], w[1:]) * dt**2 / 12.0
     steps = np.concatenate([np.asarray(quat0_nb, dtype=float)[None], quat_from_rotvec(phi)])
     return quat_normalize(quat_cumulative_product(steps))
