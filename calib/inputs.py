@@ -21,6 +21,7 @@ import csv
 from dataclasses import dataclass
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from gyrosim.errors import RecordingError
@@ -69,11 +70,29 @@ def _read_csv(path: Path, gyro_unit: str, acc_unit: str) -> Recording:
 
 
 def load_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "m/s^2") -> Recording:
-    """Load an HDF5 (gyrosim) or CSV recording; the file is only read, never modified."""
+    """Load a recording; files are only read, never modified.
+
+    Accepts a gyrosim HDF5, a BROAD trial (HDF5 as published), a CSV in the layout above, a
+    measured-data folder known to :mod:`gyrosim.loaders`, or ``dataset:NAME`` (e.g.
+    ``dataset:broad/02_undisturbed_slow_rotation_B``) resolved under ``$GYROSIM_DATA``.
+    """
+    from gyrosim import loaders
+
+    if str(path).startswith("dataset:"):
+        return loaders.load_dataset(str(path)[len("dataset:"):])
     path = Path(path)
+    if path.is_dir():
+        for name in loaders.available_datasets(path.parent):
+            if name == path.name:
+                return loaders.load_dataset(name, path.parent)
+        raise RecordingError(f"{path} is a folder but not a known measured dataset ({', '.join(loaders.available_datasets(path.parent)) or 'none'})")
     if not path.is_file():
         raise RecordingError(f"no such recording: {path}")
     if path.suffix.lower() in (".h5", ".hdf5"):
+        with h5py.File(path, "r") as f:
+            is_broad = "imu_gyr" in f and "t" not in f
+        if is_broad:
+            return loaders.load_broad(path)
         rec = load_hdf5(path)
         if gyro_unit != "rad/s" or acc_unit not in ("m/s^2", "m/s²"):
             f_g = to_si(1.0, gyro_unit, "rate")

@@ -161,26 +161,29 @@ class BiasEstimate:
 
 
 def static_bias(rec: Recording, rest: RestSegments, min_rest_s: float = 2.0) -> BiasEstimate:
-    """Zhou 2020 eq. 3: b = mean of the gyro over the first rest segment.
+    """Zhou 2020 eq. 3: b = mean of the gyro over the first rest segment at least ``min_rest_s`` long.
 
-    Raises RecordingError if there is no rest segment, or the first is shorter than ``min_rest_s``
-    (its average would carry the motion edges and too little data; the message gives what it
-    would have achieved).
+    Raises RecordingError if there is no rest segment, or none is long enough (a short average
+    carries the motion edges and too little data; the message gives what the longest would have
+    achieved).
     """
     if not rest.index_ranges:
         raise RecordingError(
             "no rest period found: the bias is the average of the gyro at rest (Zhou 2020 §3.2); start the "
             f"session with ≥ {min_rest_s:g} s of holding still, or give the bias yourself"
         )
-    a, b = rest.index_ranges[0]
+    durations = [float(rec.t_s[b - 1] - rec.t_s[a]) for a, b in rest.index_ranges]
+    long_enough = [i for i, d in enumerate(durations) if d >= min_rest_s]
+    pick = long_enough[0] if long_enough else int(np.argmax(durations))
+    a, b = rest.index_ranges[pick]
     seg = rec.gyro_rad_s[a:b]
-    dur = float(rec.t_s[b - 1] - rec.t_s[a])
+    dur = durations[pick]
     batches = np.array_split(seg, 10)
     means = np.array([m.mean(axis=0) for m in batches])
     std = means.std(axis=0, ddof=1) / math.sqrt(len(batches))
-    if dur < min_rest_s:
+    if not long_enough:
         raise RecordingError(
-            f"the first rest period lasts {dur:.2f} s (t = {rec.t_s[a]:.2f}–{rec.t_s[b - 1]:.2f} s), shorter than "
+            f"the longest rest period lasts {dur:.2f} s (t = {rec.t_s[a]:.2f}–{rec.t_s[b - 1]:.2f} s), shorter than "
             f"the {min_rest_s:g} s needed; its bias would be uncertain to ±{np.degrees(std.max()):.3f} °/s: "
             "hold still longer at the start"
         )

@@ -135,11 +135,11 @@ def test_bad_inputs_get_clear_errors(independent_csv, tmp_path, capsys):
     assert calib_main(["run", str(short), *units]) == 2
 
 
-def test_short_initial_rest_is_refused_with_what_it_would_give(independent_csv, tmp_path):
+def test_short_rest_is_refused_with_what_it_would_give(independent_csv, tmp_path):
     path, _ = independent_csv
     header, rows = _rows(path)
-    t0 = float(rows[650][0])  # keep 1.5 s of rest before the first rotation (at 8 s)
-    body = [[f"{float(r[0]) - t0:.6f}"] + r[1:] for r in rows[650:]]
+    t0 = float(rows[650][0])  # keep 1.5 s of rest before the first rotation (at 8 s), cut the final rest
+    body = [[f"{float(r[0]) - t0:.6f}"] + r[1:] for r in rows[650:10000]]
     rec = load_recording(_write(tmp_path / "s.csv", header, body), "deg/s", "g")
     with pytest.raises(RecordingError, match=r"shorter than the 2 s needed; its bias would be uncertain"):
         calibrate(rec)
