@@ -184,6 +184,26 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_allan(args: argparse.Namespace) -> int:
+    """Allan deviation of a static recording's gyro: fitted N, B, K per IEEE 952, and a plot."""
+    from .allan import allan_deviation, fit_noise_terms, plot_allan
+    from .inputs import load_recording
+
+    rec = load_recording(args.recording, gyro_unit=args.gyro_unit, acc_unit=args.acc_unit)
+    curves = [allan_deviation(rec.gyro_rad_s[:, i], rec.rate_hz) for i in range(3)]
+    fit = fit_noise_terms(curves)
+    deg = 180 / math.pi
+    print(f"{args.recording}: {rec.duration_s:.0f} s at {rec.rate_hz:g} Hz, three gyro axes pooled")
+    print(f"  angle random walk   N = {fit.arw * deg * 60:.4f} ± {fit.arw_std * deg * 60:.4f} °/√h")
+    print(f"  bias instability    B = {fit.bias_instability * deg * 3600:.3f} ± {fit.bias_instability_std * deg * 3600:.3f} °/h")
+    print(f"  rate random walk    K = {fit.rate_random_walk * deg * 3600 * 60:.3f} ± {fit.rate_random_walk_std * deg * 3600 * 60:.3f} °/h/√h")
+    print("  (± is the fit's 1σ from the Allan confidence; the recording must be static)")
+    if args.png:
+        plot_allan(curves, fit, args.png, unit_scale=deg * 3600, unit="°/h", title=f"Allan deviation: {Path(str(args.recording)).name}")
+        print(f"wrote {args.png}")
+    return 0
+
+
 def cmd_inspect(args: argparse.Namespace) -> int:
     """Summarise a recording: length, rate, channels, truth and the hand's disturbance if known."""
     from gyrosim.recording import load_hdf5
@@ -245,6 +265,12 @@ def build_parser() -> argparse.ArgumentParser:
     be = sub.add_parser("bench", help="filter speed: filterpy vs the compiled batched kernel (same run)")
     be.add_argument("--batch", type=int, default=50)
     be.set_defaults(func=cmd_bench)
+    al = sub.add_parser("allan", help="Allan deviation of a static recording: ARW, bias instability, rate random walk")
+    al.add_argument("recording")
+    al.add_argument("--png", help="write the Allan plot")
+    al.add_argument("--gyro-unit", default="rad/s")
+    al.add_argument("--acc-unit", default="m/s^2")
+    al.set_defaults(func=cmd_allan)
     i = sub.add_parser("inspect", help="summarise a recording")
     i.add_argument("recording")
     i.set_defaults(func=cmd_inspect)
