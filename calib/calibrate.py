@@ -144,11 +144,7 @@ def prepare(
         external_acc_allowance_m_s2 = math.sqrt(max(rest_excess, 3.0 * along_g, 0.0))
     config = FilterConfig(arw, vrw, external_acc_allowance_m_s2, gravity_m_s2=g)
     q0 = quat_from_two_vectors(rec.acc_m_s2[a:b].mean(axis=0), np.array([0.0, 0.0, 1.0]))  # gravity up, heading 0
-    saturated = None
-    if check.saturated_samples:
-        from .inputs import _saturated
-
-        saturated = _saturated(rec.gyro_rad_s) | _saturated(rec.acc_m_s2)
+    saturated = check.saturated if check.saturated_samples else None
     warnings = list(check.warnings)
     unobs = motion_unobservable(rec, bias.value_rad_s, a)
     if unobs:

@@ -39,7 +39,11 @@ class InputCheck:
     """What the input checks found that is not fatal (``warnings``: named, for the JSON)."""
 
     warnings: tuple[str, ...]
-    saturated_samples: int
+    saturated: np.ndarray  # per-sample mask: at a rail on any channel
+
+    @property
+    def saturated_samples(self) -> int:
+        return int(self.saturated.sum())
 
 
 def _read_csv(path: Path, gyro_unit: str, acc_unit: str) -> Recording:
@@ -161,4 +165,4 @@ def check_recording(rec: Recording) -> InputCheck:
             f"saturated: {int(sat.sum())} sample(s) sit at a rail (runs of equal extreme values); they are "
             "excluded from the filter's measurement updates"
         )
-    return InputCheck(tuple(warnings), int(sat.sum()))
+    return InputCheck(tuple(warnings), sat)

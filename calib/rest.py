@@ -50,14 +50,6 @@ class RestSegments:
     acc_floor_m2_s4: float
     quantile_factor: float
 
-    @property
-    def mask(self) -> np.ndarray:
-        n = self.index_ranges[-1][1] if self.index_ranges else 0
-        m = np.zeros(n, dtype=bool)
-        for a, b in self.index_ranges:
-            m[a:b] = True
-        return m
-
     def to_list(self) -> list[list[float]]:
         return [[round(a, 6), round(b, 6)] for a, b in self.times_s]
 

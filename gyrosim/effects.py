@@ -177,12 +177,8 @@ class Effect:
         raise NotImplementedError
 
     def psd_two_sided(self, f_hz: np.ndarray) -> np.ndarray | None:
-        """Two-sided PSD (3, F) of a stationary Gaussian noise effect, else None.
-
-        Effects that return one are synthesised together by :func:`spectral_noise`: the sum of
-        independent Gaussian processes is the Gaussian process with the summed PSD, so one
-        frequency-domain draw and one inverse FFT replace one draw per effect.
-        """
+        """Two-sided PSD (3, F) of a stationary Gaussian noise effect that is synthesised in the
+        frequency domain (:func:`spectral_noise`), else None."""
         return None
 
     def transform(self, y: np.ndarray, ctx: SignalContext, rng: np.random.Generator | None = None) -> np.ndarray:
@@ -667,9 +663,6 @@ class WhiteNoise(Effect):
 
     def add_delta(self, y, x, ctx, rng=None):
         kern.add_scaled(y, _need_rng(rng, self.kind).standard_normal(x.shape), self.density * math.sqrt(ctx.rate_hz))
-
-    def psd_two_sided(self, f_hz):
-        return np.broadcast_to((self.density**2)[:, None], (3, f_hz.size))
 
 
 @dataclass(frozen=True)

@@ -158,11 +158,10 @@ class HandMotion:
     pivot_acceleration_m_s2: np.ndarray
     segment_index: np.ndarray
 
-    def rows(self, a: int, b: int) -> "HandMotion":
-        """The steps a..b-1 (``pivot_body_m``, a constant, is kept whole)."""
-        return HandMotion(
-            **{f: (v if f == "pivot_body_m" else v[a:b]) for f, v in vars(self).items()}
-        )
+    def select(self, index: slice | np.ndarray) -> "HandMotion":
+        """The steps picked by ``index`` (a slice or index array; ``pivot_body_m``, a constant,
+        is kept whole)."""
+        return HandMotion(**{f: (v if f == "pivot_body_m" else v[index]) for f, v in vars(self).items()})
 
 
 @dataclass(frozen=True)

@@ -126,7 +126,7 @@ class HandScene:
 
     def _control_layout(self) -> None:
         """Find where xfrc_applied / mocap_pos / mocap_quat sit in a CONTROL_SPEC vector."""
-        m, d = self.model, self.data
+        m = self.model
         self.ncontrol = mujoco.mj_stateSize(m, CONTROL_SPEC)
         probe = mujoco.MjData(m)
         probe.xfrc_applied[:] = 1.0
@@ -141,7 +141,6 @@ class HandScene:
         self._xfrc = slice(0, n_x)
         self._mpos = slice(n_x, n_x + n_p)
         self._mquat = slice(n_x + n_p, n_x + n_p + n_q)
-        del d
 
     # ------------------------------------------------------------------ kinematics
     def pivot_body_coords(self, motion: HandMotion) -> np.ndarray:
@@ -285,7 +284,7 @@ class HandScene:
     def initial_state(self, motion: HandMotion, ctrl0: np.ndarray, pivot_start_m: np.ndarray) -> np.ndarray:
         """FULLPHYSICS state at the first step of ``motion`` (pose at t₀, velocities at t₀ − Δt/2)."""
         m, d = self.model, self.data
-        first = motion.rows(0, 1)
+        first = motion.select(slice(0, 1))
         w_b, v_origin = self._staggered_velocities(first)
         mujoco.mj_resetData(m, d)
         d.qpos[:3] = self.body_origin_m(first, pivot_start_m)[0]

@@ -117,7 +117,7 @@ class SensorModel:
             else:
                 e.add_delta(y, x, ctx, r)
         # constant affine effects (bias, scale, non-orthogonality, misalignment): one pass
-        affine = [(e, e.affine()) for e, _ in error if e.pointwise and e.affine() is not None]
+        affine = [(e, ac) for e, ac in ((e, e.affine()) for e, _ in error if e.pointwise) if ac is not None]
         if affine:
             a_sum = sum(a for _, (a, _) in affine)
             c_sum = sum(c for _, (_, c) in affine)

@@ -153,7 +153,7 @@ def simulate_truth(
                 state.append(scene.initial_state(motion, ctrl[0], pivot_start))
             pending.append(pool.submit(run, a, ctrl))
             keep = rows[(rows >= a) & (rows < b)] - a
-            sampled.append((motion.rows(0, 0) if keep.size == 0 else _pick(motion, keep), _pick_arm(arm, keep)))
+            sampled.append((motion.select(keep), _pick_arm(arm, keep)))
         for fut in pending:
             fut.result()  # re-raise any MuJoCo error
 
@@ -201,10 +201,6 @@ def simulate_truth(
         truth=truth,
         meta=meta,
     )
-
-
-def _pick(motion: HandMotion, idx: np.ndarray) -> HandMotion:
-    return HandMotion(**{f: (v if f == "pivot_body_m" else v[idx]) for f, v in vars(motion).items()})
 
 
 def _pick_arm(arm: ArmPose, idx: np.ndarray) -> ArmPose:
