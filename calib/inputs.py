@@ -129,12 +129,19 @@ def _saturated(x: np.ndarray, run: int = 3) -> np.ndarray:
     return bad
 
 
-def check_recording(rec: Recording) -> InputCheck:
-    """Gaps, units and saturation checks (see module docstring); raises on what is fatal."""
+def check_recording(rec: Recording, *, allow_gaps: bool = False) -> InputCheck:
+    """Gaps, units and saturation checks (see module docstring); raises on what is fatal.
+
+    ``allow_gaps``: a caller that integrates over the actual Δt (``calib closeloop``) gets the gaps
+    as a warning instead of an error."""
     dt = np.diff(rec.t_s)
     med = float(np.median(dt))
     gaps = np.flatnonzero(dt > 1.5 * med)
-    if gaps.size:
+    gap_warning = []
+    if gaps.size and allow_gaps:
+        gap_warning.append(f"{gaps.size} gap(s) in time up to {dt.max() * 1e3:.1f} ms ({dt.max() / med:.1f} × the "
+                           f"{med * 1e3:.3f} ms step), first at t = {rec.t_s[int(gaps[0])]:.4f} s")
+    elif gaps.size:
         k = int(gaps[0])
         raise RecordingError(
             f"{gaps.size} gap(s) in time: the first from t = {rec.t_s[k]:.4f} s to {rec.t_s[k + 1]:.4f} s "
@@ -159,7 +166,7 @@ def check_recording(rec: Recording) -> InputCheck:
             "--acc-unit and that the accelerometer channels are the ones named acc_x, acc_y, acc_z"
         )
     sat = _saturated(rec.gyro_rad_s) | _saturated(rec.acc_m_s2)
-    warnings = []
+    warnings = gap_warning
     if sat.any():
         warnings.append(
             f"saturated: {int(sat.sum())} sample(s) sit at a rail (runs of equal extreme values); they are "

@@ -126,9 +126,9 @@ class Effect:
         theta = np.asarray(theta, dtype=float)
         out, i = {}, 0
         for f in self.param_fields:
-            cur = np.atleast_1d(np.asarray(getattr(self, f), dtype=float))
+            cur = np.asarray(getattr(self, f), dtype=float)
             out[f] = theta[i : i + cur.size].reshape(cur.shape) if cur.ndim else float(theta[i])
-            i += cur.size
+            i += max(cur.size, 1)
         return replace(self, **out)
 
     def realize(self, rng: np.random.Generator) -> "Effect":
@@ -827,6 +827,15 @@ class TimeOffset(Effect):
 
     def inverse(self, y, ctx):
         return self._shift(y, -self.delay_s, ctx.dt_s)
+
+    def sensitivity(self, x, ctx):
+        """∂y/∂d = −ẋ(t − d): the spectral derivative of the shifted input, (N, 3, 1)."""
+        n = x.shape[0]
+        f = np.fft.rfftfreq(n, ctx.dt_s)
+        spec = np.fft.rfft(x, axis=0) * (-2j * np.pi * f * np.exp(-2j * np.pi * f * self.delay_s))[:, None]
+        if n % 2 == 0:
+            spec[-1] = 0.0  # the Nyquist bin has no real derivative
+        return np.fft.irfft(spec, n=n, axis=0)[:, :, None]
 
 
 @dataclass(frozen=True)
