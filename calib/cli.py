@@ -224,6 +224,34 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_closeloop(args: argparse.Namespace) -> int:
+    """Fit the declared model, find what the residual lacks, add it, report before/after (issue 5)."""
+    from tqdm import tqdm
+
+    from .closeloop import run_closeloop
+    from .closeloop.report import write_closeloop_report
+    from .inputs import load_recording
+
+    rec = load_recording(args.recording, args.gyro_unit, args.acc_unit)
+    declared = tuple(k.strip() for k in args.declared.split(",") if k.strip())
+    with tqdm(desc="closeloop", unit="test", leave=False) as bar:
+        def progress(msg: str) -> None:
+            bar.set_postfix_str(msg, refresh=False)
+            bar.update()
+
+        res = run_closeloop(rec, declared, reference=args.reference, holdout_s=args.holdout, progress=progress)
+    paths = write_closeloop_report(args.out, rec, res)
+    print(f"reference: {res.reference} ({res.reference_description})")
+    for f in res.found:
+        print(f"  found: {f.trace}")
+    if not res.found:
+        print("  found nothing beyond the declared model")
+    print(f"  unexplained: {res.unexplained.get('summary', '')}")
+    print(f"  error before: {res.error_before}\n  error after:  {res.error_after}")
+    print("wrote " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="calib", description="Gyroscope calibration from hand rotation.")
     p.add_argument("--version", action="version", version=f"calib {__version__}")
@@ -271,6 +299,17 @@ def build_parser() -> argparse.ArgumentParser:
     al.add_argument("--gyro-unit", default="rad/s")
     al.add_argument("--acc-unit", default="m/s^2")
     al.set_defaults(func=cmd_allan)
+    cl = sub.add_parser("closeloop", help="find the effects the declared model lacks, add them, report before/after")
+    cl.add_argument("recording", help="gyrosim .h5, BROAD .hdf5, CSV (t,gyro_x..,acc_x..[,temp]) or dataset:NAME")
+    cl.add_argument("--out", required=True, help="output folder: report.json, report.md, plots, closeloop.rrd")
+    cl.add_argument("--declared", default="bias,scale_factor,nonorthogonality",
+                    help="effects of the declared model (vocabulary names, comma-separated)")
+    cl.add_argument("--reference", default=None, choices=("truth", "optical", "static", "gravity"),
+                    help="force a reference (default: the best the recording has)")
+    cl.add_argument("--holdout", type=float, default=4.0, help="length of the alternating fit/held-out stretches, s")
+    cl.add_argument("--gyro-unit", default="rad/s")
+    cl.add_argument("--acc-unit", default="m/s^2")
+    cl.set_defaults(func=cmd_closeloop)
     i = sub.add_parser("inspect", help="summarise a recording")
     i.add_argument("recording")
     i.set_defaults(func=cmd_inspect)

@@ -25,7 +25,8 @@ from scipy import signal as sp_signal
 
 from .fit import integrated_time
 
-__all__ = ["SpectralLine", "ChannelCorrelation", "spectral_lines", "channel_correlations", "whiteness"]
+__all__ = ["SpectralLine", "ChannelCorrelation", "spectral_lines", "channel_correlations", "whiteness",
+           "variance_growth"]
 
 AXES = "xyz"
 
@@ -113,3 +114,25 @@ def whiteness(r: np.ndarray, lags: int = 20) -> dict[str, float]:
         out[f"ljung_box_q_{AXES[a]}"] = q
     out["ljung_box_lags"] = lags
     return out
+
+
+def variance_growth(r: np.ndarray, domega_dt: np.ndarray, *, alpha: float = 1e-3) -> dict | None:
+    """Sampling-time jitter σ_j makes the residual variance grow with the angular acceleration:
+    E[r_a²] = σ_a² + σ_j² (dω_a/dt)².  Regress r_a² on (dω_a/dt)² pooled over axes; significant
+    when the slope's z exceeds the normal quantile at ``alpha`` (one-sided).  Returns
+    {"jitter_s", "z", "threshold"} when significant, else None."""
+    x = (domega_dt**2).ravel()
+    y = (r**2).ravel()
+    x = x - x.mean()
+    sxx = float(x @ x)
+    if sxx == 0:
+        return None
+    slope = float(x @ (y - y.mean())) / sxx
+    resid = y - y.mean() - slope * x
+    tau = integrated_time(resid)
+    se = math.sqrt(float(resid @ resid) / max(1, y.size - 2) / sxx * tau)
+    z = slope / se if se > 0 else 0.0
+    thr = float(stats.norm.ppf(1 - alpha))
+    if z > thr and slope > 0:
+        return {"jitter_s": math.sqrt(slope), "z": z, "threshold": thr}
+    return None

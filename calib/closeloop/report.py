@@ -1,0 +1,187 @@
+"""Write a closeloop result: ``report.json``, ``report.md`` with plots, and ``closeloop.rrd``.
+
+report.json keys (a promise to scripts, issue 5): ``declared``, ``found`` (list of {``effect``,
+``params``, ``evidence``, ...}), ``unexplained``, ``error_before``, ``error_after`` (both on
+held-out rows), plus ``reference``, ``notes``, ``not_tested``, ``not_distinguished``, ``checks``,
+``rounds`` (every candidate's held-out score per round) and ``recording``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from gyrosim.recording import Recording
+
+from .loop import CloseloopResult
+
+__all__ = ["write_closeloop_report"]
+
+DEG = 180.0 / math.pi
+AXES = "xyz"
+
+
+def _clean(o):
+    if isinstance(o, dict):
+        return {str(k): _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _clean(o.tolist())
+    if isinstance(o, (np.floating, float)):
+        return float(o) if math.isfinite(o) else None
+    if isinstance(o, np.integer):
+        return int(o)
+    return o
+
+
+def _row_scale(res: CloseloopResult) -> tuple[float, str]:
+    return (DEG, "°/s") if res.reference in ("truth", "optical", "static") else (1.0, "weighted")
+
+
+def _plot_residual_time(res: CloseloopResult, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scale, unit = _row_scale(res)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
+    held = res.held_out_rows
+    for a, ax in enumerate(axes):
+        m = (res.row_axis == a) & held
+        t = res.row_time_s[m]
+        ax.plot(t, res.residual_before[m] * scale, ".", ms=1.5, alpha=0.5, label="declared model")
+        ax.plot(t, res.residual_after[m] * scale, ".", ms=1.5, alpha=0.5, label="after the loop")
+        ax.set_ylabel(f"{AXES[a]} residual ({unit})")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", markerscale=6)
+    axes[0].set_title("held-out residual before and after the loop")
+    axes[-1].set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _plot_vs_regressor(res: CloseloopResult, rows_of, effect: str, series: np.ndarray, path: Path) -> Path:
+    """Held-out residual before/after vs the signal the effect follows, binned means per axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scale, unit = _row_scale(res)
+    reg = rows_of(np.asarray(series, float))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    for a, ax in enumerate(axes):
+        m = (res.row_axis == a) & res.held_out_rows
+        x = reg[m]
+        for r, lab in ((res.residual_before[m], "declared"), (res.residual_after[m], "after")):
+            edges = np.quantile(x, np.linspace(0, 1, 31))
+            idx = np.clip(np.searchsorted(edges, x) - 1, 0, 29)
+            cnt = np.bincount(idx, minlength=30)
+            mean = np.bincount(idx, r, 30) / np.maximum(cnt, 1)
+            centre = 0.5 * (edges[:-1] + edges[1:])
+            ax.plot(centre[cnt > 0], mean[cnt > 0] * scale, "o-", ms=3, label=lab)
+        ax.set_title(f"axis {AXES[a]}")
+        ax.set_xlabel(f"regressor of {effect}")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel(f"binned residual ({unit})")
+    axes[0].legend()
+    fig.suptitle(f"residual vs what {effect} follows (held-out rows)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _write_rrd(res: CloseloopResult, path: Path) -> Path:
+    import rerun as rr
+
+    scale, _ = _row_scale(res)
+    stream = rr.RecordingStream("gyrosim_calib_closeloop")
+    stream.save(str(path))
+    for name, r in (("before", res.residual_before), ("after", res.residual_after)):
+        for a in range(3):
+            m = res.row_axis == a
+            if not m.any():
+                continue
+            stream.send_columns(f"closeloop/residual_{name}/{AXES[a]}",
+                                indexes=[rr.TimeColumn("sensor_time", duration=res.row_time_s[m])],
+                                columns=rr.Scalars.columns(scalars=r[m] * scale))
+    text = "\n".join(f"- {f.trace}" for f in res.found) or "nothing found"
+    stream.log("closeloop/findings", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+    stream.flush()
+    return path
+
+
+def write_closeloop_report(out: str | Path, rec: Recording, res: CloseloopResult) -> dict[str, Path]:
+    """Write report.json, report.md (+ PNG plots) and closeloop.rrd into ``out``; returns their paths."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, Path] = {}
+    data = res.to_json_dict()
+    data["recording"] = {"samples": int(rec.t_s.size), "duration_s": float(rec.t_s[-1] - rec.t_s[0]),
+                         "source": rec.meta.get("source", rec.meta.get("dataset", "")),
+                         "licence": rec.meta.get("licence", "")}
+    paths["json"] = out / "report.json"
+    paths["json"].write_text(json.dumps(_clean(data), indent=2, ensure_ascii=False))
+    plots = []
+    if res.residual_before is not None and res.reference != "none":
+        plots.append(_plot_residual_time(res, out / "residual_time.png"))
+        if res.rows_of is not None:
+            for f in res.found:
+                series = res.follows_series.get(f.effect)
+                if series is not None:
+                    plots.append(_plot_vs_regressor(res, res.rows_of, f.effect, series, out / f"residual_vs_{f.effect}.png"))
+        paths["rrd"] = _write_rrd(res, out / "closeloop.rrd")
+    paths["md"] = out / "report.md"
+    paths["md"].write_text(_markdown(res, data["recording"], plots))
+    return paths
+
+
+def _fmt_err(e: dict) -> str:
+    return ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in e.items()) or "—"
+
+
+def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
+    lines = [f"# Close-the-loop report", "",
+             f"Recording: {recinfo['source'] or '(unnamed)'} — {recinfo['samples']} samples, {recinfo['duration_s']:.1f} s.",
+             f"Reference: **{res.reference}** — {res.reference_description}.", "",
+             f"Declared model: {', '.join(res.declared)}.", "", "## What the residual says", ""]
+    if res.found:
+        lines += [f"{i + 1}. {f.trace}" for i, f in enumerate(res.found)]
+    else:
+        lines.append("Nothing: no candidate explains a significant part of the held-out residual.")
+    lines += ["", f"## Error on held-out data ({res.error_before.get('unit', '')} unless named)", "",
+              "| | before (declared) | after the loop |", "|---|---|---|"]
+    for k in [k for k in res.error_before if k != "unit"]:
+        b, a = res.error_before.get(k), res.error_after.get(k, "—")
+        fb = f"{b:.4g}" if isinstance(b, float) else str(b)
+        fa = f"{a:.4g}" if isinstance(a, float) else str(a)
+        lines.append(f"| {k} | {fb} | {fa} |")
+    lines += ["", "## Structure no candidate explains", "", res.unexplained.get("summary", "—"), ""]
+    for l in res.unexplained.get("spectral_lines", [])[:5]:
+        lines.append(f"- line at {l['frequency_hz']:.2f} Hz on {l['axis']}: amplitude {l['amplitude_rad_s'] * DEG:.3g} °/s "
+                     f"({l['ratio']:.1f}× background, threshold {l['threshold']:.1f})")
+    for c in res.unexplained.get("channel_correlations", [])[:5]:
+        lines.append(f"- residual {c['axis']} vs {c['channel']}: ρ = {c['rho']:.3f} ({c['z']:.1f}σ, threshold {c['threshold']:.1f})")
+    if res.not_distinguished:
+        lines += ["", "## Not distinguished", ""]
+        lines += [f"- round {d['round']}: {d['chosen']} vs {', '.join(d['rivals'])} — {d['why']}" for d in res.not_distinguished]
+    lines += ["", "## Not tested", ""] + [f"- {k}: {v}" for k, v in res.not_tested.items()]
+    lines += ["", "## Candidate scores (round 1)", "", "| effect | held-out gain G | added parameters |", "|---|---|---|"]
+    for r in (res.rounds[0] if res.rounds else []):
+        g = r["gain"]
+        lines.append(f"| {r['effect']} | {g:.1f} | {r['added_parameters']} |" if g is not None
+                     else f"| {r['effect']} | — | {r['added_parameters']} |")
+    lines += ["", "## Notes", ""] + [f"- {n}" for n in res.notes]
+    q = res.checks.get("quantization_lsb", {})
+    lines.append(f"- quantization step per axis (rad/s): {q}; saturated samples: {res.checks.get('saturated_samples', 0)}")
+    if plots:
+        lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
+    return "\n".join(lines) + "\n"
