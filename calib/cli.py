@@ -252,6 +252,58 @@ def cmd_closeloop(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_closeloop_bench(args: argparse.Namespace) -> int:
+    """closeloop wall time on ~3-minute recordings against the Zhou filter on the same data, same run."""
+    import time
+
+    from gyrosim.loaders import available_datasets, load_dataset
+    from gyrosim.simulate import simulate
+
+    from .calibrate import calibrate
+    from .closeloop import run_closeloop
+    from .closeloop.suite import BASE_SENSOR
+
+    cases = [("zhou2020, typical hand, 100 Hz (simulated)", simulate("zhou2020", "typical", BASE_SENSOR, 100.0, seed=0))]
+    if "broad/07_undisturbed_fast_rotation_B" in available_datasets():
+        cases.append(("BROAD 07 fast rotation, 285.7 Hz (measured)", load_dataset("broad/07_undisturbed_fast_rotation_B")))
+    print(f"{'recording':<46} {'samples':>8} {'closeloop s':>12} {'Zhou filter s':>14} {'ratio':>7}")
+    for name, rec in cases:
+        run_closeloop(rec)  # warm caches (numba, FFT plans) so both timings are steady-state
+        t0 = time.perf_counter()
+        run_closeloop(rec)
+        t_cl = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        calibrate(rec, "kf")
+        t_kf = time.perf_counter() - t0
+        print(f"{name:<46} {rec.t_s.size:8d} {t_cl:12.2f} {t_kf:14.2f} {t_cl / t_kf:7.2f}")
+    return 0
+
+
+def cmd_closeloop_suite(args: argparse.Namespace) -> int:
+    """The undeclared-effect suite over seeds (README table)."""
+    from tqdm import tqdm
+
+    from gyrosim.simulate import apply_sensor, simulate_truth
+
+    from .closeloop import run_closeloop
+    from .closeloop.suite import SUITE, run_case, sensor_with
+
+    truth = simulate_truth("zhou2020", args.hand, 100.0, rng=np.random.default_rng(args.truth_seed))
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    print(f"{'undeclared effect':<22} {'named first':>11} {'max |z|':>8} {'declared °/s':>13} {'loop °/s':>9} "
+          f"{'loop/correct':>13}")
+    for kind in SUITE:
+        res = [run_case(kind, truth, s) for s in tqdm(seeds, desc=kind, leave=False)]
+        first = sum(r.named_first for r in res)
+        z = max(r.z_max for r in res)
+        print(f"{kind:<22} {first:>5}/{len(res):<5} {z:8.2f} {np.mean([r.error_declared for r in res]):13.4f} "
+              f"{np.mean([r.error_loop for r in res]):9.4f} {max(r.ratio_to_correct for r in res):13.3f}")
+    added = sum(bool(run_closeloop(apply_sensor(truth, sensor_with(None), np.random.default_rng(s))).found)
+                for s in tqdm(seeds, desc="negative control", leave=False))
+    print(f"{'(nothing undeclared)':<22} {'added in':>11} {added}/{len(seeds)} seeds")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="calib", description="Gyroscope calibration from hand rotation.")
     p.add_argument("--version", action="version", version=f"calib {__version__}")
@@ -310,6 +362,14 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--gyro-unit", default="rad/s")
     cl.add_argument("--acc-unit", default="m/s^2")
     cl.set_defaults(func=cmd_closeloop)
+    cb = sub.add_parser("closeloop-bench", help="closeloop wall time vs the Zhou filter on the same ~3-min recordings")
+    cb.set_defaults(func=cmd_closeloop_bench)
+    cs = sub.add_parser("closeloop-suite", help="undeclared-effect suite over seeds (named first, |z|, error ratio)")
+    cs.add_argument("--seeds", type=int, default=10)
+    cs.add_argument("--first-seed", type=int, default=100)
+    cs.add_argument("--truth-seed", type=int, default=1)
+    cs.add_argument("--hand", default="typical")
+    cs.set_defaults(func=cmd_closeloop_suite)
     i = sub.add_parser("inspect", help="summarise a recording")
     i.add_argument("recording")
     i.set_defaults(func=cmd_inspect)

@@ -32,6 +32,9 @@ from gyrosim.effects import (EARTH_RATE_RAD_S, EFFECTS, Bias, Effect, EarthRate,
                              TemperatureBias, TemperatureScale, ThermalHysteresis, TimeOffset)
 from gyrosim.rotations import quat_conjugate, quat_rotate
 
+DIMENSIONLESS = ("scale_factor", "nonorthogonality", "misalignment")
+DIMENSIONLESS_BOUND = 0.3
+
 __all__ = ["Candidate", "build_candidate", "candidate_kinds", "NOT_CANDIDATES"]
 
 NOT_CANDIDATES = {
@@ -60,7 +63,16 @@ class Candidate:
 
     def check(self, theta: np.ndarray) -> str | None:
         """Why fitted parameters cannot be this effect (None: plausible)."""
+        if self.effect in DIMENSIONLESS and np.any(np.abs(theta) >= 0.99 * DIMENSIONLESS_BOUND):
+            return (f"fitted {self.effect} reaches ±{DIMENSIONLESS_BOUND:g} (a {DIMENSIONLESS_BOUND * 100:.0f} % axis error): "
+                    "not a sensor defect but a different solution of the self-consistency equations")
         return self.implausible(theta) if self.implausible is not None else None
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Box for a nonlinear fit: dimensionless axis errors within ±DIMENSIONLESS_BOUND (a real
+        scale or axis error is a few %; the pose-to-pose equations have far-away spurious solutions)."""
+        b = DIMENSIONLESS_BOUND if self.effect in DIMENSIONLESS else np.inf
+        return np.full(self.n_params, -b), np.full(self.n_params, b)
 
     @property
     def n_params(self) -> int:

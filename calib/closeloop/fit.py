@@ -75,8 +75,12 @@ def _solve(j: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def fit_model(ref: Reference, regressors: np.ndarray, rows: np.ndarray | None = None,
-              iterations: int = 4) -> FitResult:
-    """Fit θ of the stacked regressors (N, 3, P) on the selected residual rows (bool mask, default all)."""
+              iterations: int = 4, theta0: np.ndarray | None = None,
+              bounds: tuple[np.ndarray, np.ndarray] | None = None) -> FitResult:
+    """Fit θ of the stacked regressors (N, 3, P) on the selected residual rows (bool mask, default all).
+
+    ``theta0``: start of a nonlinear fit (a model fitted before, extended by zeros), so that an
+    extended or all-rows refit stays in the basin of the solution already found."""
     y = _measured(ref)
     p = regressors.shape[2]
     sel = slice(None) if rows is None else rows
@@ -99,9 +103,13 @@ def fit_model(ref: Reference, regressors: np.ndarray, rows: np.ndarray | None = 
         def jac(th):
             return -ref.jacobian(regressors, y, regressors @ th)[sel]
 
+        if theta0 is not None:
+            theta = np.asarray(theta0, dtype=float).copy()
         col = np.linalg.norm(jac(theta), axis=0)
+        lb, ub = bounds if bounds is not None else (np.full(p, -np.inf), np.full(p, np.inf))
+        theta = np.clip(theta, lb + 1e-12, ub - 1e-12)
         sol = optimize.least_squares(fun, theta, jac=jac, method="trf", x_scale=1.0 / np.where(col > 0, col, 1.0),
-                                     max_nfev=20 * iterations)
+                                     bounds=(lb, ub), max_nfev=5 * iterations)
         theta = sol.x
         _, cov, rank = _solve(-jac(theta), fun(theta))
     r = ref.residual(y, regressors @ theta)
@@ -133,11 +141,14 @@ def held_out_split(ref: Reference) -> tuple[np.ndarray, np.ndarray]:
     return even, ~even
 
 
-def held_out_score(ref: Reference, base: np.ndarray, extra: np.ndarray, base_fit: FitResult | None = None) -> HeldOutScore:
-    """Score of adding the columns ``extra`` (N, 3, P') to ``base`` (N, 3, P) on held-out rows."""
+def held_out_score(ref: Reference, base: np.ndarray, extra: np.ndarray, base_fit: FitResult | None = None,
+                   bounds: tuple[np.ndarray, np.ndarray] | None = None) -> HeldOutScore:
+    """Score of adding the columns ``extra`` (N, 3, P') to ``base`` (N, 3, P) on held-out rows
+    (``bounds``: the box of base and extra parameters together, for nonlinear references)."""
     fit_rows, held = held_out_split(ref)
     f0 = base_fit or fit_model(ref, base, fit_rows)
-    f1 = fit_model(ref, np.concatenate([base, extra], axis=2), fit_rows)
+    f1 = fit_model(ref, np.concatenate([base, extra], axis=2), fit_rows,
+                   theta0=np.concatenate([f0.theta, np.zeros(extra.shape[2])]), bounds=bounds)
     r0, r1 = f0.residual[held], f1.residual[held]
     rss0, rss1 = float(r0 @ r0), float(r1 @ r1)
     # τ of the *extended* model's residual: the current one still holds the structure under test,

@@ -89,6 +89,12 @@ class CloseloopResult:
         }
 
 
+def _bounds(cands: list[Candidate]) -> tuple[np.ndarray, np.ndarray]:
+    lo = [c.bounds()[0] for c in cands]
+    hi = [c.bounds()[1] for c in cands]
+    return (np.concatenate(lo), np.concatenate(hi)) if cands else (np.zeros(0), np.zeros(0))
+
+
 def _stack(cands: list[Candidate], n: int) -> np.ndarray:
     return np.concatenate([c.regressors for c in cands], axis=2) if cands else np.zeros((n, 3, 0))
 
@@ -248,10 +254,10 @@ def run_closeloop(
         raise RecordingError(
             f"the recording is too short for a held-out split: {fit_rows.sum()} fit and {held.sum()} held-out rows "
             f"with {holdout_s:g} s held-out groups; record longer or pass a shorter --holdout")
-    declared_fit = fit_model(ref, _stack(model, n), fit_rows)
+    declared_fit = fit_model(ref, _stack(model, n), fit_rows, bounds=_bounds(model))
     if isinstance(ref, GravityReference):
         ref.reweight(declared_fit.residual)
-        declared_fit = fit_model(ref, _stack(model, n), fit_rows)
+        declared_fit = fit_model(ref, _stack(model, n), fit_rows, theta0=declared_fit.theta, bounds=_bounds(model))
     p_decl = sum(c.n_params for c in model)
     notes = list(ref.notes) + list(check.warnings)
     if declared_fit.rank < p_decl:
@@ -293,7 +299,7 @@ def run_closeloop(
         scores = {}
         for kind, c in pool.items():
             say(f"round {rnd + 1}: testing {kind}")
-            scores[kind] = held_out_score(ref, base, c.regressors, current)
+            scores[kind] = held_out_score(ref, base, c.regressors, current, _bounds(model + [c]))
         rejected = {k: why for k, s in scores.items() if (why := pool[k].check(s.theta_new)) and s.gain > 0}
         table = [{"effect": k, "gain": (s.gain if math.isfinite(s.gain) else None), "added_parameters": s.added_rank,
                   "held_out_rms_before": s.rms_before, "held_out_rms_after": s.rms_after, "n_eff": s.n_eff,
@@ -319,7 +325,9 @@ def run_closeloop(
                                              "of it: on this recording they explain the same residual"})
         cand = pool.pop(best_kind)
         model.append(cand)
-        current = refresh_output_stage(fit_model(ref, _stack(model, n), fit_rows))
+        current = refresh_output_stage(fit_model(ref, _stack(model, n), fit_rows,
+                                                 theta0=np.concatenate([current.theta, np.zeros(cand.n_params)]),
+                                                 bounds=_bounds(model)))
         found.append(Finding(best_kind, {}, {}, {
             "round": rnd + 1, "criterion_gain": best.gain, "added_parameters": best.added_rank,
             "n_eff": best.n_eff, "held_out_rms_before": best.rms_before, "held_out_rms_after": best.rms_after,
@@ -327,7 +335,7 @@ def run_closeloop(
             "rivals": rivals}, ""))
 
     # final parameters on all rows; errors on held-out rows
-    full = fit_model(ref, _stack(model, n))
+    full = fit_model(ref, _stack(model, n), theta0=current.theta, bounds=_bounds(model))
     params = _params(model, full)
     declared_params = {k: v for p in params[: len(declared)] for k, v in p.items()}
     weak = [f"{k} ± {v['sigma'] * 100:.2g} %" for k, v in declared_params.items()
