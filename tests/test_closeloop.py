@@ -108,6 +108,23 @@ def test_one_rest_and_no_reference_reports_instead_of_guessing(typical_session):
     assert res.not_tested and all("rest" in why for why in res.not_tested.values())
 
 
+def test_saturated_samples_are_left_out_not_explained(typical_session):
+    """Clipping at ±1 rad/s (the schedule peaks near 1.3 rad/s) must not be 'explained' by a
+    nonlinearity: the clipped samples' rows are dropped and counted."""
+    from dataclasses import replace
+
+    from gyrosim import effects as E
+
+    base = sensor_with(None)
+    sensor = replace(base, gyro=base.gyro + (E.Saturation(range=[1.0, 1.0, 1.0]),))
+    rec = apply_sensor(typical_session, sensor, np.random.default_rng(3))
+    res = run_closeloop(rec)
+    clipped = int((np.abs(rec.gyro_rad_s) >= 1.0 - 1e-12).any(axis=1).sum())
+    assert res.found == []
+    assert abs(res.checks["saturated_samples"] - clipped) <= clipped // 100 + 1
+    assert any("blocks dropped" in n for n in res.notes)
+
+
 def test_too_short_and_unknown_declared_are_clear_errors(typical_session):
     rec = apply_sensor(typical_session, sensor_with(None), np.random.default_rng(4))
     with pytest.raises(RecordingError, match="too short for a held-out split"):

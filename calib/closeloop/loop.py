@@ -173,10 +173,6 @@ def _attitude_rms(ref: Reference, rec: Recording, corrected: np.ndarray) -> floa
     return float(np.sqrt(np.mean(err[ok] ** 2)) * DEG)
 
 
-def _rate_rows_to_blocks(ref: RateReference, rows: np.ndarray) -> np.ndarray:
-    return rows.reshape(-1, 3)
-
-
 def _channels(ref: RateReference, rec: Recording) -> dict[str, np.ndarray]:
     ctx = ref.ctx
     per = {f"gyro_{a}": rec.gyro_rad_s[:, i] for i, a in enumerate("xyz")}
@@ -216,10 +212,8 @@ def run_closeloop(
     if unknown:
         raise RecordingError(f"--declared: unknown effect(s) {unknown}; the vocabulary has {', '.join(EFFECTS)}")
     check = check_recording(rec, allow_gaps=True)
-    if check.saturated.any():  # rails carry no information about the rate: drop those samples' rows by zeroing nothing;
-        pass                   # they are reported in checks (the reference rows still use them)
-    try:
-        ref = build_reference(rec, holdout_s=holdout_s, prefer=reference)
+    try:  # saturated samples carry no information about the rate: their rows are left out
+        ref = build_reference(rec, holdout_s=holdout_s, prefer=reference, exclude=check.saturated)
     except RecordingError as err:
         if "rest poses" not in str(err):
             raise

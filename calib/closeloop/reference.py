@@ -131,25 +131,35 @@ def _groups_for(times: np.ndarray, holdout_s: float) -> np.ndarray:
     return np.floor((times - times[0]) / holdout_s).astype(int)
 
 
-def truth_reference(rec: Recording, holdout_s: float) -> RateReference:
-    w = np.asarray(rec.truth.omega_body_rad_s)
-    n = w.shape[0]
-    rows_t = np.repeat(rec.t_s, 3)
+def _rate_reference(kind: str, description: str, rec: Recording, ctx: SignalContext, block: int,
+                    block_ref: np.ndarray, usable: np.ndarray, holdout_s: float, notes: list[str]) -> RateReference:
+    """Rows of the blocks whose every sample is usable (finite reference, not saturated)."""
+    valid = _block_mean(usable.astype(float), block) == 1.0
+    dropped = int((~valid).sum())
+    if dropped:
+        notes = notes + [f"{dropped} of {valid.size} blocks dropped (missing reference or saturated samples)"]
+    bt = _block_mean(rec.t_s, block)[valid]
+    rows_t = np.repeat(bt, 3)
     return RateReference(
-        kind="truth", description="simulation truth rate (ω_true at the gyro site)",
-        ctx=_context(rec, w, rec.truth.quat_nb), groups=_groups_for(rows_t, holdout_s), row_time_s=rows_t,
-        row_axis=np.tile(np.arange(3), n), row_unit="rad/s", block=1, block_ref_rad_s=w,
-        valid_blocks=np.ones(n, bool), y_rad_s=np.asarray(rec.gyro_rad_s))
+        kind=kind, description=description, ctx=ctx, groups=_groups_for(rows_t, holdout_s), row_time_s=rows_t,
+        row_axis=np.tile(np.arange(3), bt.size), row_unit="rad/s", notes=notes, block=block,
+        block_ref_rad_s=block_ref, valid_blocks=valid, y_rad_s=np.asarray(rec.gyro_rad_s))
 
 
-def optical_reference(rec: Recording, holdout_s: float, block_s: float = 0.05, smooth_hz: float = 15.0) -> RateReference:
+def truth_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> RateReference:
+    w = np.asarray(rec.truth.omega_body_rad_s)
+    return _rate_reference("truth", "simulation truth rate (ω_true at the gyro site)", rec,
+                           _context(rec, w, rec.truth.quat_nb), 1, w, ~exclude, holdout_s, [])
+
+
+def optical_reference(rec: Recording, holdout_s: float, exclude: np.ndarray, block_s: float = 0.05,
+                      smooth_hz: float = 15.0) -> RateReference:
     t = rec.t_s
     fs = 1.0 / float(np.median(np.diff(t)))
     q = np.asarray(rec.truth.quat_nb)
     raw = optical_rate(t, q)
     block = max(1, int(round(block_s * fs)))
     ok = np.all(np.isfinite(raw), axis=1)
-    valid = _block_mean(ok.astype(float), block) == 1.0
     bref = _block_mean(np.where(ok[:, None], raw, 0.0), block)
     smooth = _fill_nan(raw, t)
     bb, aa = sp_signal.butter(4, smooth_hz / (fs / 2))
@@ -159,32 +169,19 @@ def optical_reference(rec: Recording, holdout_s: float, block_s: float = 0.05, s
     if bad.any():  # the attitude of the regressors (Earth rate) only: hold the last good one
         idx = np.maximum.accumulate(np.where(~bad, np.arange(q.shape[0]), 0))
         q_fill = q[idx]
-    bt = _block_mean(t, block)[valid]
-    rows_t = np.repeat(bt, 3)
-    notes = [f"optical rate from consecutive orientations, block means over {block} samples ({block / fs * 1e3:.0f} ms); "
-             f"{(~valid).sum()} of {valid.size} blocks dropped (missing optical samples)",
+    notes = [f"optical rate from consecutive orientations, block means over {block} samples ({block / fs * 1e3:.0f} ms)",
              f"regressors use the optical rate low-passed at {smooth_hz:g} Hz (zero-phase)"]
-    return RateReference(
-        kind="optical", description="optical orientation (opt_quat) differentiated",
-        ctx=_context(rec, smooth, q_fill), groups=_groups_for(rows_t, holdout_s), row_time_s=rows_t,
-        row_axis=np.tile(np.arange(3), bt.size), row_unit="rad/s", notes=notes, block=block,
-        block_ref_rad_s=bref, valid_blocks=valid, y_rad_s=np.asarray(rec.gyro_rad_s))
+    return _rate_reference("optical", "optical orientation (opt_quat) differentiated", rec,
+                           _context(rec, smooth, q_fill), block, bref, ok & ~exclude, holdout_s, notes)
 
 
-def static_reference(rec: Recording, holdout_s: float, block_s: float = 0.5) -> RateReference:
-    t = rec.t_s
-    fs = 1.0 / float(np.median(np.diff(t)))
+def static_reference(rec: Recording, holdout_s: float, exclude: np.ndarray, block_s: float = 0.5) -> RateReference:
+    fs = 1.0 / float(np.median(np.diff(rec.t_s)))
     block = max(1, int(round(block_s * fs)))
-    nb = t.size // block
-    bt = _block_mean(t, block)
-    rows_t = np.repeat(bt, 3)
     zero = np.zeros_like(rec.gyro_rad_s)
-    return RateReference(
-        kind="static", description="at rest: zero rate (the Earth rate is a candidate)",
-        ctx=_context(rec, zero, None), groups=_groups_for(rows_t, holdout_s), row_time_s=rows_t,
-        row_axis=np.tile(np.arange(3), nb), row_unit="rad/s", block=block, block_ref_rad_s=np.zeros((nb, 3)),
-        valid_blocks=np.ones(nb, bool), y_rad_s=np.asarray(rec.gyro_rad_s),
-        notes=[f"block means over {block} samples ({block_s:g} s)"])
+    return _rate_reference("static", "at rest: zero rate (the Earth rate is a candidate)", rec, _context(rec, zero, None),
+                           block, np.zeros((rec.t_s.size // block, 3)), ~exclude, holdout_s,
+                           [f"block means over {block} samples ({block_s:g} s)"])
 
 
 @dataclass
@@ -302,11 +299,11 @@ def calibrate_accelerometer_at_rest(means_m_s2: np.ndarray):
     return (lambda f: (f - b) @ minv.T), note
 
 
-def gravity_reference(rec: Recording, holdout_s: float) -> GravityReference:
+def gravity_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> GravityReference:
     from calib.rest import detect_rest  # local: calib.rest imports nothing from here
 
     rest = detect_rest(rec)
-    rests = [r for r in rest.index_ranges if r[1] - r[0] >= 2]
+    rests = [r for r in rest.index_ranges if r[1] - r[0] >= 2 and not exclude[r[0] : r[1]].any()]
     if len(rests) < 2:
         raise RecordingError(
             f"self-consistency needs at least two rest poses with motion between them; found {len(rests)} "
@@ -352,8 +349,13 @@ def gravity_reference(rec: Recording, holdout_s: float) -> GravityReference:
         rest_sigma_rad_s=max(sig_rate, 1e-9), tilt_sigma_rad=tilt_sigma, rate_rows_share=3 * k, turns=turns)
 
 
-def build_reference(rec: Recording, holdout_s: float = 4.0, prefer: str | None = None) -> Reference:
-    """The best reference the recording has: truth rate > optical orientation > (static | gravity)."""
+def build_reference(rec: Recording, holdout_s: float = 4.0, prefer: str | None = None,
+                    exclude: np.ndarray | None = None) -> Reference:
+    """The best reference the recording has: truth rate > optical orientation > (static | gravity).
+
+    ``exclude``: samples to leave out (saturated: their true value is unknown); rate references
+    drop the blocks that hold one, the gravity reference the rests that do."""
+    exclude = np.zeros(rec.t_s.size, bool) if exclude is None else np.asarray(exclude, bool)
     tr = rec.truth
     kinds = []
     if tr is not None and tr.omega_body_rad_s is not None:
@@ -369,4 +371,4 @@ def build_reference(rec: Recording, holdout_s: float = 4.0, prefer: str | None =
         raise RecordingError(f"this recording has no {kind} reference; it offers {', '.join(kinds)}")
     build = {"truth": truth_reference, "optical": optical_reference, "static": static_reference,
              "gravity": gravity_reference}[kind]
-    return build(rec, holdout_s)
+    return build(rec, holdout_s, exclude)
