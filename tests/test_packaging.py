@@ -35,6 +35,14 @@ def test_model_and_data_ship_in_the_wheel_and_load_from_it(tmp_path):
     for required in ("gyrosim/models/handheld.xml", "gyrosim/schedules/zhou2020.toml",
                      "gyrosim/presets/hands/typical.toml", "calib/cli.py"):
         assert required in names, required
+    # every source module and data file of the two packages ships (a forgotten subpackage would
+    # work in the editable checkout and break in an installed copy)
+    for pkg in ("gyrosim", "calib"):
+        for f in (ROOT / pkg).rglob("*"):
+            if f.suffix in (".py", ".toml") and "__pycache__" not in f.parts:
+                assert f.relative_to(ROOT).as_posix() in names, f"{f.relative_to(ROOT)} is not in the wheel"
+    for f in (ROOT / "models").glob("*.xml"):
+        assert f"gyrosim/models/{f.name}" in names, f.name
     target = tmp_path / "site"
     inst = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
                           capture_output=True, text=True)
