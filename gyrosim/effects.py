@@ -556,6 +556,120 @@ class ThermalHysteresis(Effect):
         return np.broadcast_to(np.eye(3), x.shape + (3,)) * r[:, None, None]
 
 
+def _hats(temp: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(N, K) linear-interpolation weights of each temperature on the points (held beyond the ends)."""
+    t = np.clip(temp, points[0], points[-1])
+    j = np.clip(np.searchsorted(points, t, side="right") - 1, 0, points.size - 2)
+    w = (t - points[j]) / (points[j + 1] - points[j])
+    out = np.zeros((t.size, points.size))
+    rows = np.arange(t.size)
+    out[rows, j] = 1.0 - w
+    out[rows, j + 1] = w
+    return out
+
+
+@dataclass(frozen=True)
+class TemperaturePiecewise(Effect):
+    """Bias and scale factor interpolated linearly between calibration temperatures (seed 001 §4,
+    piecewise-linear interpolation compensation): δ_i = b_i(T) + s_i(T) x_i, with b_i, s_i the
+    values at ``points_c`` (°C, increasing) joined linearly and held beyond the end points.
+    ``bias`` (3, K) in rad/s or m/s², ``scale`` (3, K) fraction (SI in presets too)."""
+
+    kind: ClassVar[str] = "temperature_pwl"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("bias", "scale")
+    points_c: np.ndarray = field(default_factory=lambda: np.array([-40.0, 85.0]))
+    bias: np.ndarray = field(default_factory=lambda: np.zeros((3, 2)))
+    scale: np.ndarray = field(default_factory=lambda: np.zeros((3, 2)))
+
+    def __post_init__(self) -> None:
+        pts = np.asarray(self.points_c, dtype=float).ravel()
+        if pts.size < 2 or np.any(np.diff(pts) <= 0) or not np.all(np.isfinite(pts)):
+            raise GyrosimError("temperature_pwl: points_c must be ≥ 2 finite, strictly increasing temperatures (°C)")
+        object.__setattr__(self, "points_c", pts)
+        for name in ("bias", "scale"):
+            v = np.array(getattr(self, name), dtype=float)
+            v = np.tile(v.reshape(1, -1), (3, 1)) if v.ndim == 1 else v
+            if v.shape != (3, pts.size) or not np.all(np.isfinite(v)):
+                raise GyrosimError(f"temperature_pwl: {name} must be finite with shape (3, {pts.size}), got {v.shape}")
+            object.__setattr__(self, name, v)
+
+    def _h(self, ctx: SignalContext) -> np.ndarray:
+        return _hats(ctx.require("temperature_c", self.kind), self.points_c)
+
+    def delta(self, x, ctx, rng=None):
+        h = self._h(ctx)
+        return h @ self.bias.T + x * (h @ self.scale.T)
+
+    def delta_dx(self, x, ctx):
+        s = self._h(ctx) @ self.scale.T
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = s[:, i]
+        return out
+
+    def sensitivity(self, x, ctx):
+        h = self._h(ctx)
+        k = self.points_c.size
+        out = np.zeros(x.shape + (6 * k,))
+        for i in range(3):
+            out[:, i, i * k : (i + 1) * k] = h
+            out[:, i, 3 * k + i * k : 3 * k + (i + 1) * k] = h * x[:, i : i + 1]
+        return out
+
+
+@dataclass(frozen=True)
+class TemperatureRBF(Effect):
+    """Bias drift over temperature as a Gaussian radial-basis network with the inputs ΔT and ΔT²
+    (seed 003, §3.2: TDE modelled from ΔT = T − T_ref and ΔT²):
+
+        δ_i = Σ_k a_ik exp(−½ [((ΔT − ΔT_k)/w)² + ((ΔT² − ΔT_k²)/(w·s))²]),   s = 2 max_k |ΔT_k|
+
+    with centres ΔT_k = ``centres_c`` − ``t_ref_c`` and width w = ``width_c`` (°C); s puts the ΔT²
+    axis on the same scale as ΔT.  The centres are fixed, so δ is linear in the weights a (3, K),
+    rad/s or m/s² (an RBF network whose output layer is fitted by least squares)."""
+
+    kind: ClassVar[str] = "temperature_rbf"
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("weights",)
+    centres_c: np.ndarray = field(default_factory=lambda: np.linspace(-40.0, 85.0, 6))
+    width_c: float = 25.0
+    t_ref_c: float = 25.0
+    weights: np.ndarray = field(default_factory=lambda: np.zeros((3, 6)))
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.centres_c, dtype=float).ravel()
+        if c.size < 1 or not np.all(np.isfinite(c)):
+            raise GyrosimError("temperature_rbf: centres_c must be finite temperatures (°C)")
+        if not (math.isfinite(self.width_c) and self.width_c > 0):
+            raise GyrosimError("temperature_rbf: width_c must be > 0 °C")
+        object.__setattr__(self, "centres_c", c)
+        w = np.array(self.weights, dtype=float)
+        w = np.tile(w.reshape(1, -1), (3, 1)) if w.ndim == 1 else w
+        if w.shape != (3, c.size) or not np.all(np.isfinite(w)):
+            raise GyrosimError(f"temperature_rbf: weights must be finite with shape (3, {c.size}), got {w.shape}")
+        object.__setattr__(self, "weights", w)
+
+    def basis(self, temp_c: np.ndarray) -> np.ndarray:
+        """(N, K) Gaussian activations of the hidden layer."""
+        d = np.asarray(temp_c, dtype=float)[:, None] - self.t_ref_c
+        dk = self.centres_c[None, :] - self.t_ref_c
+        s = 2.0 * max(float(np.max(np.abs(dk))), 1.0)
+        z = ((d - dk) / self.width_c) ** 2 + ((d**2 - dk**2) / (self.width_c * s)) ** 2
+        return np.exp(-0.5 * z)
+
+    def delta(self, x, ctx, rng=None):
+        return self.basis(ctx.require("temperature_c", self.kind)) @ self.weights.T
+
+    def sensitivity(self, x, ctx):
+        b = self.basis(ctx.require("temperature_c", self.kind))
+        k = self.centres_c.size
+        out = np.zeros(x.shape + (3 * k,))
+        for i in range(3):
+            out[:, i, i * k : (i + 1) * k] = b
+        return out
+
+
 @dataclass(frozen=True)
 class EarthRate(Effect):
     """Earth rotation seen by the gyro: δ = C_nᵇ ω_ieⁿ, ω_ieⁿ = Ω (0, cos L, sin L) in ENU,
@@ -921,7 +1035,8 @@ EFFECTS: dict[str, type[Effect]] = {
     cls.kind: cls
     for cls in (
         Bias, ScaleFactor, NonOrthogonality, Misalignment, ScaleNonlinearity, GSensitivity,
-        TemperatureBias, TemperatureScale, ThermalHysteresis, EarthRate, MagneticSensitivity,
+        TemperatureBias, TemperatureScale, ThermalHysteresis, TemperaturePiecewise, TemperatureRBF, EarthRate,
+        MagneticSensitivity,
         WhiteNoise, BiasInstability, RandomWalk, Bandwidth, TimeOffset, Jitter, Quantization, Saturation,
     )
 }

@@ -48,6 +48,8 @@ _QUANTITY: dict[str, dict[str, str]] = {
     "temperature_bias": {"gyro": "rate", "accelerometer": "acceleration"},  # per °C^p
     "temperature_scale": {"gyro": "fraction", "accelerometer": "fraction"},  # per °C^p
     "thermal_hysteresis": {"gyro": "rate", "accelerometer": "acceleration"},  # per (°C/s)
+    "temperature_pwl": {"gyro": "rate", "accelerometer": "acceleration"},  # bias values; scale in SI
+    "temperature_rbf": {"gyro": "rate", "accelerometer": "acceleration"},
     "earth_rate": {"gyro": "angle"},
     "magnetic_sensitivity": {"gyro": "rate_per_tesla"},
     "white_noise": {"gyro": "rate_density", "accelerometer": "acceleration_density"},

@@ -18,6 +18,7 @@ from gyrosim.effects import (
 from gyrosim.errors import GyrosimError, PresetError
 from gyrosim.sensor_model import SensorModel, load_sensor, sensor_preset_names
 from gyrosim.simulate import apply_sensor, signal_context, simulate
+from gyrosim import effects as E
 from gyrosim.thermal import ThermalModel
 from gyrosim.units import G0, to_si
 
@@ -44,6 +45,11 @@ def deterministic_effects():
         ("gyro", TemperatureBias(coefficients=[[1e-3, 2e-5], [-2e-3, 0.0], [5e-4, -1e-5]])),
         ("gyro", TemperatureScale(coefficients=[[3e-4], [-2e-4], [1e-4]])),
         ("gyro", ThermalHysteresis(value=[0.05, -0.03, 0.02], tau_s=30.0)),
+        ("gyro", E.TemperaturePiecewise(points_c=[18.0, 21.0, 24.0, 27.0],
+                                        bias=[[1e-3, 2e-3, 0.0, -1e-3], [0.0, 5e-4, 1e-3, 2e-3], [-1e-3, 0.0, 1e-3, 0.0]],
+                                        scale=[[1e-3, 0.0, -1e-3, 2e-3], [0.0, 1e-3, 0.0, 1e-3], [2e-3, 1e-3, 0.0, 0.0]])),
+        ("gyro", E.TemperatureRBF(centres_c=[18.0, 22.0, 26.0], width_c=3.0, t_ref_c=22.0,
+                                  weights=[[1e-3, -2e-3, 1e-3], [0.0, 1e-3, 0.0], [2e-3, 0.0, -1e-3]])),
         ("gyro", EarthRate(latitude_rad=48 * DEG)),
         ("gyro", MagneticSensitivity(value=np.eye(3) * 1e-5)),
         ("gyro", Bandwidth(cutoff_hz=41.0)),

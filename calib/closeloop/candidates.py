@@ -29,7 +29,8 @@ import numpy as np
 
 from gyrosim.effects import (EARTH_RATE_RAD_S, EFFECTS, Bias, Effect, EarthRate, GSensitivity, MagneticSensitivity,
                              Misalignment, NonOrthogonality, RandomWalk, ScaleFactor, ScaleNonlinearity, SignalContext,
-                             TemperatureBias, TemperatureScale, ThermalHysteresis, TimeOffset)
+                             TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale,
+                             ThermalHysteresis, TimeOffset)
 from gyrosim.rotations import quat_conjugate, quat_rotate
 
 DIMENSIONLESS = ("scale_factor", "nonorthogonality", "misalignment")
@@ -160,13 +161,23 @@ def build_candidate(kind: str, ctx: SignalContext, *, drift_knot_s: float = 20.0
         if ctx.mag_body_ut is None:
             return "the recording has no magnetometer channel"
         return _null_candidate(MagneticSensitivity(), ctx, "the magnetic field", ctx.mag_body_ut)
-    if kind in ("temperature_bias", "temperature_scale", "thermal_hysteresis"):
+    if kind in ("temperature_bias", "temperature_scale", "thermal_hysteresis", "temperature_pwl", "temperature_rbf"):
         if ctx.temperature_c is None:
             return "the recording has no temperature channel"
         span = float(np.ptp(ctx.temperature_c))
         if span < 0.5:
             return f"temperature span {span:.2f} °C is too small to fit a temperature term (needs ≥ 0.5 °C)"
         t_ref, rng = _temperature_range(ctx)
+        lo, hi = float(np.min(ctx.temperature_c)), float(np.max(ctx.temperature_c))
+        temp_series = np.broadcast_to((ctx.temperature_c - t_ref)[:, None], w.shape)
+        if kind == "temperature_pwl":  # seed 001: values at 5 temperature points, linear between
+            proto = TemperaturePiecewise(points_c=np.linspace(lo, hi, 5), bias=np.zeros((3, 5)), scale=np.zeros((3, 5)))
+            return _null_candidate(proto, ctx, "the temperature (piecewise linear)", temp_series)
+        if kind == "temperature_rbf":  # seed 003: Gaussian RBF on ΔT and ΔT², 6 centres
+            centres = np.linspace(lo, hi, 6)
+            proto = TemperatureRBF(centres_c=centres, width_c=float(centres[1] - centres[0]), t_ref_c=t_ref,
+                                   weights=np.zeros((3, 6)))
+            return _null_candidate(proto, ctx, "the temperature (RBF of ΔT, ΔT²)", temp_series)
         if kind == "thermal_hysteresis":
             proto = ThermalHysteresis(tau_s=300.0)
             return _null_candidate(proto, ctx, "the low-passed temperature rate dT/dt",
