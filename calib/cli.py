@@ -304,6 +304,64 @@ def cmd_closeloop_suite(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_temperature(args: argparse.Namespace) -> int:
+    """Compare temperature models on held-out chamber cycles; optionally write a compensated copy."""
+    from gyrosim.recording import save_hdf5
+
+    from .inputs import load_recording
+    from .thermal_comp import METHODS, ThermalCompensation, compare_methods, evaluate, fit_compensation, split_cycles
+
+    rec = load_recording(args.recording, args.gyro_unit, args.acc_unit)
+    if args.train:
+        train, test = [load_recording(args.train, args.gyro_unit, args.acc_unit)], [rec]
+    else:
+        cycles = split_cycles(rec)
+        if len(cycles) <= args.train_cycles:
+            raise GyrosimError(f"{len(cycles)} chamber cycle(s): cannot train on {args.train_cycles} and hold any out; "
+                               "pass --train-cycles smaller or --train RECORDING")
+        train, test = cycles[: args.train_cycles], cycles[args.train_cycles :]
+    methods = tuple(m.strip() for m in args.methods.split(",")) if args.methods else METHODS
+    extra = {}
+    if args.ratetable:
+        from .ratetable import calibrate_rate_table, piecewise_model
+
+        rt = load_recording(args.ratetable)
+        extra["piecewise_linear (rate-table points)"] = ThermalCompensation(
+            "piecewise_linear (rate-table points)", (piecewise_model(calibrate_rate_table(rt)),))
+    rows = compare_methods(train, test, methods, extra)
+    base = rows[0]
+    print(f"held out: {len(test)} record(s)/cycle(s); trained on {len(train)}")
+    print(f"{'method':<38} {'RMS °/s':>9} {'BS °/h':>9} {'ADEV min °/h':>13} {'ADEV 1000 s °/h':>16} {'× better (BS)':>14}")
+    for r in rows:
+        print(f"{r.method:<38} {r.held_out_rms_deg_s:9.4f} {r.bias_stability_deg_h:9.2f} {r.adev_min_deg_h:13.2f} "
+              f"{r.adev_1000s_deg_h:16.2f} {base.bias_stability_deg_h / r.bias_stability_deg_h:14.1f}")
+    if args.json:
+        Path(args.json).write_text(json.dumps([r.__dict__ for r in rows], indent=2))
+    if args.compensate:
+        if not args.out:
+            raise GyrosimError("--compensate needs --out PATH for the compensated recording")
+        if Path(args.out).resolve() == Path(args.recording).resolve():
+            raise GyrosimError("--out must differ from the input: the recording you gave is never overwritten")
+        comp = fit_compensation(train, args.compensate)
+        save_hdf5(comp.compensate(rec), args.out)
+        print(f"wrote {args.out}: gyro compensated with {comp.method} ({comp.detail})")
+    return 0
+
+
+def cmd_ratetable(args: argparse.Namespace) -> int:
+    """Bias and scale per axis at every calibration temperature of a rate-table recording (seed 001)."""
+    from .inputs import load_recording
+    from .ratetable import calibrate_rate_table
+
+    points = calibrate_rate_table(load_recording(args.recording))
+    print(f"{'T °C':>7} {'axis':>4} {'bias °/s':>10} {'±1σ':>8} {'scale ppm':>10} {'±1σ':>7}")
+    for p in points:
+        for i, a in enumerate("xyz"):
+            print(f"{p.temp_c[i]:7.2f} {a:>4} {math.degrees(p.bias_rad_s[i]):10.4f} {math.degrees(p.bias_sigma[i]):8.4f} "
+                  f"{p.scale[i] * 1e6:10.0f} {p.scale_sigma[i] * 1e6:7.0f}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="calib", description="Gyroscope calibration from hand rotation.")
     p.add_argument("--version", action="version", version=f"calib {__version__}")
@@ -362,6 +420,21 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--gyro-unit", default="rad/s")
     cl.add_argument("--acc-unit", default="m/s^2")
     cl.set_defaults(func=cmd_closeloop)
+    tp = sub.add_parser("temperature", help="temperature models compared on held-out chamber cycles (issue 7)")
+    tp.add_argument("recording", help="static recording with /temp (gyrosim chamber) or CSV with a temp column")
+    tp.add_argument("--train-cycles", type=int, default=2, help="chamber cycles to train on; the rest are held out")
+    tp.add_argument("--train", help="a separate training recording instead of cycles")
+    tp.add_argument("--methods", help="comma-separated subset of: none, polynomial, piecewise_linear, rbf, polynomial+dT/dt")
+    tp.add_argument("--ratetable", help="also evaluate seed 001's piecewise-linear model from this rate-table recording")
+    tp.add_argument("--compensate", help="method whose compensation to write (needs --out)")
+    tp.add_argument("--out", help="compensated recording (.h5); never the input")
+    tp.add_argument("--json", help="write the comparison table as JSON")
+    tp.add_argument("--gyro-unit", default="rad/s")
+    tp.add_argument("--acc-unit", default="m/s^2")
+    tp.set_defaults(func=cmd_temperature)
+    rtc = sub.add_parser("ratetable", help="bias and scale at each temperature point of a rate-table recording")
+    rtc.add_argument("recording")
+    rtc.set_defaults(func=cmd_ratetable)
     cb = sub.add_parser("closeloop-bench", help="closeloop wall time vs the Zhou filter on the same ~3-min recordings")
     cb.set_defaults(func=cmd_closeloop_bench)
     cs = sub.add_parser("closeloop-suite", help="undeclared-effect suite over seeds (named first, |z|, error ratio)")

@@ -66,11 +66,26 @@ def _read_csv(path: Path, gyro_unit: str, acc_unit: str) -> Recording:
     col = {name: header.index(name) for name in header}
     g = np.asarray(to_si(data[:, [col["gyro_x"], col["gyro_y"], col["gyro_z"]]].ravel().tolist(), gyro_unit, "rate")).reshape(-1, 3)
     a = np.asarray(to_si(data[:, [col["acc_x"], col["acc_y"], col["acc_z"]]].ravel().tolist(), acc_unit, "acceleration")).reshape(-1, 3)
-    temp = data[:, col["temp"]] if "temp" in col else None
-    return Recording(
-        t_s=data[:, col["t"]], gyro_rad_s=g, acc_m_s2=a, temp_c=temp,
-        meta={"source": str(path), "gyro_unit": gyro_unit, "acc_unit": acc_unit},
-    )
+    meta = {"source": str(path), "gyro_unit": gyro_unit, "acc_unit": acc_unit}
+    temp = resample_temperature(data[:, col["t"]], data[:, col["temp"]], meta, str(path)) if "temp" in col else None
+    return Recording(t_s=data[:, col["t"]], gyro_rad_s=g, acc_m_s2=a, temp_c=temp, meta=meta)
+
+
+def resample_temperature(t_s: np.ndarray, temp_c: np.ndarray, meta: dict, where: str) -> np.ndarray | None:
+    """A temperature column logged at a lower rate than the inertial rows (empty cells between
+    readings) is interpolated linearly onto every row, held beyond the first/last reading, and
+    ``meta['temperature_note']`` says so.  No reading at all → None with a note; a reading only at
+    isolated rows is fine (that is what a slower thermometer looks like)."""
+    ok = np.isfinite(temp_c)
+    if ok.all():
+        return temp_c
+    if ok.sum() < 2:
+        meta["temperature_note"] = f"{where}: the temp column has {int(ok.sum())} reading(s): ignored"
+        return None
+    rate = (ok.sum() - 1) / max(t_s[ok][-1] - t_s[ok][0], 1e-12)
+    meta["temperature_note"] = (f"{where}: temperature given on {int(ok.sum())} of {ok.size} rows (≈ {rate:.3g} Hz); "
+                                "resampled linearly onto the inertial clock")
+    return np.interp(t_s, t_s[ok], temp_c[ok])
 
 
 def load_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "m/s^2") -> Recording:

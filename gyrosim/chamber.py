@@ -34,7 +34,7 @@ import numpy as np
 from ._presets import builtin_names, load_named_toml
 from .errors import PresetError
 
-__all__ = ["ChamberProfile", "load_chamber", "chamber_preset_names"]
+__all__ = ["ChamberProfile", "load_chamber", "chamber_preset_names", "sensor_temperature", "simulate_chamber"]
 
 _KEYS = {"name", "description", "source", "start_c", "repeat", "step", "notes"}
 _STEP_KEYS = {"hold_s", "ramp_to_c", "rate_c_per_h", "label"}
@@ -121,3 +121,49 @@ def load_chamber(name_or_path: str | Path) -> ChamberProfile:
     """A built-in chamber profile by name, or a TOML file in the format of the module docstring."""
     name, data = load_named_toml(("presets", "chambers"), name_or_path, "chamber profile", PresetError)
     return profile_from_dict(data, name)
+
+
+def sensor_temperature(profile: ChamberProfile, thermal: "ThermalModel | None", t_s: np.ndarray,
+                       grid_s: float = 1.0) -> np.ndarray:
+    """Sensor temperature (°C) at times ``t_s`` (s, may have gaps) in the chamber: the thermal
+    model's first-order lag run on a uniform ``grid_s`` grid over the whole profile (so the lag
+    also acts while nothing is recorded), then interpolated."""
+    from .thermal import ThermalModel
+
+    thermal = thermal or ThermalModel()
+    grid = np.arange(0.0, max(profile.duration_s, float(np.max(t_s))) + grid_s, grid_s)
+    temp = thermal.temperature(grid, ambient=profile.ambient)
+    return np.interp(np.asarray(t_s, float), grid, temp)
+
+
+def simulate_chamber(profile: "ChamberProfile | str", sensor, rate_hz: float = 1.0, *,
+                     seed: int | None = None, up_axis: str = "z") -> "Recording":
+    """A board fixed in the chamber (static: true rate 0, specific force g₀ along ``up_axis``),
+    sampled at ``rate_hz`` over the whole profile and corrupted by one device of ``sensor`` whose
+    temperature follows the profile through its thermal model.  Nothing moves, so there is no
+    dynamics to simulate: the truth is written down, not integrated.  ``meta['chamber']`` holds
+    the profile's corners and cycle starts (s)."""
+    from .recording import Recording, Truth
+    from .sensor_model import SensorModel, load_sensor
+    from .simulate import apply_sensor
+    from .units import G0
+
+    profile = load_chamber(profile) if isinstance(profile, (str, Path)) else profile
+    model: SensorModel = load_sensor(sensor) if isinstance(sensor, (str, Path)) else sensor
+    if up_axis not in ("x", "y", "z"):
+        raise PresetError(f"up_axis must be x, y or z, got {up_axis!r}")
+    t = np.arange(0.0, profile.duration_s, 1.0 / rate_hz)
+    f = np.zeros((t.size, 3))
+    f[:, "xyz".index(up_axis)] = G0
+    quat = {"z": [1.0, 0, 0, 0], "x": [math.cos(math.pi / 4), 0, -math.sin(math.pi / 4), 0],
+            "y": [math.cos(math.pi / 4), math.sin(math.pi / 4), 0, 0]}[up_axis]
+    truth = Recording(t_s=t, gyro_rad_s=np.zeros((t.size, 3)), acc_m_s2=f,
+                      truth=Truth(omega_body_rad_s=np.zeros((t.size, 3)), specific_force_body_m_s2=f,
+                                  quat_nb=np.tile(quat, (t.size, 1))),
+                      meta={"rate_hz": rate_hz, "chamber": {"name": profile.name, "times_s": profile.times_s.tolist(),
+                                                            "ambient_c": profile.ambient_c.tolist(),
+                                                            "labels": list(profile.labels),
+                                                            "cycle_starts_s": list(profile.cycle_starts_s)},
+                            "schedule": f"static in chamber profile {profile.name}", "seed": -1 if seed is None else seed})
+    temp = sensor_temperature(profile, model.thermal, t)
+    return apply_sensor(truth, model, np.random.default_rng(seed), temperature_c=temp)

@@ -107,6 +107,37 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_chamber(args: argparse.Namespace) -> int:
+    """A board fixed in a thermal chamber for a whole profile (gyrosim.chamber.simulate_chamber)."""
+    from .chamber import load_chamber, simulate_chamber
+
+    out = Path(args.out)
+    _check_writable(out)
+    profile = load_chamber(args.profile)
+    rec = simulate_chamber(profile, args.sensor, args.rate, seed=args.seed, up_axis=args.up)
+    save_hdf5(rec, out)
+    print(f"wrote {out}: {rec.n} samples at {args.rate:g} Hz over {profile.duration_s / 3600:.1f} h "
+          f"({len(profile.cycle_starts_s)} cycle(s) of {profile.name}); sensor temperature "
+          f"{rec.temp_c.min():.1f}…{rec.temp_c.max():.1f} °C")
+    return 0
+
+
+def cmd_ratetable(args: argparse.Namespace) -> int:
+    """Seed 001's ±rate / one-position scheme on the virtual rate table inside a chamber profile."""
+    from .chamber import load_chamber
+    from .ratetable import RateTableSequence, simulate_rate_table
+
+    out = Path(args.out)
+    _check_writable(out)
+    seq = RateTableSequence(rate_deg_s=args.table_rate, turns=args.turns, settle_s=args.settle)
+    rec = simulate_rate_table(load_chamber(args.profile), args.sensor, args.rate, seq=seq, seed=args.seed)
+    save_hdf5(rec, out)
+    holds = sorted({s["ambient_c"] for s in rec.meta["segments"]})
+    print(f"wrote {out}: {rec.n} samples at {args.rate:g} Hz; calibration temperatures {holds} °C, six faces each, "
+          f"±{args.table_rate:g} °/s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gyrosim", description="Virtual hand-held IMU in MuJoCo.")
     p.add_argument("--version", action="version", version=f"gyrosim {__version__}")
@@ -134,6 +165,26 @@ def build_parser() -> argparse.ArgumentParser:
     se = sub.add_parser("sensors", help="list sensor presets and their effects")
     se.add_argument("--show", help="print one preset (SI values) as JSON")
     se.set_defaults(func=cmd_sensors)
+
+    ch = sub.add_parser("chamber", help="a static board through a thermal-chamber profile (HDF5 with /temp)")
+    ch.add_argument("--profile", default="tde_cycles_003", help="built-in chamber profile or TOML path")
+    ch.add_argument("--sensor", default="consumer_thermal", help="sensor preset or TOML path")
+    ch.add_argument("--rate", type=float, default=1.0, help="output rate, Hz (default 1: 10 s blocks are analysed)")
+    ch.add_argument("--up", default="z", choices=("x", "y", "z"), help="board axis pointing up")
+    ch.add_argument("--seed", type=int, default=0)
+    ch.add_argument("--out", required=True)
+    ch.set_defaults(func=cmd_chamber)
+
+    rt = sub.add_parser("ratetable", help="virtual rate table: ±rate / one-position on six faces at each chamber hold")
+    rt.add_argument("--profile", default="points_001", help="chamber profile whose holds are the calibration points")
+    rt.add_argument("--sensor", default="consumer_thermal")
+    rt.add_argument("--rate", type=float, default=100.0, help="output rate, Hz")
+    rt.add_argument("--table-rate", type=float, default=30.0, help="table rate Ω, °/s")
+    rt.add_argument("--turns", type=float, default=2.0, help="full turns per direction")
+    rt.add_argument("--settle", type=float, default=3600.0, help="soak before the sequence, s")
+    rt.add_argument("--seed", type=int, default=0)
+    rt.add_argument("--out", required=True)
+    rt.set_defaults(func=cmd_ratetable)
 
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
     b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",

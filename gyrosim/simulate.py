@@ -227,12 +227,14 @@ def signal_context(rec: Recording) -> "SignalContext":
 
 
 def apply_sensor(
-    truth: Recording, sensor: "SensorModel | str", rng: np.random.Generator, *, realize: bool = True
+    truth: Recording, sensor: "SensorModel | str", rng: np.random.Generator, *, realize: bool = True,
+    temperature_c: np.ndarray | None = None,
 ) -> Recording:
     """Corrupt a truth recording with a sensor model; returns a new Recording (input untouched).
 
     Draws one device (``sensor.realize``) unless ``realize`` is False, computes the sensor
-    temperature from the model's thermal model (power-on at the first sample), and stores the
+    temperature from the model's thermal model (power-on at the first sample; ``temperature_c``
+    overrides it), and stores the
     device's exact model (drawn values, SI) as JSON in ``meta['sensor_model']``.
     Random streams: ``rng.spawn(2)`` → (device draw, measurement noise).
     """
@@ -241,7 +243,10 @@ def apply_sensor(
     model: SensorModel = load_sensor(sensor) if isinstance(sensor, (str, Path)) else sensor
     device_rng, noise_rng = rng.spawn(2)
     device = model.realize(device_rng) if realize else model
-    temp = device.thermal.temperature(truth.t_s) if device.thermal is not None else truth.temp_c
+    if temperature_c is not None:  # a scenario that computed the sensor temperature itself (chamber, rate table)
+        temp = np.asarray(temperature_c, dtype=float)
+    else:
+        temp = device.thermal.temperature(truth.t_s) if device.thermal is not None else truth.temp_c
     with_temp = truth.with_signals(temp_c=temp)
     ctx = signal_context(with_temp)
     gyro, acc = device.apply(ctx, noise_rng)

@@ -108,7 +108,7 @@ def _earth_rate(ctx: SignalContext) -> Candidate:
 def _bias_drift(ctx: SignalContext, knot_s: float) -> Candidate:
     t = ctx.t_s
     span = t[-1] - t[0]
-    k = max(2, int(math.ceil(span / knot_s)) + 1)
+    k = min(max(2, int(math.ceil(span / knot_s)) + 1), 41)  # ≤ 40 intervals: long records get longer ones
     knots = np.linspace(t[0], t[-1], k)
     hats = np.stack([np.interp(t, knots, np.eye(k)[j]) for j in range(k)], axis=1)  # (N, k)
     reg = np.zeros((t.size, 3, 3 * k))

@@ -8,6 +8,8 @@
    information gain G (:mod:`calib.closeloop.fit`): fitted on the even held-out groups (4 s
    stretches by default), scored on the odd ones, penalised by BIC for the parameters it adds.
 4. The candidate with the largest G > 0 joins the model; repeat until no candidate has G > 0.
+   Bias drift (a spline in time) can mimic any slow term, so it is chosen only in a round where
+   no candidate tied to a measured channel (temperature, specific force, field, rate) has G > 0.
    A runner-up whose G is within the winner's own penalty of it is reported as *not
    distinguished* from the winner (both explain the same residual on this recording).
 5. What remains is tested for structure no candidate explains (:mod:`calib.closeloop.structure`).
@@ -41,6 +43,7 @@ __all__ = ["Finding", "CloseloopResult", "run_closeloop", "DEFAULT_DECLARED"]
 
 DEFAULT_DECLARED = ("bias", "scale_factor", "nonorthogonality")
 _DIMENSIONLESS = ("scale_factor", "nonorthogonality", "misalignment")
+CATCH_ALL = ("random_walk",)  # chosen only when no candidate tied to a measured channel is worth adding
 DEG = 180.0 / math.pi
 
 
@@ -306,6 +309,10 @@ def run_closeloop(
                 not_tested[k] = ("no excitation on this recording: its regressor is zero or already spanned by the "
                                  "model (cannot be distinguished from what is in it)")
         live = {k: s for k, s in scores.items() if s.added_rank > 0}
+        if any(s.gain > 0 for k, s in live.items() if k not in CATCH_ALL):
+            # a slow bias that a measured channel explains (temperature, field, ...) is that channel's
+            # effect; the time spline of bias drift is the model of what nothing measured explains
+            live = {k: s for k, s in live.items() if k not in CATCH_ALL}
         if not live:
             break
         best_kind, best = max(live.items(), key=lambda kv: kv[1].gain)
@@ -424,7 +431,7 @@ def _drift_k(ref: Reference, model: list[Candidate], full: FitResult, finding: F
     fit = fit_model(ref, _stack(others, ref.ctx.t_s.size))
     r = fit.residual.reshape(-1, 3)
     t = ref.row_time_s.reshape(-1, 3)[:, 0]
-    block_s = 1.0
+    block_s = max(1.0, (t[-1] - t[0]) / 400.0)  # ≤ 400 blocks: the REML is O(n³) in them
     b = np.floor((t - t[0]) / block_s).astype(int)
     nb = int(b.max())  # drop the last partial block
     keep = b < nb
