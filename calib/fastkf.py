@@ -54,7 +54,7 @@ class BatchResult:
 
 
 @njit(cache=True, fastmath=False)
-def _kernel(g, a, t, q0, scale0, nonortho0, p0diag, arw2, r_var, gz, keep):  # pragma: no cover - compiled
+def _kernel(g, a, t, q0, scale0, nonortho0, p0diag, arw2, r_vars, gz, keep, gate):  # pragma: no cover - compiled
     B, N = g.shape[0], g.shape[1]
     scale = scale0.copy()
     nonortho = nonortho0.copy()
@@ -124,11 +124,19 @@ def _kernel(g, a, t, q0, scale0, nonortho0, p0diag, arw2, r_var, gz, keep):  # p
             z0 = C[0, 0] * ak[0] + C[0, 1] * ak[1] + C[0, 2] * ak[2]
             z1 = C[1, 0] * ak[0] + C[1, 1] * ak[1] + C[1, 2] * ak[2]
             # S = H P Hᵀ + R (2×2 attitude block; the third row carries only noise, its gain is 0)
+            r_var = r_vars[b, k]
             s00 = gz * gz * Pb[1, 1] + r_var
             s01 = -gz * gz * Pb[1, 0]
             s11 = gz * gz * Pb[0, 0] + r_var
             dets = s00 * s11 - s01 * s01
             i00, i01, i11 = s11 / dets, -s01 / dets, s00 / dets
+            if gate > 0.0:  # innovation gating: skip an update whose NIS exceeds the gate
+                nis = z0 * (i00 * z0 + i01 * z1) + z1 * (i01 * z0 + i11 * z1)
+                if nis > gate:
+                    if keep:
+                        for i in range(9):
+                            hist[k - 1, b, i] = math.sqrt(Pb[i, i])
+                    continue
             for i in range(9):
                 ph0 = -gz * Pb[i, 1]
                 ph1 = gz * Pb[i, 0]
@@ -201,12 +209,18 @@ def run_batch(
     scale0: np.ndarray | None = None,
     nonortho0: np.ndarray | None = None,
     keep_history: bool = False,
+    r_var_per_sample: np.ndarray | None = None,
+    gate_nis: float = 0.0,
 ) -> BatchResult:
     """Run B filters on (B, N, 3) bias-removed gyro and accelerometer samples (time ``t_s`` (N,)).
 
     ``quat0`` (B, 4) initial attitudes; ``scale0``/``nonortho0`` (B, 3) initial estimates
     (default: the config's).  Compiled with numba (the whole loop), results equal the filterpy
     filter to rounding (tested to 1e-9).
+
+    Mitigations of external acceleration (issue 6): ``r_var_per_sample`` replaces the constant
+    measurement variance per sample; ``gate_nis`` > 0 skips every update whose normalised
+    innovation squared (2 dof) exceeds it.
     """
     g = np.ascontiguousarray(gyro_minus_bias, dtype=float)
     a = np.ascontiguousarray(acc, dtype=float)
@@ -216,8 +230,12 @@ def run_batch(
     n0 = np.tile(np.asarray(c.nonorthogonality0, float), (B, 1)) if nonortho0 is None else np.array(nonortho0, float)
     p0 = np.array([c.prior_attitude_rad**2] * 3 + [c.prior_scale**2] * 3 + [c.prior_nonorthogonality**2] * 3)
     r_var = c.vrw_m_s2_sqrt_hz**2 * rate_hz + c.external_acc_allowance_m_s2**2
+    if r_var_per_sample is None:
+        r_vars = np.full(g.shape[:2], r_var)
+    else:  # a per-sample measurement variance (m/s²)² per axis (adaptive R), (N,) or (B, N)
+        r_vars = np.ascontiguousarray(np.broadcast_to(np.asarray(r_var_per_sample, float), g.shape[:2]))
     scale, nonortho, p, hist = _kernel(g, a, np.asarray(t_s, float), np.array(quat0, float), s0, n0, p0,
-                                       c.arw_rad_s_sqrt_hz**2, r_var, c.gravity_m_s2, keep_history)
+                                       c.arw_rad_s_sqrt_hz**2, r_vars, c.gravity_m_s2, keep_history, float(gate_nis))
     return BatchResult(scale, nonortho, p, hist if keep_history else None)
 
 

@@ -138,6 +138,56 @@ def cmd_ratetable(args: argparse.Namespace) -> int:
     return 0
 
 
+def _csv_list(v: str | None) -> tuple[str, ...] | None:
+    return tuple(x.strip() for x in v.split(",") if x.strip()) if v else None
+
+
+def cmd_campaign(args: argparse.Namespace) -> int:
+    """Simulate × calibrate × score many sessions on Dask (gyrosim.campaign)."""
+    from tqdm import tqdm
+
+    from .campaign import CampaignSpec, load_campaign, run_campaign, summarise
+
+    over = {"hands": _csv_list(args.hand), "seeds": args.seeds, "first_seed": args.first_seed, "sensor": args.sensor,
+            "estimators": _csv_list(args.method), "schedule": args.schedule, "rate_hz": args.rate,
+            "calibrated_accelerometer": True if args.calibrated_accelerometer else None,
+            "severity": tuple(float(x) for x in _csv_list(args.severity)) if args.severity else None}
+    spec = load_campaign(args.campaign, **over) if args.campaign else CampaignSpec(
+        **{k: v for k, v in over.items() if v is not None})
+    with tqdm(total=1, unit="session", desc="campaign") as bar:
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        path = run_campaign(spec, args.out, scheduler=args.scheduler, workers=args.workers,
+                            connect_timeout_s=args.timeout, progress=progress)
+    summary = summarise(path, args.out)
+    print(f"{'hand':<10} {'sev':>4} {'estimator':<18} {'n':>4} {'fail':>4} {'ext acc m/s²':>12} "
+          f"{'S err % RMS [95%]':>22} {'G err % RMS [95%]':>22} {'bias °/s RMS':>12}")
+    for r in summary:
+        if "rms_S_pct" not in r:
+            print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d}  (all failed)")
+            continue
+        print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d} "
+              f"{r['ext_acc_rms_m_s2']:12.4f} {r['rms_S_pct']:8.4f} [{r['rms_S_pct_lo']:.4f}, {r['rms_S_pct_hi']:.4f}] "
+              f"{r['rms_G_pct']:8.4f} [{r['rms_G_pct_lo']:.4f}, {r['rms_G_pct_hi']:.4f}] {r['rms_bias_deg_s']:12.4f}")
+    print(f"wrote {path}, {Path(args.out) / 'summary.csv'}, {Path(args.out) / 'error_vs_severity.png'}")
+    return 0
+
+
+def cmd_campaign_bench(args: argparse.Namespace) -> int:
+    from .campaign import bench_scaling
+
+    rows = bench_scaling(args.sessions)
+    print(f"{args.sessions} sessions (zhou2020, typical, mpu9250, estimator kf), timed in the same run")
+    print(f"{'runner':<24} {'workers':>7} {'s':>8} {'sessions/s':>11} {'× 1 worker':>11}")
+    for r in rows:
+        print(f"{r['runner']:<24} {r['workers']:7d} {r['seconds']:8.2f} {r['sessions_per_s']:11.3f} {r['speedup_vs_1_worker']:11.2f}")
+    print(f"Dask overhead per task (1 worker − in-process compute): {rows[1]['overhead_per_task_s'] * 1e3:.0f} ms")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gyrosim", description="Virtual hand-held IMU in MuJoCo.")
     p.add_argument("--version", action="version", version=f"gyrosim {__version__}")
@@ -185,6 +235,28 @@ def build_parser() -> argparse.ArgumentParser:
     rt.add_argument("--seed", type=int, default=0)
     rt.add_argument("--out", required=True)
     rt.set_defaults(func=cmd_ratetable)
+
+    cp = sub.add_parser("campaign", help="robustness campaign: sessions × estimators scored against the truth, on Dask")
+    cp.add_argument("campaign", nargs="?", help="campaign TOML (flags override its keys)")
+    cp.add_argument("--hand", help="comma-separated hand presets (default ideal,steady,typical,shaky)")
+    cp.add_argument("--seeds", type=int, help="sessions per hand and severity (default 10)")
+    cp.add_argument("--first-seed", type=int)
+    cp.add_argument("--sensor", help="sensor preset (default mpu9250)")
+    cp.add_argument("--method", help="comma-separated estimators: built-ins or package.module:attribute")
+    cp.add_argument("--schedule")
+    cp.add_argument("--rate", type=float)
+    cp.add_argument("--severity", help="comma-separated factors on every hand imperfection (default 1)")
+    cp.add_argument("--calibrated-accelerometer", action="store_true",
+                    help="keep only the accelerometer's white noise (Zhou §3.3.2)")
+    cp.add_argument("--scheduler", default="local", help="local (LocalCluster on 127.0.0.1), none (in-process) or tcp://HOST:PORT")
+    cp.add_argument("--workers", type=int, help="LocalCluster workers (default: cores)")
+    cp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for a remote scheduler")
+    cp.add_argument("--out", required=True, help="results folder (results.csv, summary.csv, plots, provenance.json)")
+    cp.set_defaults(func=cmd_campaign)
+
+    cb = sub.add_parser("campaign-bench", help="campaign scaling: sessions/s in-process, on 1 and 2 Dask workers")
+    cb.add_argument("--sessions", type=int, default=12)
+    cb.set_defaults(func=cmd_campaign_bench)
 
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
     b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",

@@ -91,6 +91,7 @@ def simulate_truth(
     scene: HandScene | None = None,
     progress: Callable[[int], None] | None = None,
     chunk_steps: int = 20000,
+    pipeline: bool = True,
 ) -> Recording:
     """Simulate one session and return its truth Recording (``gyro``/``acc`` = truth).
 
@@ -105,6 +106,9 @@ def simulate_truth(
         progress: called with the number of physics steps done after each chunk.
         chunk_steps: physics steps per pipeline chunk (results do not depend on the progress
             callback, but do depend, at rounding level, on this value).
+        pipeline: step MuJoCo in a second thread while the next chunk is prepared (one session on
+            two cores); False runs everything in the calling thread with identical results, for
+            callers that already keep every core busy with their own processes (campaigns).
     """
     if isinstance(schedule, (str, Path)):
         schedule = load_schedule(schedule)
@@ -142,7 +146,7 @@ def simulate_truth(
     bounds = [0, min(n_steps, max(1, chunk_steps // 5))]
     while bounds[-1] < n_steps:
         bounds.append(min(n_steps, bounds[-1] + chunk_steps))
-    with ThreadPoolExecutor(max_workers=1) as pool:
+    with ThreadPoolExecutor(max_workers=1) if pipeline else _InlineExecutor() as pool:
         pending = []
         for a, b in zip(bounds[:-1], bounds[1:]):
             motion = hand.motion_chunk(schedule, t_phys[a:b], noise.rows(a, b), previous)
@@ -201,6 +205,26 @@ def simulate_truth(
         truth=truth,
         meta=meta,
     )
+
+
+class _InlineExecutor:
+    """The executor interface, running each job at submit time in the calling thread."""
+
+    def __enter__(self) -> "_InlineExecutor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def submit(self, fn, *args):
+        from concurrent.futures import Future
+
+        fut: Future = Future()
+        try:
+            fut.set_result(fn(*args))
+        except BaseException as err:  # noqa: BLE001 - re-raised by result(), as a thread pool would
+            fut.set_exception(err)
+        return fut
 
 
 def _pick_arm(arm: ArmPose, idx: np.ndarray) -> ArmPose:
@@ -266,6 +290,7 @@ def simulate(
     physics_rate_hz: float = 1000.0,
     scene: HandScene | None = None,
     progress: Callable[[int], None] | None = None,
+    pipeline: bool = True,
 ) -> Recording:
     """Simulate a session and (if ``sensor`` is given) corrupt it with one drawn device.
 
@@ -274,7 +299,7 @@ def simulate(
     """
     hand_rng, sensor_rng = np.random.default_rng(seed).spawn(2)
     rec = simulate_truth(schedule, hand, rate_hz, rng=hand_rng, physics_rate_hz=physics_rate_hz,
-                         scene=scene, progress=progress)
+                         scene=scene, progress=progress, pipeline=pipeline)
     rec = rec.with_signals(meta={**rec.meta, "seed": -1 if seed is None else int(seed)})
     if sensor is None:
         return rec

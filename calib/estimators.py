@@ -1,0 +1,97 @@
+"""Our estimators behind the :mod:`gyrosim.estimator` interface, for campaigns (issue 6).
+
+All run Zhou 2020's 9-state filter (the compiled kernel :func:`calib.fastkf.run_batch`, equal to
+the filterpy filter to rounding) after the static bias (§3.2); they differ only in how the
+accelerometer's gravity measurement is trusted when the hand adds external acceleration a_e:
+
+| name | measurement variance R per axis (m/s²)² | gating |
+|---|---|---|
+| ``kf`` | σ_f² = VRW²·f_s (the paper: only gravity is sensed) | — |
+| ``smoother`` | as ``kf``; three passes, each re-linearised at the previous pass's estimate | — |
+| ``kf_session_r`` | σ_f² + max(rest excess, 3⟨(|f| − g)²⟩): one constant for the session | — |
+| ``kf_adaptive`` | σ_f² + 3·LP₀.₂ₛ[(|f| − g)²] per sample | — |
+| ``kf_gated`` | σ_f² | skip an update with NIS > χ²₂(0.999) = 13.8 |
+| ``kf_adaptive_gated`` | as ``kf_adaptive`` | as ``kf_gated`` |
+
+Why 3·(|f| − g)²: to first order |f| − g is the component of a_e along gravity; for a direction
+of a_e uniform on the sphere E[(a_e·ĝ)²] = |a_e|²/3, so 3(|f| − g)² estimates |a_e|², a bound on
+each horizontal component's variance.  Low-passed over 0.2 s because (|f| − g) crosses zero
+whenever a_e is horizontal, while a_e itself does not.
+
+``smoother``: the parameters are constants, so a Rauch–Tung–Striebel pass leaves their final
+filtered estimate unchanged (the smoothed estimate of a constant state equals the filtered one at
+the last sample); what a smoother can still improve is the linearisation, which these passes do
+(an iterated-linearisation smoother in the parameters).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import signal as sp_signal
+from scipy import stats
+
+from gyrosim.estimator import Estimate
+from gyrosim.recording import Recording
+
+from .calibrate import prepare
+from .fastkf import run_batch
+
+__all__ = ["kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated"]
+
+GATE_NIS = float(stats.chi2.ppf(0.999, 2))
+
+
+def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gate: float = 0.0,
+         passes: int = 1) -> Estimate:
+    prep = prepare(rec, external_acc_allowance_m_s2=None if session_r else 0.0)
+    a, fs = prep.start, rec.rate_hz
+    g = (rec.gyro_rad_s - prep.bias.value_rad_s)[None, a:]
+    acc = rec.acc_m_s2[None, a:]
+    r_var = None
+    if adaptive:
+        c = prep.config
+        excess = (np.linalg.norm(rec.acc_m_s2[a:], axis=1) - c.gravity_m_s2) ** 2
+        alpha = math.exp(-1.0 / (0.2 * fs))
+        lp = sp_signal.lfilter([1 - alpha], [1, -alpha], excess, zi=[alpha * excess[0]])[0]
+        r_var = c.vrw_m_s2_sqrt_hz**2 * fs + c.external_acc_allowance_m_s2**2 + 3.0 * lp
+    s0 = n0 = None
+    for _ in range(passes):
+        out = run_batch(g, acc, rec.t_s[a:], prep.quat0_nb[None], prep.config, fs, scale0=s0, nonortho0=n0,
+                        r_var_per_sample=r_var, gate_nis=gate)
+        s0, n0 = out.scale, out.nonorthogonality
+    cov = np.full((9, 9), np.nan)
+    cov[:3, :3] = np.diag(prep.bias.std_rad_s**2)
+    cov[3:, 3:] = out.p[0, 3:, 3:]
+    cov[:3, 3:] = cov[3:, :3] = 0.0
+    return Estimate(prep.bias.value_rad_s, out.scale[0], out.nonorthogonality[0], cov, prep.warnings)
+
+
+def kf(rec: Recording) -> Estimate:
+    """Zhou 2020's filter as published: R from the accelerometer noise only."""
+    return _run(rec)
+
+
+def smoother(rec: Recording) -> Estimate:
+    """Three passes, each linearised at the previous estimate (see the module docstring)."""
+    return _run(rec, passes=3)
+
+
+def kf_session_r(rec: Recording) -> Estimate:
+    """One R for the session from its (|f| − g)² (``calib run``'s default)."""
+    return _run(rec, session_r=True)
+
+
+def kf_adaptive(rec: Recording) -> Estimate:
+    """R per sample from the low-passed (|f| − g)²."""
+    return _run(rec, adaptive=True)
+
+
+def kf_gated(rec: Recording) -> Estimate:
+    """The paper's R with innovation gating at χ²₂(0.999)."""
+    return _run(rec, gate=GATE_NIS)
+
+
+def kf_adaptive_gated(rec: Recording) -> Estimate:
+    return _run(rec, adaptive=True, gate=GATE_NIS)
