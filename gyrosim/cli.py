@@ -167,7 +167,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
           f"{'S err % RMS [95%]':>22} {'G err % RMS [95%]':>22} {'bias °/s RMS':>12}")
     for r in summary:
         if "rms_S_pct" not in r:
-            print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d}  (all failed)")
+            print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d}  (all crashed)")
             continue
         print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d} "
               f"{r['ext_acc_rms_m_s2']:12.4f} {r['rms_S_pct']:8.4f} [{r['rms_S_pct_lo']:.4f}, {r['rms_S_pct_hi']:.4f}] "
