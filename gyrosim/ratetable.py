@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import mujoco
@@ -32,6 +31,7 @@ import numpy as np
 from .chamber import ChamberProfile, load_chamber, sensor_temperature
 from .errors import GyrosimError
 from .recording import Recording, Truth
+from .scene import model_file
 
 __all__ = ["FACES", "ratetable_model_path", "simulate_rate_table", "RateTableSequence"]
 
@@ -39,13 +39,8 @@ FACES = ("xup", "xdown", "yup", "ydown", "zup", "zdown")
 
 
 def ratetable_model_path() -> Path:
-    try:
-        packaged = resources.files("gyrosim.models") / "ratetable.xml"
-        if packaged.is_file():
-            return Path(str(packaged))
-    except ModuleNotFoundError:
-        pass
-    return Path(__file__).resolve().parents[1] / "models" / "ratetable.xml"
+    """Path of ``ratetable.xml`` (installed package copy, else the checkout's ``models/``)."""
+    return model_file("ratetable.xml")
 
 
 @dataclass(frozen=True)

@@ -57,21 +57,26 @@ CONTROL_SPEC = int(
 STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
 
-def default_model_path() -> Path:
-    """Path of ``handheld.xml``: the installed package copy, else the checkout's ``models/``."""
+def model_file(filename: str) -> Path:
+    """Path of an MJCF model of ``models/``: the installed package copy, else the checkout's."""
     try:
-        packaged = resources.files("gyrosim.models") / "handheld.xml"
+        packaged = resources.files("gyrosim.models") / filename
         if packaged.is_file():
             return Path(str(packaged))
     except ModuleNotFoundError:
         pass
-    checkout = Path(__file__).resolve().parents[1] / "models" / "handheld.xml"
+    checkout = Path(__file__).resolve().parents[1] / "models" / filename
     if checkout.is_file():
         return checkout
     raise FileNotFoundError(
-        "models/handheld.xml not found in the installed package nor next to the source tree; "
+        f"models/{filename} not found in the installed package nor next to the source tree; "
         "reinstall gyrosim (pip install .) or pass model_path"
     )
+
+
+def default_model_path() -> Path:
+    """Path of ``handheld.xml`` (:func:`model_file`)."""
+    return model_file("handheld.xml")
 
 
 @dataclass(frozen=True)
