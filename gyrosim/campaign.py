@@ -10,7 +10,8 @@ Execution (``run_campaign``): ``scheduler=None`` runs in-process; ``"local"`` st
 ``LocalCluster`` on 127.0.0.1 with one single-threaded worker process per core; ``tcp://HOST:PORT``
 uses an existing cluster (connect timeout ``connect_timeout_s``).  Results stream into
 ``results.csv`` (one row per task × estimator; failed tasks keep their error text); a re-run
-skips the tasks already there.  ``provenance.json`` holds versions, the spec and the host.
+skips what is already there, so adding an estimator to a finished campaign runs only it
+(failed rows are retried).  ``provenance.json`` holds versions, the spec and the host.
 
 Scores per estimator (SI → reported units):
 
@@ -187,14 +188,16 @@ def run_task(task: Task) -> list[dict]:
 
 
 def _read_done(path: Path) -> dict[str, list[dict]]:
+    """The successful rows already in results.csv, by task (failed rows are dropped: retried)."""
     if not path.is_file():
         return {}
     with path.open(newline="") as fh:
         rows = list(csv.DictReader(fh))
     done: dict[str, list[dict]] = {}
     for r in rows:
-        done.setdefault(r["task_id"], []).append(r)
-    return {k: v for k, v in done.items() if all(r["status"] == "ok" for r in v)}
+        if r["status"] == "ok":
+            done.setdefault(r["task_id"], []).append(r)
+    return done
 
 
 # Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536 so that freed memory goes back to the OS at
@@ -238,7 +241,12 @@ def run_campaign(spec: CampaignSpec, out: str | Path, *, scheduler: str | None =
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
     done = _read_done(path)
-    tasks = [t for t in make_tasks(spec) if t.task_id not in done]
+    tasks = []
+    for t in make_tasks(spec):  # a task runs only the estimators it has no successful row for
+        have = {r["estimator"] for r in done.get(t.task_id, [])}
+        missing = tuple(e for e in t.estimators if e not in have)
+        if missing:
+            tasks.append(replace(t, estimators=missing))
     _write_provenance(out, spec, scheduler, workers)
     rows_all = [r for v in done.values() for r in v]
     total = len(tasks)

@@ -29,7 +29,8 @@ from .recording import Recording
 
 __all__ = ["Estimate", "Estimator", "load_estimator", "BUILTIN_ESTIMATORS"]
 
-BUILTIN_ESTIMATORS = ("kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated")
+BUILTIN_ESTIMATORS = ("kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated",
+                      "kf_lever_arm")
 
 
 @dataclass(frozen=True)

@@ -63,6 +63,19 @@ def test_rerun_skips_finished_tasks(in_process):
     assert len(_rows(in_process)) == 12
 
 
+def test_adding_an_estimator_runs_only_it_and_keeps_the_rows(tmp_path):
+    one = CampaignSpec(hands=("ideal",), seeds=1, estimators=("kf",), calibrated_accelerometer=True)
+    path = run_campaign(one, tmp_path, scheduler=None)
+    first = _rows(path)
+    ran = []
+    path = run_campaign(CampaignSpec(hands=("ideal",), seeds=1, estimators=("kf", "kf_session_r"),
+                                     calibrated_accelerometer=True), tmp_path, scheduler=None,
+                        progress=lambda d, n: ran.append(n))
+    rows = _rows(path)
+    assert ran == [1] and [r["estimator"] for r in rows] == ["kf", "kf_session_r"]
+    assert rows[0] == first[0]
+
+
 def test_a_failing_estimator_is_recorded_and_the_campaign_goes_on(tmp_path, monkeypatch):
     mod = tmp_path / "my_estimators.py"
     mod.write_text(
