@@ -309,7 +309,7 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     from gyrosim.recording import save_hdf5
 
     from .inputs import load_recording
-    from .thermal_comp import METHODS, ThermalCompensation, compare_methods, evaluate, fit_compensation, split_cycles
+    from .thermal_comp import METHODS, ThermalCompensation, compare_methods, fit_compensation, split_cycles
 
     rec = load_recording(args.recording, args.gyro_unit, args.acc_unit)
     if args.train:

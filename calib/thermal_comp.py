@@ -96,7 +96,6 @@ def _blocks(rec: Recording, block_s: float = BLOCK_S) -> tuple[np.ndarray, np.nd
     """Index groups of ``block_s`` and the block-mean gyro (B, 3)."""
     k = np.floor((rec.t_s - rec.t_s[0]) / block_s).astype(int)
     counts = np.bincount(k)
-    keep = counts[k] > 0
     means = np.stack([np.bincount(k, rec.gyro_rad_s[:, a]) / np.maximum(counts, 1) for a in range(3)], axis=1)
     return k, means[counts > 0]
 

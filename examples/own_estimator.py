@@ -15,7 +15,6 @@ importable where the tasks run (for a remote Dask cluster: installed on the work
 
 from __future__ import annotations
 
-import math
 import sys
 import tempfile
 from pathlib import Path

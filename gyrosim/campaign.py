@@ -30,8 +30,7 @@ import os
 import platform
 import time
 import tomllib
-import traceback
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -425,7 +424,7 @@ def bench_scaling(sessions: int = 12, spec: CampaignSpec | None = None) -> list[
             futs = [client.submit(run_task, t, pure=False) for t in tasks]
             wait(futs)
             dt = time.perf_counter() - t0
-            out.append({"runner": f"Dask LocalCluster", "workers": n, "seconds": dt, "sessions_per_s": len(tasks) / dt})
+            out.append({"runner": "Dask LocalCluster", "workers": n, "seconds": dt, "sessions_per_s": len(tasks) / dt})
     base = out[1]["sessions_per_s"]
     for r in out:
         r["speedup_vs_1_worker"] = r["sessions_per_s"] / base

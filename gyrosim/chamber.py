@@ -31,8 +31,14 @@ from pathlib import Path
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from ._presets import builtin_names, load_named_toml
 from .errors import PresetError
+
+if TYPE_CHECKING:  # annotations only
+    from .recording import Recording
+    from .thermal import ThermalModel
 
 __all__ = ["ChamberProfile", "load_chamber", "chamber_preset_names", "sensor_temperature", "simulate_chamber"]
 

@@ -8,14 +8,13 @@ tasks are pure functions of their spec, so the number of workers cannot change a
 from __future__ import annotations
 
 import csv
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from gyrosim.campaign import PARAMS, CampaignSpec, load_campaign, make_tasks, run_campaign, summarise
+from gyrosim.campaign import CampaignSpec, load_campaign, make_tasks, run_campaign, summarise
 from gyrosim.errors import GyrosimError
 from gyrosim.estimator import Estimate, load_estimator
 

@@ -14,9 +14,7 @@ Tolerances:
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,7 +22,7 @@ import pytest
 from calib.ratetable import calibrate_rate_table, piecewise_model
 from calib.thermal_comp import compare_methods, fit_compensation, split_cycles
 from gyrosim.chamber import load_chamber, simulate_chamber
-from gyrosim.errors import GyrosimError, PresetError, RecordingError
+from gyrosim.errors import PresetError, RecordingError
 from gyrosim.ratetable import simulate_rate_table
 from gyrosim.sensor_model import SensorModel, load_sensor
 

@@ -149,7 +149,7 @@ def _fmt_err(e: dict) -> str:
 
 
 def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
-    lines = [f"# Close-the-loop report", "",
+    lines = ["# Close-the-loop report", "",
              f"Recording: {recinfo['source'] or '(unnamed)'} — {recinfo['samples']} samples, {recinfo['duration_s']:.1f} s.",
              f"Reference: **{res.reference}** — {res.reference_description}.", "",
              f"Declared model: {', '.join(res.declared)}.", "", "## What the residual says", ""]
