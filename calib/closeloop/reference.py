@@ -220,26 +220,28 @@ class GravityReference(Reference):
             b = (self.rests[j + 1][0] + self.rests[j + 1][1]) // 2
             yield j, a, b
 
+    def _attitude(self, g: np.ndarray, a: int, b: int) -> np.ndarray:
+        """Attitude (b − a + 1, 4) from sample a (identity) to sample b, integrating rates g (body)."""
+        t = self.ctx.t_s
+        return integrate_gyro(t[a : b + 1], g[a : b + 1], np.array([1.0, 0, 0, 0]))
+
     def residual(self, gyro_rad_s: np.ndarray, correction: np.ndarray) -> np.ndarray:
         g = gyro_rad_s - correction
         out = [g[a:b].mean(axis=0) / self.rest_sigma_rad_s for a, b in self.rests]
-        t = self.ctx.t_s
         for j, a, b in self._moves():
-            q = integrate_gyro(t[a : b + 1], g[a : b + 1], np.array([1.0, 0, 0, 0]))
+            q = self._attitude(g, a, b)
             g_pred = quat_rotate(quat_conjugate(q[-1]), self.gravity_dirs[j])
             out.append(np.cross(self.gravity_dirs[j + 1], g_pred) / self.tilt_sigma_rad)
         for a, b in self.turns:  # a protocol's full turn returns to the start attitude: Log(q) = 0
-            q = integrate_gyro(t[a : b + 1], g[a : b + 1], np.array([1.0, 0, 0, 0]))
-            out.append(quat_to_rotvec(q[-1]) / self.tilt_sigma_rad)
+            out.append(quat_to_rotvec(self._attitude(g, a, b)[-1]) / self.tilt_sigma_rad)
         return np.concatenate(out)
 
     def jacobian(self, regressors: np.ndarray, gyro_rad_s: np.ndarray, correction: np.ndarray) -> np.ndarray:
         g = gyro_rad_s - correction
         rows = [regressors[a:b].mean(axis=0) / self.rest_sigma_rad_s for a, b in self.rests]
-        t = self.ctx.t_s
         for j, a, b in self._moves():
-            q = integrate_gyro(t[a : b + 1], g[a : b + 1], np.array([1.0, 0, 0, 0]))
-            rot = self._end_rotation(t, g, regressors, a, b)   # δφ at the end per θ
+            q = self._attitude(g, a, b)
+            rot = self._end_rotation(q, regressors, a, b)   # δφ at the end per θ
             g_pred = quat_rotate(quat_conjugate(q[-1]), self.gravity_dirs[j])
             # e = ĝ_meas × ĝ_pred; a rate change δω rotates the end body by δφ, ĝ_pred ← ĝ_pred + ĝ_pred × δφ,
             # so δe = ĝ_meas × (ĝ_pred × δφ); here δω = −R δθ (the correction grows)
@@ -247,15 +249,14 @@ class GravityReference(Reference):
             d = np.cross(gm[:, None], np.cross(g_pred[:, None], rot, axis=0), axis=0)
             rows.append(d / self.tilt_sigma_rad)   # r(θ + δ) ≈ r(θ) − J δ
         for a, b in self.turns:  # Log(q_end) grows by δφ = −rot δθ
-            rows.append(self._end_rotation(t, g, regressors, a, b) / self.tilt_sigma_rad)
+            rows.append(self._end_rotation(self._attitude(g, a, b), regressors, a, b) / self.tilt_sigma_rad)
         return np.concatenate(rows)
 
-    @staticmethod
-    def _end_rotation(t, g, regressors, a, b) -> np.ndarray:
-        """Σ_t C(t_end ← t) R(t) Δt: the end-attitude rotation per unit θ (3, P)."""
-        q = integrate_gyro(t[a : b + 1], g[a : b + 1], np.array([1.0, 0, 0, 0]))
+    def _end_rotation(self, q: np.ndarray, regressors: np.ndarray, a: int, b: int) -> np.ndarray:
+        """Σ_t C(t_end ← t) R(t) Δt: the end-attitude rotation per unit θ (3, P), given the move's
+        attitude q (:meth:`_attitude`)."""
         m = np.einsum("ji,tjk->tik", quat_to_matrix(q[-1]), quat_to_matrix(q[:-1]))
-        return np.einsum("tik,tkp,t->ip", m, regressors[a:b], np.diff(t[a : b + 1]))
+        return np.einsum("tik,tkp,t->ip", m, regressors[a:b], np.diff(self.ctx.t_s[a : b + 1]))
 
 
 def calibrate_accelerometer_at_rest(means_m_s2: np.ndarray):
