@@ -37,6 +37,8 @@ from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.sensor_model import SensorModel
 
+from .timeblocks import block_means, time_block_index
+
 __all__ = ["METHODS", "ThermalCompensation", "fit_compensation", "evaluate", "compare_methods", "split_cycles"]
 
 METHODS = ("none", "polynomial", "piecewise_linear", "rbf", "polynomial+dT/dt")
@@ -93,10 +95,9 @@ def _ctx(rec: Recording) -> SignalContext:
 
 
 def _blocks(rec: Recording, block_s: float = BLOCK_S) -> tuple[np.ndarray, np.ndarray]:
-    """Index groups of ``block_s`` and the block-mean gyro (B, 3)."""
-    k = np.floor((rec.t_s - rec.t_s[0]) / block_s).astype(int)
-    counts = np.bincount(k)
-    means = np.stack([np.bincount(k, rec.gyro_rad_s[:, a]) / np.maximum(counts, 1) for a in range(3)], axis=1)
+    """Block index of each sample and the block-mean gyro (B, 3) of the non-empty blocks."""
+    k = time_block_index(rec.t_s, block_s)
+    means, counts = block_means(k, rec.gyro_rad_s)
     return k, means[counts > 0]
 
 
@@ -106,11 +107,8 @@ def _design(protos: list[Effect], rec: Recording) -> tuple[np.ndarray, np.ndarra
     zero = np.zeros((rec.t_s.size, 3))
     reg = np.concatenate([e.sensitivity(zero, ctx) for e in protos], axis=2)
     k, y = _blocks(rec)
-    counts = np.bincount(k)
-    sel = counts > 0
-    rb = np.stack([np.stack([np.bincount(k, reg[:, a, p]) for p in range(reg.shape[2])], axis=1)
-                   for a in range(3)], axis=1)[sel] / counts[sel, None, None]
-    return rb, y
+    rb, counts = block_means(k, reg)
+    return rb[counts > 0], y
 
 
 def _solve_axes(reg: np.ndarray, y: np.ndarray, ridge: float = 0.0) -> np.ndarray:

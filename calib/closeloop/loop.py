@@ -33,6 +33,7 @@ from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0
 
 from ..inputs import check_recording
+from ..timeblocks import block_means, time_block_index
 from .candidates import Candidate, build_candidate, candidate_kinds, earth_rate_summary
 from .drift import random_walk_mle
 from .fit import FitResult, fit_model, held_out_score, held_out_split
@@ -367,7 +368,7 @@ def run_closeloop(
         effect = c.to_effect(vals)
         extra = {}
         if f.effect == "random_walk":
-            k, sk = _drift_k(ref, model, full, f)
+            k, sk = _drift_k(ref, model)
             effect = RandomWalk(value=np.full(3, k) if math.isfinite(k) else np.zeros(3))
             extra = {"random_walk.value": {"value": k, "sigma": sk}}
             p = {**extra}  # the knot biases are a realisation, not parameters of the device
@@ -424,7 +425,8 @@ def _error_stage_rate(ref: Reference, model: list[Candidate], theta: np.ndarray)
     return out
 
 
-def _drift_k(ref: Reference, model: list[Candidate], full: FitResult, finding: Finding) -> tuple[float, float]:
+def _drift_k(ref: Reference, model: list[Candidate]) -> tuple[float, float]:
+    """K of the bias drift: REML on the block means of the residual of the model without the drift."""
     if not isinstance(ref, RateReference):
         return float("nan"), float("nan")
     others = [c for c in model if c.effect != "random_walk"]
@@ -432,11 +434,11 @@ def _drift_k(ref: Reference, model: list[Candidate], full: FitResult, finding: F
     r = fit.residual.reshape(-1, 3)
     t = ref.row_time_s.reshape(-1, 3)[:, 0]
     block_s = max(1.0, (t[-1] - t[0]) / 400.0)  # ≤ 400 blocks: the REML is O(n³) in them
-    b = np.floor((t - t[0]) / block_s).astype(int)
+    b = time_block_index(t, block_s)
     nb = int(b.max())  # drop the last partial block
     keep = b < nb
-    means = [np.bincount(b[keep], r[keep, a], nb) / np.maximum(np.bincount(b[keep], None, nb), 1) for a in range(3)]
-    return random_walk_mle(means, block_s)
+    means, _ = block_means(b[keep], r[keep], nb)
+    return random_walk_mle(list(means.T), block_s)
 
 
 def _jsonable(d: dict) -> dict:
