@@ -35,7 +35,7 @@ from scipy import stats
 from gyrosim.estimator import Estimate
 from gyrosim.recording import Recording
 
-from .calibrate import prepare
+from .calibrate import Prepared, prepare
 from .fastkf import run_batch
 
 __all__ = ["kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm"]
@@ -44,8 +44,10 @@ GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
 
 def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gate: float = 0.0,
-         passes: int = 1) -> Estimate:
-    prep = prepare(rec, external_acc_allowance_m_s2=None if session_r else 0.0)
+         passes: int = 1, prep: Prepared | None = None) -> Estimate:
+    """The filter on ``rec``; ``prep`` (from :func:`prepare` with the matching allowance) when the
+    caller already has it."""
+    prep = prep or prepare(rec, external_acc_allowance_m_s2=None if session_r else 0.0)
     a, fs = prep.start, rec.rate_hz
     g = (rec.gyro_rad_s - prep.bias.value_rad_s)[None, a:]
     acc = rec.acc_m_s2[None, a:]
@@ -113,8 +115,8 @@ def kf_lever_arm(rec: Recording) -> Estimate:
     from gyrosim.rotations import quat_conjugate, quat_rotate, skew
     from gyrosim.strapdown import integrate_gyro
 
-    first = kf_session_r(rec)
-    prep = prepare(rec)
+    prep = prepare(rec)  # the session-R preparation of pass 1, used again for the rest attitude
+    first = _run(rec, session_r=True, prep=prep)
     a, fs = prep.start, rec.rate_hz
     m = np.eye(3) + np.diag(first.scale_factor) + _nonortho_matrix(first.nonorthogonality)
     w = (rec.gyro_rad_s - first.bias_rad_s) @ np.linalg.inv(m).T
