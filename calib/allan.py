@@ -21,7 +21,8 @@ from pathlib import Path
 import allantools
 import numpy as np
 
-__all__ = ["AllanCurve", "NoiseTerms", "allan_deviation", "fit_noise_terms", "plot_allan"]
+__all__ = ["AllanCurve", "NoiseTerms", "allan_deviation", "paired_allan_deviation", "fit_noise_terms", "fit_allan_variance",
+           "plot_allan"]
 
 FLICKER = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
 
@@ -64,14 +65,64 @@ def allan_deviation(x: np.ndarray, rate_hz: float, taus_per_decade: int = 8) -> 
     return AllanCurve(np.asarray(t2), np.asarray(ad), T / np.asarray(t2))
 
 
-def fit_noise_terms(curves: list[AllanCurve], iterations: int = 5) -> NoiseTerms:
+def paired_allan_deviation(x: np.ndarray, rate_hz: float) -> AllanCurve:
+    """Allan deviation from *non-overlapping pairs* of cluster means at octave τ = 2^j/f_s (the
+    Haar wavelet variance): σ²(τ) = ½ mean over disjoint pairs of (ȳ_{2p+1} − ȳ_{2p})².
+
+    Coarser than the overlapping estimate, but its pairs are independent for white noise and
+    nearly so for flicker and random walk, and its points at different octaves nearly
+    uncorrelated, so a fit's covariance (:func:`fit_allan_variance`) is honest: with P pairs the
+    relative σ of σ² is √(2/P), stored as ``clusters`` = P + 1 for
+    :attr:`AllanCurve.relative_error`.  Octaves with ≥ 2 pairs."""
+    x = np.asarray(x, dtype=float)
+    taus, adev, clusters = [], [], []
+    m = 1
+    while x.size // m >= 4:
+        nb = x.size // m
+        means = x[: nb * m].reshape(nb, m).mean(axis=1)
+        pairs = nb // 2
+        d = means[1 : 2 * pairs : 2] - means[0 : 2 * pairs : 2]
+        taus.append(m / rate_hz)
+        adev.append(math.sqrt(0.5 * float(np.mean(d**2))))
+        clusters.append(pairs + 1.0)
+        m *= 2
+    return AllanCurve(np.array(taus), np.array(adev), np.array(clusters))
+
+
+TERMS = ("arw", "bias_instability", "rate_random_walk")
+
+
+def fit_noise_terms(curves: list[AllanCurve], iterations: int = 5, terms: tuple[str, ...] = TERMS) -> NoiseTerms:
     """Weighted LSQ fit of σ² = a/τ + b + cτ/3 pooled over ``curves`` (see module docstring).
 
     Iteratively reweighted: the standard error of each σ²(τ) is 2·rel(τ)·σ²_model(τ), using the
     *model* from the previous iteration, not the observed σ² (weighting by the observation
     favours the points that happen to scatter low and biases the large-τ terms downwards).
+    ``terms``: the subset of (arw, bias_instability, rate_random_walk) to fit; the others are 0
+    with standard error 0 (e.g. leave out a random walk the τ range cannot show).
     """
+    full, cov = fit_allan_variance(curves, iterations, terms)
+    return _terms_from_coefficients(full, np.sqrt(np.diag(cov)))
+
+
+def fit_allan_variance(curves: list[AllanCurve], iterations: int = 5,
+                       terms: tuple[str, ...] = TERMS) -> tuple[np.ndarray, np.ndarray]:
+    """The fit behind :func:`fit_noise_terms` as the variance coefficients (N², 0.664²B², K²)
+    ≥ 0 and their 3×3 covariance (zero rows for terms left out): what a quantity derived from
+    the fitted curve (e.g. its minimum) needs for its σ."""
+    if not terms or set(terms) - set(TERMS):
+        raise ValueError(f"terms must be a non-empty subset of {TERMS}, got {terms}")
     design = np.concatenate([np.stack([1 / c.tau_s, np.ones_like(c.tau_s), c.tau_s / 3], axis=1) for c in curves])
+    keep = [TERMS.index(t) for t in TERMS if t in terms]
+    coef, cov_k = _reweighted_fit(design[:, keep], curves, iterations)
+    full, cov = np.zeros(3), np.zeros((3, 3))
+    full[keep] = coef
+    cov[np.ix_(keep, keep)] = cov_k
+    return full, cov
+
+
+def _reweighted_fit(design: np.ndarray, curves: list[AllanCurve], iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """The reweighted fit of :func:`fit_noise_terms` on the given columns: (coefficients ≥ 0, covariance)."""
     obs = np.concatenate([c.adev**2 for c in curves])
     rel = np.concatenate([c.relative_error for c in curves])
     model = obs.copy()
@@ -80,17 +131,20 @@ def fit_noise_terms(curves: list[AllanCurve], iterations: int = 5) -> NoiseTerms
         A = design * w[:, None]
         coef, *_ = np.linalg.lstsq(A, obs * w, rcond=None)
         model = np.maximum(design @ np.maximum(coef, 0.0), 1e-300)
-    cov = np.linalg.inv(A.T @ A)
-    a, b, c = np.maximum(coef, 0.0)
-    sa, sb, sc = np.sqrt(np.diag(cov))
+    return np.maximum(coef, 0.0), np.linalg.inv(A.T @ A)
+
+
+def _terms_from_coefficients(coef: np.ndarray, std: np.ndarray) -> NoiseTerms:
+    """N, B, K from the fitted (N², B²·0.664², K²) with standard errors σ_√v ≈ σ_v / (2√v)
+    (inf when the term fitted to 0; 0 when it was not fitted)."""
+    a, b, c = coef
+    sa, sb, sc = std
     N, B, K = math.sqrt(a), math.sqrt(b) / FLICKER, math.sqrt(c)
-    # standard errors of the square roots: σ_√v ≈ σ_v / (2√v)
-    return NoiseTerms(
-        N, B, K,
-        sa / (2 * N) if N else float("inf"),
-        sb / (2 * math.sqrt(b) * FLICKER) if b else float("inf"),
-        sc / (2 * K) if K else float("inf"),
-    )
+
+    def se(s: float, v: float, k: float = 1.0) -> float:
+        return 0.0 if s == 0 else (s / (2 * math.sqrt(v) * k) if v else float("inf"))
+
+    return NoiseTerms(N, B, K, se(sa, a), se(sb, b, FLICKER), se(sc, c))
 
 
 def plot_allan(curves: list[AllanCurve], fit: NoiseTerms | None, path: str | Path, *, unit_scale: float = 1.0,

@@ -1,167 +1,419 @@
-"""calibrate(): the Zhou 2020 in-self calibration of a recording, end to end.
+"""calibrate(): one hand-held session → a :class:`~gyrosim.calibration.Calibration` of the gyro and,
+by default, the accelerometer.
+
+**Method** (``accelerometer="estimate"``, the default): one augmented error-state filter,
+Zhou 2020's 9 states plus the gyro bias and the accelerometer's bias, scale factor and
+non-orthogonality (21 states, equations in :mod:`calib.kalman`).  Why this and not a separate
+multi-position accelerometer calibration feeding Zhou's filter:
+
+* |f| = g (Ferraris 1995, Tedaldi 2014) needs ≥ 9 well-spread rest poses; Zhou's own Table 6 session
+  rests in two.  In the filter the gyro carries the attitude between poses, so every quasi-static
+  sample of every rotation tells the filter where gravity is *and* what the accelerometer read
+  there: gravity sweeps each body plane during the rotations, and all 21 states are observable
+  from the zhou2020 schedule (checked per session, below);
+* the gyro and accelerometer errors are estimated *jointly*, so their correlations (an
+  accelerometer bias tilts the gravity reference exactly like an attitude error) are in the
+  covariance, and σ stays honest for both (Monte Carlo in docs/real_imu.md);
+* the same structure takes further states (issue 13's lever arm and coloured external acceleration):
+  a block of :class:`calib.kalman.StateLayout`, its F/H columns and its prior.
+
+A Tedaldi-style |f| = g fit over the session's quasi-static windows (:mod:`calib.gravityfit`) runs
+first; it is not the answer but the filter's starting point (linearisation), the source of the
+external-acceleration allowance (the residual |f̂| − g after it) and of the pose advice.
+``accelerometer="calibrated"`` is the paper's 9-state filter with the static bias (Zhou §3.3.2
+assumes a calibrated accelerometer), today's behaviour.
+
+**Steps.**
 
 1. input checks (gaps, units, saturation: :mod:`calib.inputs`);
-2. rest detection and the static bias (:mod:`calib.rest`, Zhou §3.2);
-3. noise levels: from the recording's stored sensor model when it has one (simulation), else from
-   the first rest segment (per-sample σ → density σ/√f_s; hand tremor at rest inflates it, which
-   only makes the filter more cautious);  external-acceleration allowance a_ext, unless given:
-   the larger of the accelerometer's rest variance beyond its white noise and the whole
-   session's  √(3 (⟨(|f| − g)²⟩ − σ_f²)) — |f| − g sees only the component of the external
-   acceleration along gravity, a third of an isotropic one's variance.  (Measured: BROAD's slow
-   hand rotation has ⟨(|f| − g)²⟩^½ = 0.58 m/s²; with the rest-only allowance the filter
-   diverged, NIS 9300.);
-4. initial attitude from gravity at rest (roll, pitch; heading is unobservable and set to 0);
-5. the 9-state filter (:mod:`calib.kalman`, Zhou §3.3) over the whole recording:
-   ``kf`` is the paper's single pass (filterpy); ``iterated`` re-runs the same filter (the
-   compiled :mod:`calib.fastkf` kernel) starting from the previous pass's estimates, three passes
-   in all.  Each pass relinearises at a better point and the prior's pull vanishes at the fixed
-   point (prior centred on the estimate), so the iteration is Gauss–Newton on the batch
-   likelihood: the estimator that reaches the Cramér–Rao bound in our Monte Carlo;
-6. observability, before the filter runs: the stripped observability matrix of the recording's own
-   motion (gyro integrated from the initial attitude; :mod:`calib.observability`) names every
-   parameter in its null space (``unobservable: …``); after the filter, a parameter whose
-   posterior σ is still above half its prior is named ``weakly observable``.  The normalised
-   innovation squared (NIS) of the two attitude rows, averaged over 1 s windows, is compared with
-   its χ² band: a filter that leaves the band for long has diverged or is mis-modelled.
+2. rest detection and the static gyro bias (Zhou §3.2, :mod:`calib.rest`);
+3. noise levels from the first rest segment with floors (:mod:`calib.noiselevels`) — never from a
+   simulator's stored sensor model;  gravity: ``gravity_m_s2`` (default standard gravity
+   9.80665 m/s² when the accelerometer is estimated: the scale factors are relative to it, so a
+   local g off by 0.1 % shifts S_a by 0.1 %; with a calibrated accelerometer the mean |f| at rest);
+4. the |f| = g fit (estimate mode) and the initial attitude from gravity at rest (roll, pitch;
+   heading unobservable, set to 0), P₀ with the tilt's dependence on the accelerometer errors;
+5. external-acceleration allowance a_ext, unless given: the larger of the accelerometer's rest
+   variance beyond its white noise and √(3 (⟨(|f̂| − g)²⟩ − σ_f²)) over the session (|f| − g sees only
+   the component of the external acceleration along gravity, a third of an isotropic one's variance);
+6. the filter (compiled, :func:`calib.fastkf.run_filter`): ``kf`` one pass, ``iterated`` three, each
+   re-linearised at the previous pass's estimate with the prior kept where it was (the prior mean
+   enters as the initial error state x₀ = θ_prior − θ̂: Gauss–Newton on the batch posterior);
+7. observability from the filter's own information (:func:`calib.observability.joint_observability`):
+   gyro combinations the motion left undetermined are named in ``warnings``; an accelerometer that
+   this session cannot separate from the gyro errors is an error naming the parameters and the rest
+   poses to add;
+8. the verdict (:mod:`calib.consistency`): ``status`` ok / diverged / inconsistent, with warnings
+   saying what to try.
 """
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from gyrosim.calibration import Calibration, truth_calibration
+from gyrosim.effects import Bias, NonOrthogonality, ScaleFactor, WhiteNoise
+from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_from_two_vectors
+from gyrosim.units import G0
 
-from .inputs import check_recording
-from .kalman import STATE_NAMES, FilterConfig, FilterHistory, ZhouFilter
+from .consistency import check_estimate, check_innovations, rest_gravity, verdict
+from .fastkf import FilterRun, regressor_half_window, run_filter
+from .gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows
+from .inputs import KF, check_recording
+from .kalman import (BLOCK_LABELS, JOINT, PAPER, FilterConfig, FilterHistory, StateLayout, ZhouFilter,
+                     initial_covariance, leave_out_means, m_matrix, theta_slice)
+from .noiselevels import NoiseLevels, estimate_noise
+from .observability import JointObservability, joint_observability, missing_poses
 from .rest import BiasEstimate, RestSegments, detect_rest, static_bias
 
-__all__ = ["CalibrationResult", "calibrate", "METHODS"]
+__all__ = ["calibrate", "prepare", "Prepared", "METHODS", "ACCELEROMETER_MODES", "true_gyro_parameters"]
 
 METHODS = ("kf", "iterated")
-
-
-@dataclass(frozen=True)
-class CalibrationResult:
-    """Estimated gyro errors (SI, body frame RFU) with 1σ, and what the run saw."""
-
-    method: str
-    bias_rad_s: np.ndarray
-    scale_factor: np.ndarray
-    nonorthogonality: np.ndarray
-    bias_std_rad_s: np.ndarray
-    scale_factor_std: np.ndarray
-    nonorthogonality_std: np.ndarray
-    rest: RestSegments
-    config: FilterConfig
-    warnings: tuple[str, ...]
-    history: FilterHistory = field(repr=False)
-    nis_mean: float = float("nan")
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON layout of ``calib run --json`` (keys are a promise to users' scripts)."""
-        return {
-            "method": self.method,
-            "gyro": {
-                "bias_rad_s": self.bias_rad_s.tolist(),
-                "scale_factor": self.scale_factor.tolist(),
-                "nonorthogonality": self.nonorthogonality.tolist(),
-                "std": {
-                    "bias_rad_s": self.bias_std_rad_s.tolist(),
-                    "scale_factor": self.scale_factor_std.tolist(),
-                    "nonorthogonality": self.nonorthogonality_std.tolist(),
-                },
-            },
-            "rest_segments": self.rest.to_list(),
-            "warnings": list(self.warnings),
-            "noise": {
-                "arw_rad_s_sqrt_hz": self.config.arw_rad_s_sqrt_hz,
-                "vrw_m_s2_sqrt_hz": self.config.vrw_m_s2_sqrt_hz,
-                "external_acc_allowance_m_s2": self.config.external_acc_allowance_m_s2,
-            },
-            "consistency": {"nis_mean": self.nis_mean, "nis_expected": 2.0},
-            "frames": "body RFU, navigation ENU",
-        }
-
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
-
-
-def _sensor_noise_from_meta(rec: Recording) -> tuple[float | None, float | None]:
-    raw = rec.meta.get("sensor_model")
-    if not raw:
-        return None, None
-    model = raw if isinstance(raw, dict) else json.loads(raw)
-    def density(effs: list[dict]) -> float | None:
-        d = [np.mean(e["density"]) for e in effs if e.get("effect") == "white_noise"]
-        return float(d[0]) if d else None
-    return density(model.get("gyro", [])), density(model.get("accelerometer", []))
+ACCELEROMETER_MODES = ("estimate", "calibrated")
+ENGINES = ("compiled", "filterpy")
 
 
 @dataclass(frozen=True)
 class Prepared:
-    """Everything the filter needs from a recording, before the filter runs."""
+    """Everything the filter needs from a recording, before it runs (steps 1–5)."""
 
     bias: BiasEstimate
     rest: RestSegments
+    noise: NoiseLevels
     config: FilterConfig
+    layout: StateLayout
     quat0_nb: np.ndarray
+    theta0: np.ndarray
+    p0: np.ndarray
     start: int
     saturated: np.ndarray | None
     warnings: tuple[str, ...]
+    gravity_fit: GravityFit | None
+    windows_f_hat: np.ndarray | None
+    bias_std_rad_s: np.ndarray
+    rest_range: tuple[int, int] = (0, 0)
+
+    @property
+    def accelerometer(self) -> str:
+        return "estimate" if self.layout.estimates_accelerometer else "calibrated"
+
+
+def _allowance(rec: Recording, theta_a: np.ndarray | None, a: int, b: int, g: float, sigma_f2: float) -> float:
+    """a_ext (m/s² RMS, step 5): √max(rest excess, 3 (⟨(|f̂| − g)²⟩ − σ_f²), 0) over the session from ``a``."""
+    f_hat = rec.acc_m_s2 if theta_a is None else compensate_acc(rec.acc_m_s2, theta_a)
+    rest_excess = float(np.mean(np.var(rec.acc_m_s2[a:b], axis=0))) - sigma_f2
+    along_g = float(np.mean((np.linalg.norm(f_hat[a:], axis=1) - g - sigma_f2 / g) ** 2)) - sigma_f2
+    return math.sqrt(max(rest_excess, 3.0 * along_g, 0.0))
+
+
+def _tilt_sigma(rec: Recording, a: int, b: int, g: float) -> float:
+    """σ (rad) of roll and pitch from the accelerometer's mean over the rest [a, b): its standard
+    error from 10 batch means (honest when tremor correlates the samples) over g."""
+    means = np.array([m.mean(axis=0) for m in np.array_split(rec.acc_m_s2[a:b], 10)])
+    return float(np.mean(means.std(axis=0, ddof=1)) / math.sqrt(10) / g) + 1e-9
+
+
+def _initial_attitude(rec: Recording, theta: np.ndarray, a: int, b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """q₀ (body→ENU, heading 0) from the compensated accelerometer mean over the rest [a, b), that
+    mean f̂₀ and M̂_a⁻¹."""
+    th_a = np.concatenate([theta[theta_slice("acc_bias")], theta[theta_slice("acc_scale")],
+                           theta[theta_slice("acc_nonorth")]])
+    f0 = compensate_acc(rec.acc_m_s2[a:b], th_a).mean(axis=0)
+    q0 = quat_from_two_vectors(f0, np.array([0.0, 0.0, 1.0]))
+    return q0, f0, np.linalg.inv(m_matrix(th_a[3:6], th_a[6:9]))
 
 
 def prepare(
     rec: Recording,
     *,
+    accelerometer: str = "estimate",
     external_acc_allowance_m_s2: float | None = None,
     arw_rad_s_sqrt_hz: float | None = None,
     vrw_m_s2_sqrt_hz: float | None = None,
+    gravity_m_s2: float | None = None,
     min_rest_s: float = 2.0,
 ) -> Prepared:
-    """Steps 1–4 of the module docstring: checks, rest, bias, noise levels, initial attitude."""
-    check = check_recording(rec)
+    """Steps 1–5 of the module docstring: checks, rest, bias, noise levels, |f| = g fit, allowance, P₀."""
+    if accelerometer not in ACCELEROMETER_MODES:
+        raise ValueError(f"accelerometer must be one of {ACCELEROMETER_MODES}, got {accelerometer!r}")
+    estimate = accelerometer == "estimate"
+    check = check_recording(rec, requirements=KF)
     rest = detect_rest(rec)
     bias = static_bias(rec, rest, min_rest_s=min_rest_s)
     a, b = bias.index_range
     fs = rec.rate_hz
-    meta_arw, meta_vrw = _sensor_noise_from_meta(rec)
-    rest_gyro_sigma = float(np.mean(np.std(rec.gyro_rad_s[a:b], axis=0)))
-    rest_acc_sigma = float(np.mean(np.std(rec.acc_m_s2[a:b], axis=0)))
-    arw = arw_rad_s_sqrt_hz or meta_arw or rest_gyro_sigma / math.sqrt(fs)
-    vrw = vrw_m_s2_sqrt_hz or meta_vrw or rest_acc_sigma / math.sqrt(fs)
-    g = float(np.mean(np.linalg.norm(rec.acc_m_s2[a:b], axis=1)))
-    if external_acc_allowance_m_s2 is None:
-        sigma_f2 = vrw**2 * fs
-        rest_excess = rest_acc_sigma**2 - sigma_f2
-        along_g = float(np.mean((np.linalg.norm(rec.acc_m_s2[a:], axis=1) - g) ** 2)) - sigma_f2
-        external_acc_allowance_m_s2 = math.sqrt(max(rest_excess, 3.0 * along_g, 0.0))
-    config = FilterConfig(arw, vrw, external_acc_allowance_m_s2, gravity_m_s2=g)
-    q0 = quat_from_two_vectors(rec.acc_m_s2[a:b].mean(axis=0), np.array([0.0, 0.0, 1.0]))  # gravity up, heading 0
-    saturated = check.saturated if check.saturated_samples else None
-    warnings = list(check.warnings)
-    unobs = motion_unobservable(rec, bias.value_rad_s, a)
-    if unobs:
+    g = gravity_m_s2 or (G0 if estimate else float(np.mean(np.linalg.norm(rec.acc_m_s2[a:b], axis=1))))
+    noise = estimate_noise(rec.gyro_rad_s, rec.acc_m_s2, (a, b), fs, g)
+    arw = arw_rad_s_sqrt_hz or noise.arw_rad_s_sqrt_hz
+    vrw = vrw_m_s2_sqrt_hz or noise.vrw_m_s2_sqrt_hz
+    sigma_f2 = vrw**2 * fs
+    warnings = list(check.warnings) + noise.notes()
+    bias_std = np.maximum(bias.std_rad_s, arw * math.sqrt(fs) / math.sqrt(b - a))
+    layout = JOINT if estimate else PAPER
+    base = FilterConfig(arw, vrw, 0.0, gravity_m_s2=g, prior_gyro_bias_rad_s=tuple(bias_std))
+    theta0 = np.zeros(18)
+    theta0[theta_slice("gyro_bias")] = bias.value_rad_s
+    gfit, f_windows = None, None
+    if estimate:
+        f = rec.acc_m_s2[a:]
+        f_reg = leave_out_means(f, regressor_half_window(fs), midpoint=False)
+        prior = np.concatenate([base.prior_sigma("acc_bias"), base.prior_sigma("acc_scale"),
+                                base.prior_sigma("acc_nonorth")])
+        gfit = fit_gravity(f, f_reg, sigma_f2, sigma_f2, g, prior)
+        if external_acc_allowance_m_s2 is None:
+            external_acc_allowance_m_s2 = _allowance(rec, gfit.theta, a, b, g, sigma_f2)
+        if external_acc_allowance_m_s2 > 0:  # refit with the hand's allowance in the weights (honest P_a)
+            gfit = fit_gravity(f, f_reg, sigma_f2 + external_acc_allowance_m_s2**2, sigma_f2, g, prior, gfit.theta)
+        theta0[theta_slice("acc_bias")] = gfit.bias_m_s2
+        theta0[theta_slice("acc_scale")] = gfit.scale_factor
+        theta0[theta_slice("acc_nonorth")] = gfit.nonorthogonality
+        wins, _ = quasi_static_windows(f, fs, 0.1)
+        f_windows = compensate_acc(wins, gfit.theta)
+    elif external_acc_allowance_m_s2 is None:
+        external_acc_allowance_m_s2 = _allowance(rec, None, a, b, g, sigma_f2)
+    config = FilterConfig(arw, vrw, external_acc_allowance_m_s2, gravity_m_s2=g, prior_gyro_bias_rad_s=tuple(bias_std))
+    q0, f0, mi_a = _initial_attitude(rec, theta0, a, b)
+    tilt = _tilt_sigma(rec, a, b, g) if estimate else None
+    p0 = initial_covariance(layout, config, q0, f0, mi_a, None if gfit is None else gfit.covariance, tilt)
+    saturated = check.excluded if check.excluded_samples else None  # at a rail, bridged or spike-repaired
+    # with the gyro bias a state the filter starts after the rest that gave its prior: the same gyro
+    # samples would otherwise inform the bias twice (the static average, and the tilt drift at rest)
+    start = b - 1 if estimate else a
+    return Prepared(bias, rest, noise, config, layout, q0, theta0, p0, start, saturated, tuple(warnings), gfit,
+                    f_windows, bias_std, (a, b))
+
+
+def rest_mask(prep: Prepared, n: int) -> np.ndarray:
+    """(n,) True at the steps k−1 → k that lie inside a detected rest segment (samples from ``start``)."""
+    mask = np.zeros(n, dtype=bool)
+    for a, b in prep.rest.index_ranges:
+        lo, hi = max(a - prep.start + 1, 0), min(b - prep.start, n)
+        if hi > lo:
+            mask[lo:hi] = True
+    return mask
+
+
+def _run_reference(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.ndarray, p0: np.ndarray,
+                   mask: np.ndarray | None, x0: np.ndarray | None = None) -> FilterRun:
+    """The filterpy filter (:class:`calib.kalman.ZhouFilter`) over the session, as a FilterRun."""
+    a, fs = prep.start, rec.rate_hz
+    g, acc, t = rec.gyro_rad_s[a:], rec.acc_m_s2[a:], rec.t_s[a:]
+    greg = leave_out_means(g, regressor_half_window(fs), midpoint=True)
+    still = rest_mask(prep, t.size)
+    filt = ZhouFilter(prep.config, q0, fs, prep.layout, theta0, p0, x0)
+    for k in range(1, t.size):
+        filt.step(float(t[k]), float(t[k] - t[k - 1]), g[k - 1], g[k], acc[k], update=mask is None or bool(mask[k]),
+                  w_reg=greg[k], still=bool(still[k]))
+    h = filt.history
+    return FilterRun(prep.layout, filt.theta[None].copy(), np.asarray(filt.kf.P)[None].copy(), filt.quat[None],
+                     h.nis[None], h.innovation[None], h.sd[None], h.theta[None])
+
+
+def prior_offset(prep: Prepared, theta: np.ndarray) -> np.ndarray:
+    """x₀ = θ_prior − θ̂ over the layout's states: the prior mean seen from the linearisation point θ̂
+    (the prior is the first pass's: S, G = 0, the static gyro bias, the |f| = g fit)."""
+    x0 = np.zeros(prep.layout.n)
+    for blk in prep.layout.blocks[1:]:
+        o = prep.layout.offset(blk)
+        x0[o:o + 3] = prep.theta0[theta_slice(blk)] - theta[theta_slice(blk)]
+    return x0
+
+
+def _run(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.ndarray, p0: np.ndarray, engine: str,
+         keep_history: bool) -> FilterRun:
+    a, fs = prep.start, rec.rate_hz
+    mask = None if prep.saturated is None else ~prep.saturated[a:]
+    x0 = prior_offset(prep, theta0)
+    if engine == "filterpy":
+        return _run_reference(prep, rec, theta0, q0, p0, mask, x0)
+    return run_filter(rec.gyro_rad_s[None, a:], rec.acc_m_s2[None, a:], rec.t_s[a:], q0[None], theta0[None], p0,
+                      prep.layout, prep.config, fs, update_mask=mask, keep_history=keep_history,
+                      rest_mask=rest_mask(prep, rec.n - a), x0=x0[None])
+
+
+def _observability(prep: Prepared, run: FilterRun, p0: np.ndarray) -> JointObservability:
+    """Gyro S, G from the filter's information; the accelerometer from the |f| = g stage's (module
+    docstring, step 7: a session whose gravity directions do not determine the accelerometer is refused,
+    whatever the filter's horizontal rows would add — the criterion of Ferraris and Tedaldi)."""
+    lay = prep.layout
+    keep = np.array([blk in ("gyro_scale", "gyro_nonorth") for blk in lay.blocks for _ in range(3)])
+    gyro = joint_observability(run.p[0], p0, lay.names, keep)
+    if prep.gravity_fit is None:
+        return gyro
+    gf = prep.gravity_fit
+    names = tuple(f"{blk}_{ax}" for blk in ("ba", "Sa", "Ga") for ax in "xyz")
+    acc = joint_observability(gf.covariance, np.diag(gf.prior_sigma**2), names, np.ones(9, bool))
+    return JointObservability(gyro.names + acc.names, np.concatenate([gyro.ratio, acc.ratio]),
+                              gyro.unobservable + acc.unobservable, gyro.weak + acc.weak,
+                              gyro.directions + acc.directions)
+
+
+def _label(name: str) -> str:
+    """'Sa_x' → 'accelerometer S_x'; the gyro's names stay the paper's ('S_x', 'G_y')."""
+    block, ax = name.split("_")
+    return {"S": f"S_{ax}", "G": f"G_{ax}", "ba": f"accelerometer b_{ax}", "Sa": f"accelerometer S_{ax}",
+            "Ga": f"accelerometer G_{ax}"}[block]
+
+
+def calibrate(
+    rec: Recording,
+    method: str = "kf",
+    *,
+    accelerometer: str = "estimate",
+    external_acc_allowance_m_s2: float | None = None,
+    arw_rad_s_sqrt_hz: float | None = None,
+    vrw_m_s2_sqrt_hz: float | None = None,
+    gravity_m_s2: float | None = None,
+    min_rest_s: float = 2.0,
+    iterations: int = 3,
+    keep_history: bool = True,
+    engine: str = "compiled",
+) -> Calibration:
+    """Calibrate ``rec`` (module docstring); ``rec`` is not modified.
+
+    Raises :class:`~gyrosim.errors.RecordingError` for input the method cannot use (no rest, gaps,
+    wrong units, an accelerometer the motion cannot separate from the gyro errors).  A run that fails
+    its own consistency check is returned with ``status`` "diverged" or "inconsistent".
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; use one of {', '.join(ENGINES)}")
+    prep = prepare(rec, accelerometer=accelerometer, external_acc_allowance_m_s2=external_acc_allowance_m_s2,
+                   arw_rad_s_sqrt_hz=arw_rad_s_sqrt_hz, vrw_m_s2_sqrt_hz=vrw_m_s2_sqrt_hz, gravity_m_s2=gravity_m_s2,
+                   min_rest_s=min_rest_s)
+    warnings = list(prep.warnings)
+    a, b = prep.bias.index_range
+    passes = 1 if method == "kf" else max(1, iterations)
+    theta0, q0, p0 = prep.theta0, prep.quat0_nb, prep.p0
+    obs = None
+    for i in range(passes):
+        last = i == passes - 1
+        run = _run(prep, rec, theta0, q0, p0, engine, keep_history and last)
+        if i == 0:
+            obs = _observability(prep, run, p0)
+            _apply_observability(prep, obs, warnings)
+        if not last:
+            theta0 = run.theta[0].copy()
+            if prep.layout.estimates_accelerometer:
+                q0, f0, mi_a = _initial_attitude(rec, theta0, a, b)
+                p0 = initial_covariance(prep.layout, prep.config, q0, f0, mi_a, prep.gravity_fit.covariance,
+                                        _tilt_sigma(rec, a, b, prep.config.gravity_m_s2))
+    return _result(prep, rec, run, obs, warnings, method, passes)
+
+
+def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list[str]) -> None:
+    acc_names = [n for n in obs.unobservable + obs.weak if n.split("_")[0] in ("ba", "Sa", "Ga")]
+    if acc_names:
+        poses = missing_poses(acc_names, prep.windows_f_hat)
+        raise RecordingError(
+            f"this session cannot separate the accelerometer from the gyro errors: {', '.join(_label(n) for n in acc_names)} "
+            "stay undetermined (posterior σ above half the prior). Add rest poses of ≥ 2 s with gravity along: "
+            f"{'; '.join(poses) if poses else 'more distinct directions (Tedaldi 2014: ≥ 9, well spread)'} — or slow "
+            "rotations through them — or pass --accelerometer calibrated if the accelerometer is calibrated already")
+    gyro_unobs = [n for n in obs.unobservable if n.split("_")[0] in ("S", "G")]
+    gyro_weak = [n for n in obs.weak if n.split("_")[0] in ("S", "G")]
+    if gyro_unobs:
         warnings.append(
-            f"unobservable: {', '.join(unobs)}: the recording's motion leaves them in the null space of the "
-            "stripped observability matrix (Zhou 2020 §4); add rotations about horizontal axes (scale factors) "
-            "and about the vertical (non-orthogonality), Zhou 2020 Table 5"
-        )
-    return Prepared(bias, rest, config, q0, a, saturated, tuple(warnings))
+            f"unobservable: {', '.join(gyro_unobs)}: the recording's motion leaves them undetermined (posterior σ "
+            "within 90 % of the prior; Zhou 2020 §4); add rotations about horizontal axes (scale factors) and about "
+            "the vertical (non-orthogonality), Zhou 2020 Table 5")
+    if gyro_weak:
+        warnings.append(
+            f"weakly observable: {', '.join(gyro_weak)} (posterior σ > half the prior): the motion barely excited "
+            "them for this noise level; rotate longer or faster about the axes Zhou 2020 Table 5 names")
+
+
+def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservability | None, warnings: list[str],
+            method: str, passes: int) -> Calibration:
+    lay, cfg = prep.layout, prep.config
+    estimate = lay.estimates_accelerometer
+    blocks = ["gyro_bias", "gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
+    n = 3 * len(blocks)
+    cov = np.zeros((n, n))
+    p = run.p[0]
+    for i, bi in enumerate(blocks):
+        for j, bj in enumerate(blocks):
+            oi, oj = lay.offset(bi), lay.offset(bj)
+            if oi >= 0 and oj >= 0:
+                cov[3 * i:3 * i + 3, 3 * j:3 * j + 3] = p[oi:oi + 3, oj:oj + 3]
+    if not lay.has("gyro_bias"):  # the static average: its own variance, uncorrelated with the filter's states
+        cov[0:3, 0:3] = np.diag(prep.bias_std_rad_s**2)
+    th = run.theta[0]
+    values = {BLOCK_LABELS[blk]: th[theta_slice(blk)] for blk in blocks}
+    gyro = (Bias(value=th[theta_slice("gyro_bias")]), ScaleFactor(value=th[theta_slice("gyro_scale")]),
+            NonOrthogonality(value=_safe_nonortho(th[theta_slice("gyro_nonorth")])),
+            WhiteNoise(density=np.full(3, cfg.arw_rad_s_sqrt_hz)))
+    acc: tuple = (WhiteNoise(density=np.full(3, cfg.vrw_m_s2_sqrt_hz)),)
+    if estimate:
+        acc = (Bias(value=th[theta_slice("acc_bias")]), ScaleFactor(value=th[theta_slice("acc_scale")]),
+               NonOrthogonality(value=_safe_nonortho(th[theta_slice("acc_nonorth")]))) + acc
+    cons = check_innovations(run.nis[0], 2, rec.rate_hz)
+    sanity = check_estimate(values, cov, cfg.gravity_m_s2)
+    th_a = np.concatenate([th[theta_slice("acc_bias")], th[theta_slice("acc_scale")], th[theta_slice("acc_nonorth")]])
+    f_hat = compensate_acc(rec.acc_m_s2, th_a) if estimate else rec.acc_m_s2
+    rest_g = rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg.gravity_m_s2, math.sqrt(cfg.r_var(rec.rate_hz)),
+                          fitted_g=not estimate)
+    status, notes = verdict(cons, sanity, rest_g, "estimate" if estimate else "calibrated")
+    warnings = warnings + notes
+    diagnostics = {
+        "accelerometer_mode": "estimate" if estimate else "calibrated",
+        "rest_segments": prep.rest.to_list(),
+        "noise": {"arw_rad_s_sqrt_hz": cfg.arw_rad_s_sqrt_hz, "vrw_m_s2_sqrt_hz": cfg.vrw_m_s2_sqrt_hz,
+                  "external_acc_allowance_m_s2": cfg.external_acc_allowance_m_s2, "gravity_m_s2": cfg.gravity_m_s2,
+                  **prep.noise.to_dict()},
+        "consistency": cons.to_dict(),
+        "rest_gravity": rest_g.to_dict(),
+        "filter": {"states": list(lay.names), "passes": passes, "samples": int(rec.n - prep.start),
+                   "rate_hz": rec.rate_hz, "start_s": float(rec.t_s[prep.start])},
+    }
+    if obs is not None:
+        diagnostics["observability"] = {"posterior_over_prior_sigma": dict(zip(obs.names, obs.ratio.round(6).tolist())),
+                                        "unobservable": list(obs.unobservable), "weakly_observable": list(obs.weak)}
+    if prep.gravity_fit is not None:
+        gf = prep.gravity_fit
+        diagnostics["gravity_fit"] = {"bias_m_s2": gf.bias_m_s2, "scale_factor": gf.scale_factor,
+                                      "nonorthogonality": gf.nonorthogonality,
+                                      "std": np.sqrt(np.diag(gf.covariance)),
+                                      "residual_rms_m_s2": gf.residual_rms_m_s2, "samples": gf.samples}
+    history = None
+    if run.sd_history is not None:
+        history = FilterHistory(rec.t_s[prep.start + 1:], run.sd_history[0], run.theta_history[0],
+                                run.innovation[0], run.nis[0], lay.names)
+    return Calibration(gyro=gyro, accelerometer=acc, covariance=cov, status=status, warnings=tuple(warnings),
+                       method=method, diagnostics=diagnostics, history=history)
+
+
+def _safe_nonortho(g: np.ndarray) -> np.ndarray:
+    """A diverged run can leave a non-orthogonality the vocabulary refuses (singular axes); keep the
+    numbers (status says diverged) but make the effect constructible by clipping to ±0.45."""
+    g = np.asarray(g, float)
+    if not np.all(np.isfinite(g)):
+        return np.zeros(3)
+    return np.clip(g, -0.45, 0.45)
+
+
+def true_gyro_parameters(rec: Recording) -> dict[str, np.ndarray] | None:
+    """The simulated device's gyro bias, scale factor and non-orthogonality (SI), if the file has them
+    (the oracle :func:`gyrosim.calibration.truth_calibration`; for scoring, never for estimating)."""
+    truth = truth_calibration(rec)
+    if truth is None:
+        return None
+    return {"bias_rad_s": truth.value("gyro", "bias"), "scale_factor": truth.value("gyro", "scale_factor"),
+            "nonorthogonality": truth.value("gyro", "nonorthogonality")}
 
 
 def motion_unobservable(rec: Recording, bias_rad_s: np.ndarray, start: int) -> list[str]:
-    """Filter parameters the recording's motion cannot observe (:func:`calib.observability.parameter_gram`).
+    """Gyro filter parameters the recording's motion cannot observe, from the stripped observability
+    matrix's parameter Gram (:func:`calib.observability.parameter_gram`, attitude-free, Zhou §4).
 
-    Rates and accelerometer averaged over 2 s (calibration rotations live below 1 Hz; gyro noise
-    would otherwise put g·σ_ω into every column: 0.85 m/s² per sample for Table 7's reading A),
-    sampled at ~10 Hz; null space = less excitation than a 0.01 rad/s rotation gives.
+    Rates and accelerometer averaged over 2 s (calibration rotations live below 1 Hz), sampled at
+    ~10 Hz; null space = less excitation than a 0.01 rad/s rotation gives.
     """
     from .observability import parameter_gram, unobservable_parameters
 
@@ -176,92 +428,3 @@ def motion_unobservable(rec: Recording, bias_rad_s: np.ndarray, start: int) -> l
     f = smooth(rec.acc_m_s2[start:])
     return unobservable_parameters(parameter_gram(w, f), float(np.median(np.linalg.norm(f, axis=1))))
 
-
-def calibrate(
-    rec: Recording,
-    method: str = "kf",
-    *,
-    external_acc_allowance_m_s2: float | None = None,
-    arw_rad_s_sqrt_hz: float | None = None,
-    vrw_m_s2_sqrt_hz: float | None = None,
-    min_rest_s: float = 2.0,
-    iterations: int = 3,
-) -> CalibrationResult:
-    """Calibrate the gyro of ``rec`` (bias, scale factor, non-orthogonality). ``rec`` is not modified."""
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
-    prep = prepare(rec, external_acc_allowance_m_s2=external_acc_allowance_m_s2,
-                   arw_rad_s_sqrt_hz=arw_rad_s_sqrt_hz, vrw_m_s2_sqrt_hz=vrw_m_s2_sqrt_hz, min_rest_s=min_rest_s)
-    warnings = list(prep.warnings)
-    config, a, fs = prep.config, prep.start, rec.rate_hz
-    gyro = rec.gyro_rad_s - prep.bias.value_rad_s
-    acc = rec.acc_m_s2
-    t = rec.t_s
-    filt = ZhouFilter(config, prep.quat0_nb, fs)
-    if method == "iterated":
-        from .fastkf import run_batch
-
-        s0, n0 = None, None
-        for _ in range(iterations - 1):
-            out = run_batch(gyro[None, a:], acc[None, a:], t[a:], prep.quat0_nb[None], config, fs, scale0=s0, nonortho0=n0)
-            s0, n0 = out.scale, out.nonorthogonality
-        filt.scale, filt.nonortho = s0[0].copy(), n0[0].copy()
-    for k in range(a + 1, rec.n):
-        ok = prep.saturated is None or not prep.saturated[k]
-        filt.step(float(t[k]), float(t[k] - t[k - 1]), gyro[k - 1], gyro[k], acc[k], update=ok)
-
-    p = np.diag(filt.kf.P)
-    std = np.sqrt(p)
-    p0 = np.array([config.prior_attitude_rad] * 3 + [config.prior_scale] * 3 + [config.prior_nonorthogonality] * 3)
-    named = " ".join(w for w in warnings if w.startswith("unobservable"))
-    weak = [STATE_NAMES[i] for i in range(3, 9) if std[i] > 0.5 * p0[i] and STATE_NAMES[i] not in named]
-    if weak:
-        warnings.append(
-            f"weakly observable: {', '.join(weak)} (posterior σ > half the prior): the motion barely excited "
-            "them for this noise level; rotate longer or faster about the axes Zhou 2020 Table 5 names"
-        )
-    nis = np.asarray(filt.history.nis)
-    nis = nis[np.isfinite(nis)]
-    nis_mean = float(nis.mean()) if nis.size else float("nan")
-    win = max(1, int(round(fs)))
-    if nis.size >= win:
-        means = np.convolve(nis, np.ones(win) / win, mode="valid")[::win]
-        hi = stats.chi2.ppf(0.999, 2 * win) / win
-        frac = float(np.mean(means > hi))
-        if frac > 0.05:
-            warnings.append(
-                f"divergence: the innovations exceed their 99.9 % χ² bound in {100 * frac:.0f} % of 1 s windows "
-                f"(mean NIS {nis_mean:.1f}, expected 2): the filter's noise model does not fit this motion "
-                "(external acceleration larger than allowed, or an unmodelled sensor error)"
-            )
-    return CalibrationResult(
-        method=method,
-        bias_rad_s=prep.bias.value_rad_s,
-        scale_factor=filt.scale.copy(),
-        nonorthogonality=filt.nonortho.copy(),
-        bias_std_rad_s=prep.bias.std_rad_s,
-        scale_factor_std=std[3:6],
-        nonorthogonality_std=std[6:9],
-        rest=prep.rest,
-        config=config,
-        warnings=tuple(warnings),
-        history=filt.history,
-        nis_mean=nis_mean,
-    )
-
-
-def true_gyro_parameters(rec: Recording) -> dict[str, np.ndarray] | None:
-    """The simulated device's bias, scale factor and non-orthogonality (SI), if the file has them."""
-    raw = rec.meta.get("sensor_model")
-    if not raw:
-        return None
-    model = raw if isinstance(raw, dict) else json.loads(raw)
-    out = {"bias_rad_s": np.zeros(3), "scale_factor": np.zeros(3), "nonorthogonality": np.zeros(3)}
-    for e in model.get("gyro", []):
-        if e["effect"] == "bias":
-            out["bias_rad_s"] = out["bias_rad_s"] + np.asarray(e["value"])
-        elif e["effect"] == "scale_factor":
-            out["scale_factor"] = out["scale_factor"] + np.asarray(e["value"])
-        elif e["effect"] == "nonorthogonality":
-            out["nonorthogonality"] = out["nonorthogonality"] + np.asarray(e["value"])
-    return out

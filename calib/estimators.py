@@ -1,8 +1,12 @@
-"""Our estimators behind the :mod:`gyrosim.estimator` interface, for campaigns (issue 6).
+"""Our estimators behind the :mod:`gyrosim.estimator` interface, for campaigns.
 
-All run Zhou 2020's 9-state filter (the compiled kernel :func:`calib.fastkf.run_batch`, equal to
-the filterpy filter to rounding) after the static bias (§3.2); they differ only in how the
-accelerometer's gravity measurement is trusted when the hand adds external acceleration a_e:
+Each returns a :class:`gyrosim.calibration.Calibration` (effects, covariance, status, warnings).
+``kf_joint`` is ``calib run``'s default: the gyro and the accelerometer from one session
+(:func:`calib.calibrate.calibrate`, 21 states, session allowance); ``iterated_joint`` its
+re-linearised form.  The others run Zhou 2020's 9-state filter (the compiled kernel
+:func:`calib.fastkf.run_batch`, equal to the filterpy filter to rounding) after the static bias
+(§3.2), assuming a calibrated accelerometer; they differ only in how the accelerometer's gravity
+measurement is trusted when the hand adds external acceleration a_e:
 
 | name | measurement variance R per axis (m/s²)² | gating |
 |---|---|---|
@@ -32,24 +36,26 @@ import numpy as np
 from scipy import signal as sp_signal
 from scipy import stats
 
-from gyrosim.estimator import Estimate
+from gyrosim.calibration import Calibration
 from gyrosim.recording import Recording
 
-from .calibrate import Prepared, prepare
-from .fastkf import run_batch
+from .calibrate import Prepared, calibrate, prepare, rest_mask
+from .consistency import check_estimate, check_innovations, verdict
+from .fastkf import run_filter
+from .kalman import PAPER, initial_covariance, theta_slice
 
-__all__ = ["kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm"]
+__all__ = ["kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
+           "kf_joint", "iterated_joint"]
 
 GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
 
 def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gate: float = 0.0,
-         passes: int = 1, prep: Prepared | None = None) -> Estimate:
-    """The filter on ``rec``; ``prep`` (from :func:`prepare` with the matching allowance) when the
-    caller already has it."""
-    prep = prep or prepare(rec, external_acc_allowance_m_s2=None if session_r else 0.0)
+         passes: int = 1, prep: Prepared | None = None, name: str = "kf") -> Calibration:
+    """The paper's filter on ``rec``; ``prep`` (from :func:`prepare` with the matching allowance) when
+    the caller already has it."""
+    prep = prep or prepare(rec, accelerometer="calibrated", external_acc_allowance_m_s2=None if session_r else 0.0)
     a, fs = prep.start, rec.rate_hz
-    g = (rec.gyro_rad_s - prep.bias.value_rad_s)[None, a:]
     acc = rec.acc_m_s2[None, a:]
     r_var = None
     if adaptive:
@@ -58,48 +64,68 @@ def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gat
         alpha = math.exp(-1.0 / (0.2 * fs))
         lp = sp_signal.lfilter([1 - alpha], [1, -alpha], excess, zi=[alpha * excess[0]])[0]
         r_var = c.vrw_m_s2_sqrt_hz**2 * fs + c.external_acc_allowance_m_s2**2 + 3.0 * lp
-    s0 = n0 = None
+    theta = prep.theta0.copy()
+    p0 = initial_covariance(PAPER, prep.config)
+    mask = None if prep.saturated is None else ~prep.saturated[a:]
     for _ in range(passes):
-        out = run_batch(g, acc, rec.t_s[a:], prep.quat0_nb[None], prep.config, fs, scale0=s0, nonortho0=n0,
-                        r_var_per_sample=r_var, gate_nis=gate)
-        s0, n0 = out.scale, out.nonorthogonality
-    cov = np.full((9, 9), np.nan)
-    cov[:3, :3] = np.diag(prep.bias.std_rad_s**2)
-    cov[3:, 3:] = out.p[0, 3:, 3:]
-    cov[:3, 3:] = cov[3:, :3] = 0.0
-    return Estimate(prep.bias.value_rad_s, out.scale[0], out.nonorthogonality[0], cov, prep.warnings)
+        x0 = np.zeros(PAPER.n)
+        x0[3:9] = -theta[0:6]  # the prior (S = G = 0) seen from the linearisation point
+        out = run_filter(rec.gyro_rad_s[None, a:], acc, rec.t_s[a:], prep.quat0_nb[None], theta[None], p0, PAPER,
+                         prep.config, fs, r_var_per_sample=r_var, gate_nis=gate, update_mask=mask,
+                         rest_mask=rest_mask(prep, rec.n - a), x0=x0[None])
+        theta = out.theta[0].copy()
+    cov = np.zeros((9, 9))
+    cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)
+    cov[3:, 3:] = out.p[0, 3:9, 3:9]
+    values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
+              "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
+    status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2))
+    gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
+            "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
+    return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
+                                   method=name)
 
 
-def kf(rec: Recording) -> Estimate:
+def kf(rec: Recording) -> Calibration:
     """Zhou 2020's filter as published: R from the accelerometer noise only."""
-    return _run(rec)
+    return _run(rec, name="kf")
 
 
-def smoother(rec: Recording) -> Estimate:
+def smoother(rec: Recording) -> Calibration:
     """Three passes, each linearised at the previous estimate (see the module docstring)."""
-    return _run(rec, passes=3)
+    return _run(rec, passes=3, name="smoother")
 
 
-def kf_session_r(rec: Recording) -> Estimate:
-    """One R for the session from its (|f| − g)² (``calib run``'s default)."""
-    return _run(rec, session_r=True)
+def kf_session_r(rec: Recording) -> Calibration:
+    """One R for the session from its (|f| − g)² (``calib run --accelerometer calibrated``)."""
+    return _run(rec, session_r=True, name="kf_session_r")
 
 
-def kf_adaptive(rec: Recording) -> Estimate:
+def kf_adaptive(rec: Recording) -> Calibration:
     """R per sample from the low-passed (|f| − g)²."""
-    return _run(rec, adaptive=True)
+    return _run(rec, adaptive=True, name="kf_adaptive")
 
 
-def kf_gated(rec: Recording) -> Estimate:
+def kf_gated(rec: Recording) -> Calibration:
     """The paper's R with innovation gating at χ²₂(0.999)."""
-    return _run(rec, gate=GATE_NIS)
+    return _run(rec, gate=GATE_NIS, name="kf_gated")
 
 
-def kf_adaptive_gated(rec: Recording) -> Estimate:
-    return _run(rec, adaptive=True, gate=GATE_NIS)
+def kf_adaptive_gated(rec: Recording) -> Calibration:
+    return _run(rec, adaptive=True, gate=GATE_NIS, name="kf_adaptive_gated")
 
 
-def kf_lever_arm(rec: Recording) -> Estimate:
+def kf_joint(rec: Recording) -> Calibration:
+    """``calib run``'s default: gyro and accelerometer from one session (21 states, session allowance)."""
+    return calibrate(rec, "kf", accelerometer="estimate", keep_history=False)
+
+
+def iterated_joint(rec: Recording) -> Calibration:
+    """``calib run --method iterated``: the joint filter re-linearised three times."""
+    return calibrate(rec, "iterated", accelerometer="estimate", keep_history=False)
+
+
+def kf_lever_arm(rec: Recording) -> Calibration:
     """The hand turns about a pivot (wrist, elbow) away from the accelerometer, so the sensor
     sees f = g_b + ω̇ × r + ω × (ω × r) with r the lever arm (body frame, constant): a
     deterministic acceleration correlated with the rotation, which no choice of R removes
@@ -115,8 +141,8 @@ def kf_lever_arm(rec: Recording) -> Estimate:
     from gyrosim.rotations import quat_conjugate, quat_rotate, skew
     from gyrosim.strapdown import integrate_gyro
 
-    prep = prepare(rec)  # the session-R preparation of pass 1, used again for the rest attitude
-    first = _run(rec, session_r=True, prep=prep)
+    prep = prepare(rec, accelerometer="calibrated")  # the session-R preparation of pass 1, used again for the rest attitude
+    first = _run(rec, session_r=True, prep=prep, name="kf_lever_arm")
     a, fs = prep.start, rec.rate_hz
     m = np.eye(3) + np.diag(first.scale_factor) + _nonortho_matrix(first.nonorthogonality)
     w = (rec.gyro_rad_s - first.bias_rad_s) @ np.linalg.inv(m).T
@@ -133,6 +159,8 @@ def kf_lever_arm(rec: Recording) -> Estimate:
     r, *_ = np.linalg.lstsq(k[moving].reshape(-1, 3), (f_s - g_b)[moving].reshape(-1), rcond=None)
     kk = skew(dw) + skew(w_s) @ skew(w_s)
     corrected = rec.acc_m_s2 - np.einsum("nij,j->ni", kk, r)
-    second = kf_session_r(rec.with_signals(acc_m_s2=corrected))
-    return Estimate(second.bias_rad_s, second.scale_factor, second.nonorthogonality, second.covariance,
-                    second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",))
+    second = _run(rec.with_signals(acc_m_s2=corrected), session_r=True, name="kf_lever_arm")
+    return Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=second.covariance,
+                       status=second.status, method="kf_lever_arm",
+                       warnings=second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",),
+                       diagnostics={"hand": {"lever_arm_m": r.tolist()}})

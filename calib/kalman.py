@@ -1,33 +1,69 @@
-"""Zhou et al. 2020 §3.3: a 9-state error-state Kalman filter (filterpy) for gyro scale factor and
-non-orthogonality from hand rotation, with the accelerometer's gravity residual as measurement.
+"""The calibration filter's model, its state layout, and the reference implementation (filterpy).
 
-Model (frames: body RFU, navigation ENU; all derived here, conventions stated):
+Zhou et al. 2020 §3.3 estimate gyro scale factor and non-orthogonality with a 9-state error-state
+Kalman filter whose measurement is the accelerometer's gravity residual.  That assumes a
+calibrated accelerometer (§3.3.2).  Here the same filter carries, when asked, the gyro bias and
+the accelerometer's bias, scale factor and non-orthogonality as further states, so one session
+calibrates both triads.  Frames: body RFU, navigation ENU; SI units.
 
-* gyro, after the static bias b̂ is removed:  ω̃ = (I + S + N(G)) ω + ε,  S = diag(Sx, Sy, Sz),
-  N(G) = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]]  (Zhou eq. 1–2);
-* compensated rate ω̂ = M̂⁻¹ ω̃, M̂ = I + Ŝ + N(Ĝ); strapdown attitude Ĉ = Ĉ_bⁿ integrated from ω̂;
-* attitude error φ defined by Ĉ = (I − [φ×]) C (Zhou eq. 10); with δS = S − Ŝ, δG = G − Ĝ,
+**Sensor models** (the vocabulary's effects, :mod:`gyrosim.effects`; Zhou eq. 1–2):
 
-      φ̇ = −Ĉ δω,   δω = ω̂ − ω = M̂⁻¹ (diag(ω̂) δS + J_G(ω̂) δG) − M̂⁻¹ε,
+    ω̃ = M_g ω + b_g + ε,   f̃ = M_a f + b_a + v,   M = I + diag(S) + N(G),
+    N(G) = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]]  (symmetric, Zhou eq. 2)
 
-  J_G(ω) = ∂(N(G) ω)/∂G = [[0, ω_z, ω_y], [ω_z, 0, ω_x], [ω_y, ω_x, 0]].  **Correction to Zhou eq. 9**:
-  the paper writes the skew matrix [ω×] for the non-orthogonality block; for its own symmetric
-  N_g of eq. 2 the block is this symmetric J_G (a skew block would describe a rotation, which
-  is unobservable from gravity and is not what eq. 2 models);
-* state x = [φ, δS, δG] (9); F = [[0, −Ĉ M̂⁻¹ diag(ω̂), −Ĉ M̂⁻¹ J_G(ω̂)], 0, 0]; since F² = 0 the
-  transition over Δt is exactly Φ = I + F Δt (F at the step's midpoint);
-* process noise from the ARW N_g (rad/s/√Hz): Q_φφ = N_g² Δt I (ε white, isotropic, so
-  Ĉ M̂⁻¹ N_g² M̂⁻ᵀ Ĉᵀ ≈ N_g² I); S and G are random constants (Q = 0);
-* measurement (Zhou eq. 11–12): z = Ĉ f − g_up = (I − [φ×])(g_up + a) − g_up ≈ [g_up×] φ + a + v,
-  H = [[g_up×], 0, 0], g_up = (0, 0, g); the third row is zero (the vertical component holds no
-  attitude information) but is kept as in the paper: its innovation checks |f| against g;
-* R = (σ_f² + a_ext²) I: σ_f² = N_a² f_s the accelerometer's white noise (VRW) per sample and
-  a_ext the allowance for the hand's external acceleration (m/s² RMS);
-* error-state reset after every update: Ŝ += δŜ, Ĝ += δĜ, Ĉ ← (I + [φ̂×]) Ĉ (renormalised),
-  x ← 0.  filterpy's update uses the Joseph form; P is re-symmetrised after each update.
+with ε, v white (densities N_g rad/s/√Hz, N_a m/s²/√Hz).  The symmetric M_a is no restriction for
+the accelerometer: |M_a f| = g is invariant to a rotation of the triad, so gravity can identify
+only the symmetric part of a general 3×3 matrix (6 parameters) plus the bias (3): the 9 parameters
+of Ferraris 1995 / Tedaldi 2014's multi-position calibration after fixing the frame.
 
-filterpy pitfall: ``update`` must get z as a (3, 1) column vector (a 1-D z silently gives x the
-wrong shape).
+**Nominal / error state.** The nominal (attitude Ĉ = C(q̂) body→ENU, θ̂ = [Ŝ_g, Ĝ_g, b̂_g, b̂_a, Ŝ_a, Ĝ_a])
+compensates the samples, ω̂ = M̂_g⁻¹(ω̃ − b̂_g), f̂ = M̂_a⁻¹(f̃ − b̂_a), and integrates q̂ (trapezoid
++ coning, :meth:`ZhouFilter.step`).  The error state x = [φ, δθ] (blocks of :class:`StateLayout`),
+Ĉ = (I − [φ×]) C (Zhou eq. 10), δθ = θ − θ̂.  To first order (δM = diag(δS) + N(δG),
+δM ω = X(ω) [δS; δG], X(ω) = [diag(ω), J_G(ω)], J_G(ω) = ∂(N(G)ω)/∂G = N with G → ω):
+
+    δω = ω̂ − ω = M̂_g⁻¹ (X(ω̂) [δS_g; δG_g] + δb_g − ε)
+    φ̇ = −Ĉ δω                                                        (Zhou eq. 7–9)
+    F = [[0, −Ĉ M̂_g⁻¹ diag(ω̂), −Ĉ M̂_g⁻¹ J_G(ω̂), −Ĉ M̂_g⁻¹, 0, 0, 0], 0, …]
+
+**Correction to Zhou eq. 9**: the paper writes [ω×] for the non-orthogonality block; for its own
+symmetric N_g of eq. 2 the block is the symmetric J_G (tested).  F² = 0 (only the φ rows are
+non-zero and F's φ columns are zero), so Φ = I + F Δt exactly, F at the step's midpoint.
+Process noise Q_φφ = N_g² Δt I (ε isotropic: Ĉ M̂⁻¹ N_g² M̂⁻ᵀ Ĉᵀ ≈ N_g² I); the parameters are
+random constants (Q = 0).
+
+**Measurement** (Zhou eq. 11–12, extended): z = Ĉ f̂ − g_up, g_up = (0, 0, g):
+
+    z = (I − [φ×]) C (f + δf) − g_up ≈ [g_up×] φ + Ĉ M̂_a⁻¹ (δb_a + X(f̂) [δS_a; δG_a]) + a + v'
+    H = [[g_up×], 0, 0, 0, Ĉ M̂_a⁻¹, Ĉ M̂_a⁻¹ diag(f̂), Ĉ M̂_a⁻¹ J_G(f̂)]
+
+a = the hand's external acceleration (nav).  Without accelerometer states (the paper's filter)
+the third row of H is zero and only the two levelling rows are used; with them the vertical row
+is the |f| = g check of Ferraris/Tedaldi, made at every sample and tied to the gyro's attitude.
+R = (σ_f² + a_ext²) I, σ_f² = N_a² f_s per sample, a_ext the allowance for the hand (m/s² RMS).
+
+**Regressors without the sample's own noise.** The KF derivation needs F and H independent of
+the noises of the same step.  ω̂ in F is built from the very gyro samples whose noise ε drives φ
+over that step; f̂ in H from the accelerometer sample whose noise v is the measurement noise.
+Measured on an independent generator with a gyro noisier than the accelerometer (per step), the
+filter then "learns" δS from noise at the start of every rotation (where ω ≈ ε): the innovations
+of 1-s windows left their χ² band at each new rotation axis even with the true parameters as the
+starting point (errors-in-variables, not divergence).  So the Jacobians use leave-out means: the
+rate of step k−1 → k averaged over ±L samples around t_{k−½} *without* samples k−1 and k; the
+specific force at k averaged over ±L samples without sample k (L = 0.05 s).  The nominal
+integration and the measurement use the raw samples as before.  The averaging bias
+(≈ ω̈ (L Δt)²/6) multiplies δθ only: second order, gone as δθ → 0.
+
+**Reset** after every update: θ̂ += δθ̂, Ĉ ← (I + [φ̂×]) Ĉ, x ← 0.  Joseph-form covariance update,
+re-symmetrised.  :class:`ZhouFilter` runs this with filterpy, one sample at a time (readable,
+slow); :func:`calib.fastkf.run_filter` is the same arithmetic compiled and batched (the one
+``calibrate`` uses; equal to 1e-9, tested).
+
+**Adding states** (e.g. a lever arm or a coloured external acceleration): add a block name to
+``BLOCKS`` (and its nominal to ``THETA``), its prior to :func:`initial_covariance`, its columns of
+F / H and its reset in both implementations.  The layout of any run is a :class:`StateLayout`.
+
+filterpy pitfall: ``update`` must get z as a column vector (a 1-D z silently gives x the wrong shape).
 """
 
 from __future__ import annotations
@@ -41,9 +77,71 @@ from filterpy.kalman import KalmanFilter
 from gyrosim.effects import _nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
-__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "jacobian_nonorthogonality"]
+__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT",
+           "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
+           "m_matrix", "BLOCK_LABELS"]
 
 STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_z")
+
+# error-state blocks (3 states each) in their fixed order; θ (the nominal parameters) has one
+# 3-vector per block after "phi"
+BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth")
+THETA = BLOCKS[1:]
+_SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
+          "acc_scale": "Sa", "acc_nonorth": "Ga"}
+BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
+                "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
+                "acc_nonorth": "accelerometer non-orthogonality"}
+# (triad, vocabulary effect kind) of each parameter block
+BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
+                "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
+                "acc_scale": ("accelerometer", "scale_factor"), "acc_nonorth": ("accelerometer", "nonorthogonality")}
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Which error-state blocks a filter carries (always "phi", "gyro_scale", "gyro_nonorth" first)."""
+
+    blocks: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        if self.blocks[:3] != BLOCKS[:3]:
+            raise ValueError(f"a layout starts with {BLOCKS[:3]}, got {self.blocks[:3]}")
+        bad = [b for b in self.blocks if b not in BLOCKS]
+        if bad or list(self.blocks) != sorted(self.blocks, key=BLOCKS.index):
+            raise ValueError(f"layout blocks must be a subsequence of {BLOCKS}, got {self.blocks}")
+
+    @property
+    def n(self) -> int:
+        return 3 * len(self.blocks)
+
+    def has(self, block: str) -> bool:
+        return block in self.blocks
+
+    def offset(self, block: str) -> int:
+        """First state index of ``block``, −1 if the layout lacks it."""
+        return 3 * self.blocks.index(block) if block in self.blocks else -1
+
+    def offsets(self) -> np.ndarray:
+        """Offset of every block of ``BLOCKS`` (−1 where absent), for the compiled kernel."""
+        return np.array([self.offset(b) for b in BLOCKS], dtype=np.int64)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(f"{_SHORT[b]}_{a}" for b in self.blocks for a in "xyz")
+
+    @property
+    def estimates_accelerometer(self) -> bool:
+        return self.has("acc_bias")
+
+
+PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated accelerometer, static bias)
+JOINT = StateLayout(BLOCKS)              # + gyro bias and the accelerometer's 9 parameters: 21 states
+
+
+def theta_slice(block: str) -> slice:
+    i = THETA.index(block)
+    return slice(3 * i, 3 * i + 3)
 
 
 # ---- single-quaternion helpers for the per-sample loop (the vectorised gyrosim.rotations versions
@@ -81,9 +179,42 @@ def jacobian_nonorthogonality(omega: np.ndarray) -> np.ndarray:
     return _nonortho_matrix(np.asarray(omega, dtype=float))
 
 
+def m_matrix(scale: np.ndarray, nonortho: np.ndarray) -> np.ndarray:
+    """M = I + diag(S) + N(G)."""
+    return np.eye(3) + np.diag(scale) + _nonortho_matrix(np.asarray(nonortho, float))
+
+
+def leave_out_means(x: np.ndarray, half_window: int, midpoint: bool) -> np.ndarray:
+    """Regressors without the samples' own noise (module docstring), (N, 3).
+
+    ``midpoint``: row k is the mean of x over [k−1−L, k−2] ∪ [k+1, k+L] (centred at t_{k−½}, the
+    step k−1 → k, without samples k−1 and k); else over [k−L, k−1] ∪ [k+1, k+L] (centred at t_k,
+    without sample k).  Windows are cut at the ends of the record.
+    """
+    x = np.asarray(x, dtype=float)
+    n, L = x.shape[0], int(half_window)
+    c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    k = np.arange(n)
+    lo_end = np.clip(k - 1 if midpoint else k, 0, n)          # exclusive end of the left part
+    lo_start = np.clip(lo_end - L, 0, n)
+    hi_start = np.clip(k + 1, 0, n)
+    hi_end = np.clip(k + 1 + L, 0, n)
+    s = (c[lo_end] - c[lo_start]) + (c[hi_end] - c[hi_start])
+    m = (lo_end - lo_start) + (hi_end - hi_start)
+    out = s / np.maximum(m, 1)[:, None]
+    empty = m == 0
+    out[empty] = x[empty]
+    return out
+
+
 @dataclass(frozen=True)
 class FilterConfig:
-    """Noise and prior of the filter (SI). Paper §5.1: P₀ = diag(3°, 3°, 3°, 0.05 × 6)²."""
+    """Noise and prior of the filter (SI). Paper §5.1: P₀ = diag(3°, 3°, 3°, 0.05 × 6)².
+
+    The accelerometer and gyro-bias priors apply when the layout has those blocks:
+    ``prior_gyro_bias_rad_s`` is the static bias's standard error (per axis), the accelerometer
+    priors span consumer parts (±100 mg bias, ±5 % scale and axis errors at 1σ).
+    """
 
     arw_rad_s_sqrt_hz: float
     vrw_m_s2_sqrt_hz: float
@@ -94,110 +225,211 @@ class FilterConfig:
     prior_nonorthogonality: float = 0.05
     scale0: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nonorthogonality0: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    prior_gyro_bias_rad_s: tuple[float, float, float] = (1e-3, 1e-3, 1e-3)
+    prior_acc_bias_m_s2: float = 1.0
+    prior_acc_scale: float = 0.05
+    prior_acc_nonorthogonality: float = 0.05
+
+    def r_var(self, rate_hz: float) -> float:
+        """R per axis, (m/s²)²: σ_f² + a_ext²."""
+        return self.vrw_m_s2_sqrt_hz**2 * rate_hz + self.external_acc_allowance_m_s2**2
+
+    def prior_sigma(self, block: str) -> np.ndarray:
+        return {"phi": np.full(3, self.prior_attitude_rad), "gyro_scale": np.full(3, self.prior_scale),
+                "gyro_nonorth": np.full(3, self.prior_nonorthogonality),
+                "gyro_bias": np.asarray(self.prior_gyro_bias_rad_s, float),
+                "acc_bias": np.full(3, self.prior_acc_bias_m_s2), "acc_scale": np.full(3, self.prior_acc_scale),
+                "acc_nonorth": np.full(3, self.prior_acc_nonorthogonality)}[block]
+
+
+def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,
+                       f0_body: np.ndarray | None = None, acc_m_inv: np.ndarray | None = None,
+                       acc_covariance: np.ndarray | None = None, tilt_sigma_rad: float | None = None) -> np.ndarray:
+    """P₀ (n, n): independent priors of the blocks, and — with accelerometer states — the tilt's
+    dependence on them.
+
+    The initial attitude comes from the accelerometer at rest, f̂₀ = M̂_a⁻¹(f̃₀ − b̂_a), so its
+    roll/pitch error is not independent of the accelerometer error δf₀ = M̂_a⁻¹(δb_a + X(f̂₀)[δS_a; δG_a]):
+    levelling Ĉ₀ f̂₀ ∥ g_up makes the horizontal part of [g_up×]φ₀ + Ĉ₀ δf₀ vanish, so
+    φ₀ = [g_up×] Ĉ₀ δf₀ / g² + n₀ = A δθ_a + n₀.  P₀ carries that: P_φφ = A P_a Aᵀ + diag(σ_φ²),
+    P_φa = A P_a.  n₀: roll and pitch ``tilt_sigma_rad`` — the noise of the rest mean, when the filter
+    starts after that rest and so does not see its samples again — else the paper's 3°; heading 3°
+    (unobservable).  ``acc_covariance`` (9, 9): P_a from the |f| = g stage (:mod:`calib.gravityfit`)
+    instead of the independent priors.
+    """
+    n = layout.n
+    p = np.zeros((n, n))
+    for b in layout.blocks:
+        o = layout.offset(b)
+        p[o:o + 3, o:o + 3] = np.diag(config.prior_sigma(b) ** 2)
+    if tilt_sigma_rad is not None:
+        p[0, 0] = p[1, 1] = tilt_sigma_rad**2
+    if layout.estimates_accelerometer and acc_covariance is not None:
+        oa = layout.offset("acc_bias")
+        p[oa:oa + 9, oa:oa + 9] = acc_covariance
+    if layout.estimates_accelerometer and quat0_nb is not None and f0_body is not None:
+        c0 = _qmat(quat_normalize(np.asarray(quat0_nb, float)))
+        mi = np.eye(3) if acc_m_inv is None else acc_m_inv
+        g = config.gravity_m_s2
+        cm = c0 @ mi
+        x_a = np.hstack([cm, cm * f0_body[None, :], cm @ jacobian_nonorthogonality(f0_body)])  # (3, 9)
+        a = skew(np.array([0.0, 0.0, g])) @ x_a / g**2
+        oa = layout.offset("acc_bias")
+        cols = slice(oa, oa + 9)
+        pa = p[cols, cols]
+        p[0:3, 0:3] += a @ pa @ a.T
+        p[0:3, cols] = a @ pa
+        p[cols, 0:3] = (a @ pa).T
+    return p
 
 
 @dataclass
 class FilterHistory:
-    """Per-sample record of the run (for rerun and diagnostics); P is after the update."""
+    """Per-sample record of a run (for rerun and diagnostics): times (s), √P per state, the nominal
+    parameters θ̂ (``THETA`` order, 18), innovations (m/s², nav) and NIS; P after each update."""
 
-    t_s: list[float] = field(default_factory=list)
-    p_diag: list[np.ndarray] = field(default_factory=list)
-    scale: list[np.ndarray] = field(default_factory=list)
-    nonorthogonality: list[np.ndarray] = field(default_factory=list)
-    innovation: list[np.ndarray] = field(default_factory=list)
-    nis: list[float] = field(default_factory=list)
+    t_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    sd: np.ndarray = field(default_factory=lambda: np.zeros((0, 9)))
+    theta: np.ndarray = field(default_factory=lambda: np.zeros((0, 18)))
+    innovation: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    nis: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    state_names: tuple[str, ...] = STATE_NAMES
 
     def arrays(self) -> dict[str, np.ndarray]:
+        th = np.asarray(self.theta)
         return {
             "t_s": np.asarray(self.t_s),
-            "p_diag": np.asarray(self.p_diag),
-            "scale": np.asarray(self.scale),
-            "nonorthogonality": np.asarray(self.nonorthogonality),
+            "p_diag": np.asarray(self.sd) ** 2,
+            "sd": np.asarray(self.sd),
+            "scale": th[:, theta_slice("gyro_scale")],
+            "nonorthogonality": th[:, theta_slice("gyro_nonorth")],
+            "gyro_bias": th[:, theta_slice("gyro_bias")],
+            "acc_bias": th[:, theta_slice("acc_bias")],
+            "acc_scale": th[:, theta_slice("acc_scale")],
+            "acc_nonorthogonality": th[:, theta_slice("acc_nonorth")],
             "innovation": np.asarray(self.innovation),
             "nis": np.asarray(self.nis),
         }
 
 
 class ZhouFilter:
-    """The error-state filter of the module docstring, one sample at a time (filterpy inside)."""
+    """The error-state filter of the module docstring, one sample at a time (filterpy inside).
 
-    def __init__(self, config: FilterConfig, quat0_nb: np.ndarray, rate_hz: float) -> None:
+    ``theta0``: nominal parameters (18, ``THETA`` order; default: the config's S₀, G₀, zeros);
+    ``p0``: initial covariance (default :func:`initial_covariance` of the layout); ``x0``: the prior
+    mean as an error state (θ_prior − θ̂₀; default zero: the prior centred on the nominal).  The
+    error state is propagated (x ← Φ x) and used in the innovation (z − H x) until the first reset.
+    """
+
+    def __init__(self, config: FilterConfig, quat0_nb: np.ndarray, rate_hz: float, layout: StateLayout = PAPER,
+                 theta0: np.ndarray | None = None, p0: np.ndarray | None = None, x0: np.ndarray | None = None) -> None:
         self.config = config
-        self.kf = KalmanFilter(dim_x=9, dim_z=3)
-        c = config
-        self.kf.P = np.diag(
-            [c.prior_attitude_rad**2] * 3 + [c.prior_scale**2] * 3 + [c.prior_nonorthogonality**2] * 3
-        )
-        self.kf.x = np.zeros((9, 1))
-        self.kf.Q = np.zeros((9, 9))
-        g_up = np.array([0.0, 0.0, c.gravity_m_s2])
-        self.g_up = g_up
-        self.kf.H = np.hstack([skew(g_up), np.zeros((3, 6))])
-        sigma_f2 = c.vrw_m_s2_sqrt_hz**2 * rate_hz + c.external_acc_allowance_m_s2**2
-        self.kf.R = np.eye(3) * sigma_f2
-        self.scale = np.array(c.scale0, dtype=float)
-        self.nonortho = np.array(c.nonorthogonality0, dtype=float)
+        self.layout = layout
+        n = layout.n
+        self.kf = KalmanFilter(dim_x=n, dim_z=3)
+        self.kf.P = initial_covariance(layout, config) if p0 is None else np.array(p0, float)
+        self.kf.x = np.zeros((n, 1)) if x0 is None else np.asarray(x0, float).reshape(n, 1)  # prior mean − nominal
+        self.kf.Q = np.zeros((n, n))
+        self.g_up = np.array([0.0, 0.0, config.gravity_m_s2])
+        self.kf.R = np.eye(3) * config.r_var(rate_hz)
+        if theta0 is None:
+            theta0 = np.zeros(18)
+            theta0[theta_slice("gyro_scale")] = config.scale0
+            theta0[theta_slice("gyro_nonorth")] = config.nonorthogonality0
+        self.theta = np.array(theta0, dtype=float)
         self.quat = quat_normalize(np.asarray(quat0_nb, dtype=float))
-        self.history = FilterHistory()
+        self._rows = 2  # the levelling rows; the vertical row's |f| = g information is the gravity fit's
+        self._hist: dict[str, list] = {"t_s": [], "sd": [], "theta": [], "innovation": [], "nis": []}
 
-    # ------------------------------------------------------------------ model pieces
+    # ------------------------------------------------------------------ nominal parameters
+    def _block(self, block: str) -> np.ndarray:
+        return self.theta[theta_slice(block)]
+
+    @property
+    def scale(self) -> np.ndarray:
+        return self._block("gyro_scale").copy()
+
+    @property
+    def nonortho(self) -> np.ndarray:
+        return self._block("gyro_nonorth").copy()
+
     def m_hat(self) -> np.ndarray:
-        """M̂ = I + Ŝ + N(Ĝ)."""
-        sx, sy, sz = self.scale
-        gx, gy, gz = self.nonortho
-        return np.array([[1 + sx, gz, gy], [gz, 1 + sy, gx], [gy, gx, 1 + sz]])
+        """M̂_g = I + Ŝ_g + N(Ĝ_g)."""
+        return m_matrix(self._block("gyro_scale"), self._block("gyro_nonorth"))
 
-    def compensate(self, gyro_minus_bias: np.ndarray) -> np.ndarray:
-        """ω̂ = M̂⁻¹ ω̃ with the current Ŝ, Ĝ."""
-        return np.linalg.solve(self.m_hat(), gyro_minus_bias)
+    def m_hat_acc(self) -> np.ndarray:
+        return m_matrix(self._block("acc_scale"), self._block("acc_nonorth"))
 
-    def transition(self, c_nb: np.ndarray, m_inv: np.ndarray, omega_hat: np.ndarray, dt: float) -> np.ndarray:
-        """Φ = I + F Δt (exact: F² = 0), F from the module docstring."""
-        cm = c_nb @ m_inv
-        wx, wy, wz = omega_hat
-        phi = np.eye(9)
-        phi[0:3, 3:6] = -dt * cm * omega_hat  # C M⁻¹ diag(ω): scale column j by ω_j
-        phi[0:3, 6:9] = -dt * cm @ np.array([[0.0, wz, wy], [wz, 0.0, wx], [wy, wx, 0.0]])
-        return phi
+    @property
+    def history(self) -> FilterHistory:
+        h = self._hist
+        return FilterHistory(np.asarray(h["t_s"]), np.asarray(h["sd"]).reshape(-1, self.layout.n),
+                             np.asarray(h["theta"]).reshape(-1, 18), np.asarray(h["innovation"]).reshape(-1, 3),
+                             np.asarray(h["nis"]), self.layout.names)
 
     # ------------------------------------------------------------------ one step
     def step(self, t_s: float, dt: float, w_prev: np.ndarray, w_now: np.ndarray, f_body: np.ndarray,
-             update: bool = True) -> None:
-        """Propagate from the previous sample (compensated rate ``w_prev``) to this one and update.
+             update: bool = True, w_reg: np.ndarray | None = None, f_reg: np.ndarray | None = None,
+             still: bool = False) -> None:
+        """Propagate from the previous sample to this one and update with this accelerometer sample.
 
-        ``w_prev`` / ``w_now``: bias-removed gyro (rad/s, body); ``f_body``: accelerometer (m/s², body).
+        ``w_prev`` / ``w_now``: raw gyro samples (rad/s, body); ``f_body``: raw accelerometer
+        (m/s², body); ``w_reg`` / ``f_reg``: the raw regressors for F and H (module docstring;
+        default: the step's midpoint rate and this sample).
         """
+        lay, kf, n = self.layout, self.kf, self.layout.n
+        b_g = self._block("gyro_bias")
         m_inv = np.linalg.inv(self.m_hat())
-        wp = m_inv @ w_prev
-        wn = m_inv @ w_now
-        phi = 0.5 * (wp + wn) * dt + _cross(wp, wn) * (dt * dt / 12.0)
+        wp = m_inv @ (w_prev - b_g)                                      # ω̂ at k−1
+        wn = m_inv @ (w_now - b_g)                                       # ω̂ at k
+        phi = 0.5 * (wp + wn) * dt + _cross(wp, wn) * (dt * dt / 12.0)   # rotation vector of the step (coning)
         q_mid = _qmul(self.quat, _qexp(0.5 * phi))
-        self.quat = _qunit(_qmul(self.quat, _qexp(phi)))
-        kf = self.kf
-        kf.F = self.transition(_qmat(q_mid), m_inv, 0.5 * (wp + wn), dt)
-        q_phi = self.config.arw_rad_s_sqrt_hz**2 * dt
-        kf.Q[0, 0] = kf.Q[1, 1] = kf.Q[2, 2] = q_phi
-        kf.predict()
-        if update:
-            z = (_qmat(self.quat) @ f_body - self.g_up).reshape(3, 1)  # column vector (filterpy)
-            kf.update(z)
-            kf.P = 0.5 * (kf.P + kf.P.T)
-            self._inject()
-            innov = kf.y.ravel()
-            nis = float(innov[:2] @ np.linalg.inv(kf.S[:2, :2]) @ innov[:2])  # rows with attitude info
+        self.quat = _qunit(_qmul(self.quat, _qexp(phi)))                # q̂ ⊗ Exp(φ)
+        if still:                                                        # at rest the true rate is zero
+            w_bar = np.zeros(3)
         else:
-            innov, nis = np.full(3, np.nan), float("nan")
-        h = self.history
-        h.t_s.append(t_s)
-        h.p_diag.append(np.diag(kf.P).copy())
-        h.scale.append(self.scale.copy())
-        h.nonorthogonality.append(self.nonortho.copy())
-        h.innovation.append(innov)
-        h.nis.append(nis)
+            w_bar = 0.5 * (wp + wn) if w_reg is None else m_inv @ (w_reg - b_g)
+        cm = -dt * _qmat(q_mid) @ m_inv                                  # −Ĉ M̂⁻¹ Δt
+        F = np.eye(n)
+        F[0:3, lay.offset("gyro_scale"):lay.offset("gyro_scale") + 3] = cm * w_bar          # scale column j × ω_j
+        F[0:3, lay.offset("gyro_nonorth"):lay.offset("gyro_nonorth") + 3] = cm @ jacobian_nonorthogonality(w_bar)
+        if lay.has("gyro_bias"):
+            F[0:3, lay.offset("gyro_bias"):lay.offset("gyro_bias") + 3] = cm
+        kf.F = F                                                         # Φ = I + F Δt (exact, F² = 0)
+        kf.Q[0, 0] = kf.Q[1, 1] = kf.Q[2, 2] = self.config.arw_rad_s_sqrt_hz**2 * dt
+        kf.predict()                                                     # P = Φ P Φᵀ + Q
+        innov, nis = np.full(3, np.nan), float("nan")
+        if update:
+            c = _qmat(self.quat)
+            mi_a = np.linalg.inv(self.m_hat_acc())
+            f_hat = mi_a @ (f_body - self._block("acc_bias"))
+            H = np.zeros((3, n))
+            H[:, 0:3] = skew(self.g_up)                                  # [g_up×] φ
+            if lay.estimates_accelerometer:
+                f_bar = c.T @ self.g_up if f_reg is None else np.asarray(f_reg, float)   # gravity predicted in body
+                cma = c @ mi_a
+                H[:, lay.offset("acc_bias"):lay.offset("acc_bias") + 3] = cma
+                H[:, lay.offset("acc_scale"):lay.offset("acc_scale") + 3] = cma * f_bar
+                H[:, lay.offset("acc_nonorth"):lay.offset("acc_nonorth") + 3] = cma @ jacobian_nonorthogonality(f_bar)
+            m = self._rows
+            z = (c @ f_hat - self.g_up)[:m].reshape(m, 1)                # column vector (filterpy)
+            kf.update(z, R=kf.R[:m, :m], H=H[:m])                        # y = z − H x; Joseph form inside filterpy
+            kf.P = 0.5 * (kf.P + kf.P.T)
+            innov = np.full(3, np.nan)
+            innov[:m] = kf.y.ravel()
+            nis = float(kf.y.ravel() @ np.linalg.solve(kf.S, kf.y.ravel()))
+            self._inject()
+        h = self._hist
+        h["t_s"].append(t_s)
+        h["sd"].append(np.sqrt(np.clip(np.diag(kf.P), 0.0, None)))
+        h["theta"].append(self.theta.copy())
+        h["innovation"].append(innov)
+        h["nis"].append(nis)
 
     def _inject(self) -> None:
         x = self.kf.x.ravel()
-        self.scale = self.scale + x[3:6]
-        self.nonortho = self.nonortho + x[6:9]
-        self.quat = _qunit(_qmul(_qexp(x[0:3]), self.quat))  # Ĉ ← (I + [φ×]) Ĉ
-        self.kf.x = np.zeros((9, 1))
+        for b in self.layout.blocks[1:]:
+            o = self.layout.offset(b)
+            self.theta[theta_slice(b)] += x[o:o + 3]                     # θ̂ += δθ̂
+        self.quat = _qunit(_qmul(_qexp(x[0:3]), self.quat))              # Ĉ ← (I + [φ×]) Ĉ
+        self.kf.x = np.zeros((self.layout.n, 1))

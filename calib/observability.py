@@ -126,3 +126,116 @@ def unobservable_parameters(gram: np.ndarray, gravity_m_s2: float = G0, rel_tol:
         return []
     proj = np.sum(null**2, axis=1)
     return [STATE_NAMES[3 + i] for i in range(6) if proj[i] > share**2]
+
+
+# ---------------------------------------------------------------------------------------------
+# Joint observability of gyro and accelerometer parameters (the filter's own information)
+# ---------------------------------------------------------------------------------------------
+#
+# With accelerometer states the attitude no longer cancels (H carries Ĉ for the accelerometer
+# columns), so the verdict comes from the information the filter itself gathers along the
+# session: the posterior covariance P of the parameter blocks, normalised by the prior,
+# P̃ = D⁻¹ P D⁻¹ (D = prior σ).  An eigen-direction of P̃ with eigenvalue λ kept ≥ 0.25 of its prior
+# variance (σ along it > half the prior σ) is a combination of parameters this motion did not
+# determine; the parameters loading it (share ≥ 0.1 of the direction) are named.  λ > 0.8: no
+# information at all ("unobservable"); otherwise "weakly observable".  The heading and the gyro
+# bias (whose prior is the static average, already data) are left out.
+
+@dataclass(frozen=True)
+class JointObservability:
+    """Per parameter: posterior σ / prior σ; the poorly determined combinations and their names."""
+
+    names: tuple[str, ...]
+    ratio: np.ndarray
+    unobservable: tuple[str, ...]
+    weak: tuple[str, ...]
+    directions: tuple[tuple[float, tuple[str, ...]], ...]
+
+
+def joint_observability(p_post: np.ndarray, p_prior: np.ndarray, names: tuple[str, ...], keep: np.ndarray,
+                        weak_eig: float = 0.25, none_eig: float = 0.8, share: float = 0.1) -> JointObservability:
+    """Verdict of the module section above on the states ``keep`` (boolean mask over ``names``)."""
+    idx = np.flatnonzero(keep)
+    d = np.sqrt(np.diag(p_prior)[idx])
+    pt = p_post[np.ix_(idx, idx)] / np.outer(d, d)
+    vals, vecs = np.linalg.eigh(0.5 * (pt + pt.T))
+    ratio = np.sqrt(np.clip(np.diag(pt), 0, None))
+    sel_names = tuple(names[i] for i in idx)
+    unobs, weak, dirs = [], [], []
+    for lam, v in sorted(zip(vals, vecs.T), key=lambda x: -x[0]):
+        if lam < weak_eig:
+            break
+        who = tuple(sel_names[i] for i in np.flatnonzero(v**2 >= share))
+        dirs.append((float(lam), who))
+        (unobs if lam > none_eig else weak).extend(who)
+    unobs_t = tuple(dict.fromkeys(unobs))
+    weak_t = tuple(n for n in dict.fromkeys(weak) if n not in unobs_t)
+    return JointObservability(sel_names, ratio, unobs_t, weak_t, tuple(dirs))
+
+
+def pose_name(u: np.ndarray) -> str:
+    """'x up', 'y down', 'x and z up at 45°', 'x up, z down at 45°' for a gravity direction u (body)."""
+    parts = [(ax, "up" if c > 0 else "down") for ax, c in zip("xyz", u) if abs(c) > 1e-9]
+    if len(parts) == 1:
+        return f"{parts[0][0]} {parts[0][1]}"
+    (a1, s1), (a2, s2) = parts
+    return f"{a1} and {a2} {s1} at 45°" if s1 == s2 else f"{a1} {s1}, {a2} {s2} at 45°"
+
+
+def missing_poses(names: list[str], f_hat_windows: np.ndarray | None, within_deg: float = 20.0) -> list[str]:
+    """Rest poses that would determine the named accelerometer parameters from |f| = g (Ferraris 1995's
+    six faces, plus the 45° poses Tedaldi 2014 adds for the axis couplings), leaving out the poses the
+    session already holds (a quasi-static window's gravity within ``within_deg`` of it).
+
+    Rules from the regressor of :func:`calib.gravityfit.gravity_regressor`: b_i and S_i separate only
+    with axis i both up and down (uᵢ changes sign, uᵢ² does not); G_x couples y and z, so it needs
+    gravity between them (u_y u_z ≠ 0), G_y between x and z, G_z between x and y."""
+    want: list[np.ndarray] = []
+    for n in names:
+        block, ax = n.split("_")
+        i = "xyz".index(ax)
+        if block in ("ba", "Sa"):
+            for s in (1.0, -1.0):
+                u = np.zeros(3)
+                u[i] = s
+                want.append(u)
+        elif block == "Ga":
+            j, k = [m for m in range(3) if m != i]
+            u = np.zeros(3)
+            u[j], u[k] = 1.0, 1.0
+            want.append(u / np.linalg.norm(u))
+    have = np.zeros((0, 3))
+    if f_hat_windows is not None and len(f_hat_windows):
+        f = np.asarray(f_hat_windows, float)
+        have = f / np.linalg.norm(f, axis=1, keepdims=True)
+    out: list[str] = []
+    cos = np.cos(np.radians(within_deg))
+    for u in want:
+        name = pose_name(u)
+        if name not in out and not (have.size and np.any(have @ u > cos)):
+            out.append(name)
+    return out
+
+
+def schedule_accelerometer_observability(schedule: Schedule, rate_hz: float = 100.0, sigma_f_m_s2: float = 0.03,
+                                         gravity_m_s2: float = G0,
+                                         prior_sigma: np.ndarray | None = None) -> tuple[JointObservability, list[str]]:
+    """What a schedule's commanded (ideal-hand) motion tells the accelerometer's nine parameters through
+    |f| = g (the first stage of ``calib run``, :mod:`calib.gravityfit`): the posterior of the Gauss–Newton
+    information at the truth, per-sample noise ``sigma_f_m_s2`` (default: the MPU-9250's 3 mg at 100 Hz),
+    against the prior (±1 m/s² bias, ±5 % scale and axis errors); the verdict of
+    :func:`joint_observability` and the rest poses :func:`missing_poses` would add."""
+    from gyrosim.rotations import quat_conjugate, quat_rotate
+
+    from .gravityfit import gravity_regressor
+
+    t = np.arange(0.0, schedule.duration_s, 1.0 / rate_hz)
+    kin = schedule.kinematics(t)
+    f = quat_rotate(quat_conjugate(kin.quat_nb), np.array([0.0, 0.0, gravity_m_s2]))
+    prior = np.array([1.0] * 3 + [0.05] * 6) if prior_sigma is None else np.asarray(prior_sigma, float)
+    rows = gravity_regressor(f)
+    info = rows.T @ rows / sigma_f_m_s2**2 + np.diag(1.0 / prior**2)
+    names = tuple(f"{blk}_{ax}" for blk in ("ba", "Sa", "Ga") for ax in "xyz")
+    verdict = joint_observability(np.linalg.inv(info), np.diag(prior**2), names, np.ones(9, bool))
+    step = max(1, int(round(0.1 * rate_hz)))
+    return verdict, missing_poses(list(verdict.unobservable + verdict.weak), f[::step])

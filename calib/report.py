@@ -3,13 +3,13 @@ calibration found, and how far from the truth it is when the truth is known."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from gyrosim.outputs import write_json_atomic
 from gyrosim.recording import Recording
 
 __all__ = ["write_session_report", "plot_convergence"]
@@ -71,7 +71,7 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
     }
     if truth is not None:
         report["truth"] = {k: v.tolist() for k, v in truth.items()}
-    (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+    write_json_atomic(out / "report.json", report)
     png = plot_convergence(result, truth, out / "convergence.png")
     g = cal["gyro"]
     lines = [
@@ -112,7 +112,7 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
             "with": {"mean": validation.with_mean_deg.tolist(), "rms": validation.with_rms_deg.tolist()},
             "order": ["roll", "pitch", "heading"],
         }
-        (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+        write_json_atomic(out / "report.json", report)
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path

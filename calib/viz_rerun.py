@@ -6,9 +6,11 @@ Timeline ``sensor_time`` (s, the recording's own clock).  Entities:
 * ``truth/external_acc/{x,y,z}`` (m/s², body) when the recording has truth;
 * ``world/board``: the board's pose (truth attitude body→ENU, position of the accelerometer site)
   with a box the size of the IMU board; ``world/arm``: shoulder–elbow–wrist line of the hand model;
-* ``calib/P/{phi,S,G}/{x,y,z}``: √diag(P) of the filter (rad; 1) after each update;
+* ``calib/P/{phi,S,G}/{x,y,z}``: √diag(P) of the filter (rad; 1) after each update, and with the
+  accelerometer estimated ``calib/P/{bg,ba,Sa,Ga}/{x,y,z}`` (rad/s; m/s²; 1; 1);
 * ``calib/estimate/{S,G}/{x,y,z}``: the estimates; ``calib/estimate/{S,G}/{x,y,z}_true``: the true
-  values as flat lines when the recording knows them (simulation);
+  values as flat lines when the recording knows them (simulation); ``calib/estimate/{ba,Sa,Ga}``
+  the accelerometer's;
 * ``calib/nis``: normalised innovation squared of the two attitude rows (expected 2).
 """
 
@@ -71,10 +73,14 @@ def log_calibration(stream: rr.RecordingStream, result, truth: dict | None = Non
     h = result.history.arrays()
     t = h["t_s"]
     sd = np.sqrt(h["p_diag"])
-    for block, cols in (("phi", slice(0, 3)), ("S", slice(3, 6)), ("G", slice(6, 9))):
-        _series(stream, f"calib/P/{block}", t, sd[:, cols])
+    names = list(result.history.state_names)
+    for i in range(0, len(names), 3):
+        _series(stream, f"calib/P/{names[i].split('_')[0]}", t, sd[:, i:i + 3])
     _series(stream, "calib/estimate/S", t, h["scale"])
     _series(stream, "calib/estimate/G", t, h["nonorthogonality"])
+    if "ba_x" in names:
+        for block, key in (("ba", "acc_bias"), ("Sa", "acc_scale"), ("Ga", "acc_nonorthogonality")):
+            _series(stream, f"calib/estimate/{block}", t, h[key])
     stream.send_columns("calib/nis", indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=rr.Scalars.columns(scalars=h["nis"]))
     if truth is not None:
         ends = np.array([t[0], t[-1]])
@@ -146,5 +152,58 @@ def save_session_rrd(path: str | Path, rec: Recording, application_id: str = "gy
     stream.save(str(path))
     stream.send_blueprint(blueprint())
     log_recording(stream, rec)
+    stream.flush()
+    return path
+
+
+# ---------------------------------------------------------------------- magnetometer (issue 17)
+def log_magnetometer(stream: rr.RecordingStream, rec: Recording, result, step: int | None = None) -> None:
+    """Log the magnetometer before/after calibration.
+
+    Entities: ``mag/raw/{x,y,z}`` and ``mag/calibrated/{x,y,z}`` (µT, body frame) and their
+    magnitudes ``mag/magnitude/{raw,calibrated}`` on ``sensor_time``; ``mag/cloud/raw`` and
+    ``mag/cloud/calibrated``: the samples as 3-D point clouds (the ellipsoid and the sphere it
+    becomes, centred on the origin after calibration), disturbed samples red;
+    ``mag/disturbed``: 1 where a disturbance was found."""
+    t = rec.t_s
+    m = np.asarray(rec.mag_ut, dtype=float)
+    b = result.compensate(m)
+    _series(stream, "mag/raw", t, m)
+    _series(stream, "mag/calibrated", t, b)
+    for name, v in (("raw", m), ("calibrated", b)):
+        stream.send_columns(f"mag/magnitude/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+                            columns=rr.Scalars.columns(scalars=np.linalg.norm(v, axis=1)))
+    dist = np.zeros(t.size)
+    for d in result.disturbances:
+        dist[(t >= d.t_start_s) & (t <= d.t_end_s)] = 1.0
+    stream.send_columns("mag/disturbed", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+                        columns=rr.Scalars.columns(scalars=dist))
+    step = step or max(1, t.size // 5000)
+    colours = np.where(dist[::step, None] > 0, [[230, 40, 40]], [[40, 120, 230]]).astype(np.uint8)
+    stream.log("mag/cloud/raw", rr.Points3D(m[::step], colors=colours, radii=0.3), static=True)
+    stream.log("mag/cloud/calibrated", rr.Points3D(b[::step], colors=colours, radii=0.3), static=True)
+
+
+def save_magnetometer_rrd(path: str | Path, rec: Recording, result, application_id: str = "gyrosim_calib") -> Path:
+    """Write the magnetometer calibration (:func:`log_magnetometer`) and the board's motion to an .rrd."""
+    path = Path(path)
+    stream = rr.RecordingStream(application_id)
+    stream.save(str(path))
+    stream.send_blueprint(rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.Spatial3DView(origin="mag/cloud", name="field samples (µT): raw ellipsoid, calibrated sphere"),
+                rrb.TimeSeriesView(origin="mag/magnitude", name="|B| raw and calibrated (µT)"),
+            ),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="mag/calibrated", name="calibrated field (µT, body)"),
+                rrb.TimeSeriesView(origin="mag/disturbed", name="local disturbance found"),
+                rrb.Spatial3DView(origin="world", name="hand and board"),
+            ),
+        ),
+        collapse_panels=True,
+    ))
+    log_recording(stream, rec)
+    log_magnetometer(stream, rec, result)
     stream.flush()
     return path

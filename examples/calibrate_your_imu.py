@@ -1,10 +1,11 @@
-"""Use calib as a library: calibrate your own recording, compensate the gyro, check the result.
+"""Use calib as a library: calibrate your own recording (gyro and accelerometer), check the verdict,
+apply the result, save it.
 
     python examples/calibrate_your_imu.py imu.csv --gyro-unit deg/s --acc-unit g
 
 The CSV needs a header t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z (see README). Without an
-argument, the script simulates a zhou2020 session with the MPU-9150-class sensor of Zhou 2020
-Table 7 (reading B) and calibrates that.
+argument, the script simulates a zhou2020 session with an MPU-9250-class device (datasheet noise,
+a raw accelerometer: preset ``mpu9250_linear``) and calibrates that.
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ import math
 
 import numpy as np
 
-from calib.calibrate import calibrate, true_gyro_parameters
+from calib import Calibration
+from calib.calibrate import calibrate
 from calib.inputs import load_recording
-from gyrosim.effects import NonOrthogonality
+from gyrosim.calibration import truth_calibration
 from gyrosim.simulate import simulate
 
 
@@ -29,20 +31,28 @@ def main() -> None:
     if args.recording:
         rec = load_recording(args.recording, args.gyro_unit, args.acc_unit)
     else:
-        rec = simulate("zhou2020", "steady", "zhou2020_sim_consumer", 100.0, seed=3)
+        rec = simulate("zhou2020", "steady", "mpu9250_linear", 100.0, seed=3)
 
-    result = calibrate(rec, method="iterated")  # bias, scale factor, non-orthogonality with 1σ
-    print(result.to_json())
+    result = calibrate(rec)  # gyro and accelerometer: bias, scale factor, non-orthogonality, covariance
+    print(f"status {result.status}: " + ("; ".join(result.warnings) or "no warnings"))
+    if result.status != "ok":
+        print("the result failed its own consistency check: its σ does not describe its error")
+    for triad in ("gyro", "accelerometer"):
+        print(triad, "S", np.round(result.value(triad, "scale_factor"), 5),
+              "±", np.round(result.std(triad, "scale_factor"), 5))
 
-    # compensate the gyro yourself: ω = (I + S + N(G))⁻¹ (ω̃ − b)   (body frame RFU, rad/s)
-    m = np.eye(3) + np.diag(result.scale_factor) + NonOrthogonality(value=result.nonorthogonality).affine()[0]
-    omega = np.linalg.solve(m, (rec.gyro_rad_s - result.bias_rad_s).T).T
-    print(f"compensated {omega.shape[0]} samples; peak |ω| = {math.degrees(np.abs(omega).max()):.1f} °/s")
+    # apply it: ω = (I + S_g + N(G_g))⁻¹ (ω̃ − b_g), f likewise (body frame RFU)
+    comp = result.compensate(rec)
+    print(f"compensated {comp.n} samples; peak |ω| = {math.degrees(np.abs(comp.gyro_rad_s).max()):.1f} °/s")
 
-    truth = true_gyro_parameters(rec)  # only simulated recordings know the truth
+    # it saves and loads itself (versioned JSON; calib apply / calib export read the same file)
+    again = Calibration.from_json(result.to_json())
+    assert np.array_equal(again.parameters(), result.parameters())
+
+    truth = truth_calibration(rec)  # only simulated recordings know the truth
     if truth is not None:
-        print("error vs truth: S", np.round(result.scale_factor - truth["scale_factor"], 6),
-              "G", np.round(result.nonorthogonality - truth["nonorthogonality"], 6))
+        print("error vs truth: S", np.round(result.scale_factor - truth.scale_factor, 6),
+              "G", np.round(result.nonorthogonality - truth.nonorthogonality, 6))
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Plug your own estimator into a campaign and compare it with ours (issue 6).
 
-An estimator is any callable Recording -> Estimate (gyrosim.estimator).  This one is a user's
+An estimator is any callable Recording -> Calibration (gyrosim.estimator, gyrosim.calibration).  This one is a user's
 first idea: "the hand is slow, so ignore the external acceleration but average the accelerometer
 over 0.5 s before it enters the filter" — implemented here by low-passing the accelerometer and
 running our Zhou filter kernel on it.  Run:
@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from gyrosim.estimator import Estimate
+from gyrosim.calibration import Calibration
 from gyrosim.recording import Recording
 
 
-def lowpassed_acc_kf(rec: Recording) -> Estimate:
+def lowpassed_acc_kf(rec: Recording) -> Calibration:
     """Zhou's filter on an accelerometer low-passed at 2 Hz (zero-phase), R from the session."""
     from calib.estimators import kf_session_r
 

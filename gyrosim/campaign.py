@@ -18,7 +18,12 @@ Scores per estimator (SI → reported units):
 * ``err_bias_{x,y,z}_deg_s`` = b̂ − b;  ``err_S_{x,y,z}_pct`` = 100 (Ŝ − S);
   ``err_G_{x,y,z}_pct`` = 100 (Ĝ − G): errors of relative quantities, in % of the nominal sensitivity;
 * ``ext_acc_rms_m_s2``: RMS of the hand's external acceleration at the accelerometer site (truth),
-  the severity axis of the plots; ``rate_disturbance_rms_deg_s`` likewise for the rate.
+  the severity axis of the plots; ``rate_disturbance_rms_deg_s`` likewise for the rate;
+* ``calibration_status``: the estimate's own verdict (``ok``, ``inconsistent``, ``diverged``;
+  :class:`gyrosim.calibration.Calibration`), beside ``status`` (ran / failed).
+
+The truth is the simulated device (:func:`gyrosim.calibration.truth_calibration`); estimators come
+through :mod:`gyrosim.estimator` and return a :class:`~gyrosim.calibration.Calibration`.
 """
 
 from __future__ import annotations
@@ -44,7 +49,7 @@ __all__ = ["CampaignSpec", "Task", "load_campaign", "make_tasks", "run_task", "r
 PARAMS = [f"err_bias_{a}_deg_s" for a in "xyz"] + [f"err_S_{a}_pct" for a in "xyz"] + [f"err_G_{a}_pct" for a in "xyz"]
 RESULT_COLUMNS = (["task_id", "hand", "severity", "seed", "sensor", "schedule", "rate_hz", "estimator", "status",
                    "error", "ext_acc_rms_m_s2", "rate_disturbance_rms_deg_s", "task_seconds"] + PARAMS
-                  + [f"sd_{p}" for p in PARAMS])
+                  + [f"sd_{p}" for p in PARAMS] + ["calibration_status"])
 
 _SPEC_KEYS = {"name", "schedule", "hands", "seeds", "first_seed", "sensor", "estimators", "rate_hz",
               "calibrated_accelerometer", "severity"}
@@ -159,23 +164,23 @@ def run_task(task: Task) -> list[dict]:
     except Exception as exc:  # noqa: BLE001 - a failed task is recorded, not lost
         return [{**base, "estimator": e, "status": "failed", "error": f"simulation: {type(exc).__name__}: {exc}"}
                 for e in task.estimators]
-    from calib.calibrate import true_gyro_parameters
+    from .calibration import truth_calibration
 
-    truth = true_gyro_parameters(rec)
+    truth = truth_calibration(rec)
     ext = rec.truth.extra["external_acc"]
     dw = rec.truth.omega_body_rad_s - rec.truth.extra["omega_schedule"]
     common = {**base, "ext_acc_rms_m_s2": float(np.sqrt(np.mean(np.sum(ext**2, axis=1)))),
               "rate_disturbance_rms_deg_s": math.degrees(float(np.sqrt(np.mean(np.sum(dw**2, axis=1)))))}
-    true_vec = np.concatenate([truth["bias_rad_s"], truth["scale_factor"], truth["nonorthogonality"]])
+    true_vec = truth.vector("gyro")
     units = np.array([180 / math.pi] * 3 + [100.0] * 6)
     rows = []
     for name in task.estimators:
         t1 = time.perf_counter()
         try:
             est = load_estimator(name)(rec)
-            err = (est.vector() - true_vec) * units
-            sd = np.sqrt(np.clip(np.diag(est.covariance), 0, None)) * units
-            row = {**common, "estimator": name, "status": "ok", "error": ""}
+            err = (est.vector("gyro") - true_vec) * units
+            sd = np.sqrt(np.clip(np.diag(est.linear_covariance("gyro")), 0, None)) * units
+            row = {**common, "estimator": name, "status": "ok", "error": "", "calibration_status": est.status}
             row.update({p: float(v) for p, v in zip(PARAMS, err)})
             row.update({f"sd_{p}": float(v) for p, v in zip(PARAMS, sd)})
         except Exception as exc:  # noqa: BLE001

@@ -5,45 +5,46 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
+from .cliargs import integer, number, positive_list, seed
 from .errors import GyrosimError
 from .hand import hand_preset_names, load_hand
+from .outputs import check_output_paths
 from .recording import save_hdf5
 from .schedule import builtin_schedule_names, load_schedule
 
+MAX_RATE_HZ = 1e6  # beyond any IMU; a larger --rate is a typo, and would only exhaust memory
 
-def _check_writable(path: Path) -> None:
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise GyrosimError(f"cannot write {path}: folder {folder} does not exist; create it first")
-    probe = folder / f".{path.name}.probe"
-    try:
-        probe.touch()
-        probe.unlink()
-    except OSError as exc:
-        raise GyrosimError(f"cannot write {path}: {exc.strerror}; choose a writable folder") from exc
+
+def _check_writable(out: Path, *inputs: str | None, option: str = "--out") -> None:
+    """The output path is writable, not a folder, and none of the inputs (TOML files given by path)."""
+    check_output_paths({option: out}, inputs)
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from .magnetic import environment_from_text
     from .sensor_model import load_sensor
     from .simulate import simulate, simulation_grid
 
     out = Path(args.out)
-    _check_writable(out)  # fail before minutes of simulation, not after
+    _check_writable(out, args.schedule, args.hand, args.sensor)  # fail before minutes of simulation, not after
     schedule = load_schedule(args.schedule)
     hand = load_hand(args.hand)
     sensor = load_sensor(args.sensor) if args.sensor else None
+    magnetic = environment_from_text(args.mag_field, args.location, args.anomaly or ())
     grid = simulation_grid(schedule.duration_s, args.rate, args.physics_rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating", disable=args.quiet, leave=False) as bar:
         rec = simulate(
-            schedule, hand, sensor, args.rate, seed=args.seed, physics_rate_hz=args.physics_rate, progress=bar.update
+            schedule, hand, sensor, args.rate, seed=args.seed, physics_rate_hz=args.physics_rate, progress=bar.update,
+            magnetic=magnetic,
         )
     save_hdf5(rec, out)
     if not args.quiet:
@@ -91,6 +92,8 @@ def cmd_sensors(args: argparse.Namespace) -> int:
         m = load_sensor(name)
         print(f"{name:<22} gyro: {', '.join(e.kind for e in m.gyro)}")
         print(f"{'':<22} accelerometer: {', '.join(e.kind for e in m.accelerometer)}")
+        if m.magnetometer:
+            print(f"{'':<22} magnetometer: {', '.join(e.kind for e in m.magnetometer)}")
         print(f"{'':<22} {m.description}")
     if args.show:
         print(json.dumps(load_sensor(args.show).to_dict(), indent=2))
@@ -112,7 +115,7 @@ def cmd_chamber(args: argparse.Namespace) -> int:
     from .chamber import load_chamber, simulate_chamber
 
     out = Path(args.out)
-    _check_writable(out)
+    _check_writable(out, args.profile, args.sensor)
     profile = load_chamber(args.profile)
     rec = simulate_chamber(profile, args.sensor, args.rate, seed=args.seed, up_axis=args.up)
     save_hdf5(rec, out)
@@ -128,13 +131,72 @@ def cmd_ratetable(args: argparse.Namespace) -> int:
     from .ratetable import RateTableSequence, simulate_rate_table
 
     out = Path(args.out)
-    _check_writable(out)
+    _check_writable(out, args.profile, args.sensor)
     seq = RateTableSequence(rate_deg_s=args.table_rate, turns=args.turns, settle_s=args.settle)
     rec = simulate_rate_table(load_chamber(args.profile), args.sensor, args.rate, seq=seq, seed=args.seed)
     save_hdf5(rec, out)
     holds = sorted({s["ambient_c"] for s in rec.meta["segments"]})
     print(f"wrote {out}: {rec.n} samples at {args.rate:g} Hz; calibration temperatures {holds} °C, six faces each, "
           f"±{args.table_rate:g} °/s")
+    return 0
+
+
+def _knocks(specs: list[str] | None):
+    """``HOLD[:DEG[:AXIS]]`` → Knock(hold, amplitude_deg, axis)."""
+    from .rig import Knock
+
+    out = []
+    for spec in specs or []:
+        parts = spec.split(":")
+        try:
+            out.append(Knock(int(parts[0]), float(parts[1]) if len(parts) > 1 else 0.5, parts[2] if len(parts) > 2 else "x"))
+        except ValueError as exc:
+            raise GyrosimError(f"--knock {spec!r}: use HOLD[:DEG[:AXIS]], e.g. 2:0.5:x ({exc})") from exc
+    return tuple(out)
+
+
+def cmd_northfind(args: argparse.Namespace) -> int:
+    """A north-finding (gyrocompassing) record on the virtual indexing table (gyrosim.northfind)."""
+    from .northfind import NorthFindSequence, shielded, simulate_northfind
+    from .sensor_model import load_sensor
+
+    out = Path(args.out)
+    _check_writable(out, args.sensor)
+    seq = NorthFindSequence(positions=args.positions, hold_s=args.hold, index_rate_deg_s=args.index_rate)
+    model = shielded(load_sensor(args.sensor), args.shield)
+    rec = simulate_northfind(model, args.latitude, args.heading, args.rate, seq=seq, seed=args.seed,
+                             tilt_deg=args.tilt, tilt_azimuth_deg=args.tilt_azimuth, knocks=_knocks(args.knock))
+    save_hdf5(rec, out)
+    nf = rec.meta["northfind"]
+    print(f"wrote {out}: {rec.n} samples at {args.rate:g} Hz ({rec.duration_s / 60:.1f} min), {args.sensor} at latitude "
+          f"{args.latitude:g}°, {seq.positions} position(s) × {seq.hold_s:g} s, true headings "
+          + ", ".join(f"{h['truth_heading_deg']:.3f}°" for h in nf["holds"]))
+    return 0
+
+
+def cmd_tilttable(args: argparse.Namespace) -> int:
+    """Seed 001's static tilt-sensor test on a dividing head (gyrosim.tilttable)."""
+    from .tilttable import SEED_001_ANGLES_DEG, TiltSequence, simulate_tilttable
+
+    out = Path(args.out)
+    _check_writable(out, args.sensor)
+    if args.angles:
+        try:
+            lo, hi, step = (float(x) for x in args.angles.split(":"))
+        except ValueError as exc:
+            raise GyrosimError(f"--angles {args.angles!r}: give FROM:TO:STEP in °, e.g. -15:15:2.5") from exc
+        if not step > 0:
+            raise GyrosimError("--angles: STEP must be > 0")
+        angles = tuple(np.round(np.arange(lo, hi + step / 2, step), 6).tolist())
+    else:
+        angles = SEED_001_ANGLES_DEG
+    seq = TiltSequence(angles_deg=angles, hold_s=args.hold, zero_hold_s=args.zero_hold, flip=not args.no_flip)
+    rec = simulate_tilttable(args.sensor, args.rate, seq=seq, knocks=_knocks(args.knock), seed=args.seed)
+    save_hdf5(rec, out)
+    holds = rec.meta["tilttable"]["holds"]
+    print(f"wrote {out}: {rec.n} samples at {args.rate:g} Hz ({rec.duration_s / 60:.1f} min), {args.sensor}, "
+          f"{len(holds)} holds: sweeps {','.join(seq.sweeps)} over {angles[0]:g}…{angles[-1]:g}° "
+          f"({len(angles)} steps){' + 180°' if seq.flip else ''}, level {seq.zero_hold_s:g} s")
     return 0
 
 
@@ -148,10 +210,12 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
     from .campaign import CampaignSpec, load_campaign, run_campaign, summarise
 
+    check_output_paths({"--out": args.out}, [args.campaign], folders=["--out"],
+                       folder_files={"--out": ("results.csv", "summary.csv", "provenance.json", "error_vs_severity.png")})
     over = {"hands": _csv_list(args.hand), "seeds": args.seeds, "first_seed": args.first_seed, "sensor": args.sensor,
             "estimators": _csv_list(args.method), "schedule": args.schedule, "rate_hz": args.rate,
             "calibrated_accelerometer": True if args.calibrated_accelerometer else None,
-            "severity": tuple(float(x) for x in _csv_list(args.severity)) if args.severity else None}
+            "severity": args.severity}
     spec = load_campaign(args.campaign, **over) if args.campaign else CampaignSpec(
         **{k: v for k, v in over.items() if v is not None})
     with tqdm(total=1, unit="session", desc="campaign") as bar:
@@ -196,11 +260,17 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("simulate", help="simulate a hand-held session and write an HDF5 recording")
     s.add_argument("--schedule", default="zhou2020", help="built-in name or TOML path (default zhou2020)")
     s.add_argument("--hand", default="typical", help="ideal|steady|typical|shaky or a TOML path")
-    s.add_argument("--rate", type=float, default=100.0, help="output sample rate, Hz (default 100)")
-    s.add_argument("--physics-rate", type=float, default=1000.0, help="MuJoCo step rate, Hz (default 1000)")
+    s.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), default=100.0,
+                   help="output sample rate, Hz, in (0, 1e6] and ≤ --physics-rate (default 100)")
+    s.add_argument("--physics-rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), default=1000.0,
+                   help="MuJoCo step rate, Hz, in (0, 1e6] (default 1000)")
     s.add_argument("--sensor", default=None, help="sensor preset or TOML path (default: none, /gyro = truth)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the random generator (default 0)")
-    s.add_argument("--out", required=True, help="output .h5 path")
+    s.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
+    s.add_argument("--out", required=True, help="output .h5 path (written atomically; never one of the input TOML files)")
+    s.add_argument("--mag-field", help="Earth field E,N,U in µT (default 1.5,20,-44: 48° N)")
+    s.add_argument("--location", help="Earth field from the World Magnetic Model: LAT,LON[,HEIGHT_M[,YYYY-MM-DD]]")
+    s.add_argument("--anomaly", action="append",
+                   help="ferrous sphere X,Y,Z,RADIUS_M in the room (m, ENU; the hand starts at 0.18,0.30,1.15); repeatable")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_simulate)
 
@@ -219,65 +289,129 @@ def build_parser() -> argparse.ArgumentParser:
     ch = sub.add_parser("chamber", help="a static board through a thermal-chamber profile (HDF5 with /temp)")
     ch.add_argument("--profile", default="tde_cycles_003", help="built-in chamber profile or TOML path")
     ch.add_argument("--sensor", default="consumer_thermal", help="sensor preset or TOML path")
-    ch.add_argument("--rate", type=float, default=1.0, help="output rate, Hz (default 1: 10 s blocks are analysed)")
+    ch.add_argument("--rate", type=number(0, 1e4, lo_open=True, unit="Hz"), default=1.0,
+                    help="output rate, Hz, in (0, 1e4] (default 1: 10 s blocks are analysed)")
     ch.add_argument("--up", default="z", choices=("x", "y", "z"), help="board axis pointing up")
-    ch.add_argument("--seed", type=int, default=0)
-    ch.add_argument("--out", required=True)
+    ch.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
+    ch.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
     ch.set_defaults(func=cmd_chamber)
 
     rt = sub.add_parser("ratetable", help="virtual rate table: ±rate / one-position on six faces at each chamber hold")
     rt.add_argument("--profile", default="points_001", help="chamber profile whose holds are the calibration points")
     rt.add_argument("--sensor", default="consumer_thermal")
-    rt.add_argument("--rate", type=float, default=100.0, help="output rate, Hz")
-    rt.add_argument("--table-rate", type=float, default=30.0, help="table rate Ω, °/s")
-    rt.add_argument("--turns", type=float, default=2.0, help="full turns per direction")
-    rt.add_argument("--settle", type=float, default=3600.0, help="soak before the sequence, s")
-    rt.add_argument("--seed", type=int, default=0)
-    rt.add_argument("--out", required=True)
+    rt.add_argument("--rate", type=number(0, 1e4, lo_open=True, unit="Hz"), default=100.0,
+                    help="output rate, Hz, in (0, 1e4] (default 100)")
+    rt.add_argument("--table-rate", type=number(0, 2000, lo_open=True, unit="°/s"), default=30.0,
+                    help="table rate Ω, °/s, in (0, 2000] (default 30)")
+    rt.add_argument("--turns", type=number(0, 1000, lo_open=True), default=2.0,
+                    help="full turns per direction, in (0, 1000] (default 2)")
+    rt.add_argument("--settle", type=number(0, 1e6, unit="s"), default=3600.0,
+                    help="soak before the sequence, s, in [0, 1e6] (default 3600)")
+    rt.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
+    rt.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
     rt.set_defaults(func=cmd_ratetable)
+
+    nf = sub.add_parser("northfind", help="gyrocompassing: a board held still in 2/4 positions on the indexing table at a latitude")
+    nf.add_argument("--sensor", default="fog_tactical", help="sensor preset or TOML path (its Earth rate is set to --latitude)")
+    nf.add_argument("--latitude", type=number(-90, 90, unit="°"), default=48.0, help="site latitude, °, in [-90, 90] (default 48)")
+    nf.add_argument("--heading", type=number(-360, 360, unit="°"), default=30.0,
+                    help="true heading of the forward axis in position 1, ° from North, in [-360, 360]")
+    nf.add_argument("--positions", type=integer(2, 360), default=4,
+                    help="equally spaced positions, 2 … 360 (2: 0/180°, 4: 0/90/180/270°)")
+    nf.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=300.0, help="rest per position, s, > 0 (default 300)")
+    nf.add_argument("--index-rate", type=number(0, 2000, lo_open=True, unit="°/s"), default=20.0,
+                    help="table rate during the index moves, °/s, in (0, 2000]")
+    nf.add_argument("--rate", type=number(0, 500, lo_open=True, unit="Hz"), default=100.0,
+                    help="output rate, Hz (a divisor of 500; default 100)")
+    nf.add_argument("--tilt", type=number(-90, 90, unit="°"), default=0.0,
+                    help="tilt of the table axis from the vertical, °, in [-90, 90] (tripod not level)")
+    nf.add_argument("--tilt-azimuth", type=number(-360, 360, unit="°"), default=0.0, help="azimuth the axis leans towards, °")
+    nf.add_argument("--knock", action="append", metavar="HOLD[:DEG[:AXIS]]", help="knock the board during a hold (repeatable)")
+    nf.add_argument("--shield", type=number(0, None, lo_open=True), default=1.0,
+                    help="divide the gyro's magnetic sensitivity by this (1e3: a shielded FOG; default 1: as the preset)")
+    nf.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
+    nf.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
+    nf.set_defaults(func=cmd_northfind)
+
+    tt = sub.add_parser("tilttable", help="tilt-sensor static test: tilt steps about each axis on a dividing head, held still")
+    tt.add_argument("--sensor", default="tilt_001", help="sensor preset or TOML path (default tilt_001, seed 001's chip)")
+    tt.add_argument("--angles", default=None, help="FROM:TO:STEP in ° (default -15:15:2.5, the seed's ±15° range)")
+    tt.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=30.0, help="hold per step, s, > 0")
+    tt.add_argument("--zero-hold", type=number(0, 1e7, unit="s"), default=3600.0,
+                    help="final level hold for the zero stability, s, ≥ 0 (seed: 1 h)")
+    tt.add_argument("--no-flip", action="store_true", help="leave out the 180° positions (0°/180° two-point method)")
+    tt.add_argument("--rate", type=number(0, 1e4, lo_open=True, unit="Hz"), default=10.0,
+                    help="output rate, Hz, in (0, 1e4] (default 10, the chip's)")
+    tt.add_argument("--knock", action="append", metavar="HOLD[:DEG[:AXIS]]", help="knock the board during a hold (repeatable)")
+    tt.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
+    tt.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
+    tt.set_defaults(func=cmd_tilttable)
 
     cp = sub.add_parser("campaign", help="robustness campaign: sessions × estimators scored against the truth, on Dask")
     cp.add_argument("campaign", nargs="?", help="campaign TOML (flags override its keys)")
     cp.add_argument("--hand", help="comma-separated hand presets (default ideal,steady,typical,shaky)")
-    cp.add_argument("--seeds", type=int, help="sessions per hand and severity (default 10)")
-    cp.add_argument("--first-seed", type=int)
+    cp.add_argument("--seeds", type=integer(1, 1_000_000), help="sessions per hand and severity, 1 … 1e6 (default 10)")
+    cp.add_argument("--first-seed", type=seed, help="seed of the first session, 0 … 2³²−1")
     cp.add_argument("--sensor", help="sensor preset (default mpu9250)")
     cp.add_argument("--method", help="comma-separated estimators: built-ins or package.module:attribute")
     cp.add_argument("--schedule")
-    cp.add_argument("--rate", type=float)
-    cp.add_argument("--severity", help="comma-separated factors on every hand imperfection (default 1)")
+    cp.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), help="sample rate, Hz, in (0, 1e6]")
+    cp.add_argument("--severity", type=positive_list(),
+                    help="comma-separated factors > 0 on every hand imperfection (default 1)")
     cp.add_argument("--calibrated-accelerometer", action="store_true",
                     help="keep only the accelerometer's white noise (Zhou §3.3.2)")
     cp.add_argument("--scheduler", default="local", help="local (LocalCluster on 127.0.0.1), none (in-process) or tcp://HOST:PORT")
-    cp.add_argument("--workers", type=int, help="LocalCluster workers (default: cores)")
-    cp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for a remote scheduler")
+    cp.add_argument("--workers", type=integer(1, 1024), help="LocalCluster workers, 1 … 1024 (default: cores)")
+    cp.add_argument("--timeout", type=number(0, 3600, lo_open=True, unit="s"), default=10.0,
+                    help="seconds to wait for a remote scheduler, in (0, 3600] (default 10)")
     cp.add_argument("--out", required=True, help="results folder (results.csv, summary.csv, plots, provenance.json)")
     cp.set_defaults(func=cmd_campaign)
 
     cb = sub.add_parser("campaign-bench", help="campaign scaling: sessions/s in-process, on 1 and 2 Dask workers")
-    cb.add_argument("--sessions", type=int, default=12)
+    cb.add_argument("--sessions", type=integer(1, 100_000), default=12, help="sessions to time, 1 … 1e5 (default 12)")
     cb.set_defaults(func=cmd_campaign_bench)
 
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
     b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",
                    help="scene: simulation vs bare mujoco.rollout; sensor: error model vs bare numpy")
-    b.add_argument("--repeats", type=int, default=5)
+    b.add_argument("--repeats", type=integer(1, 1000), default=5, help="timing repeats, 1 … 1000 (default 5)")
     b.add_argument("--sensor", default="mpu9250")
     b.add_argument("--schedule", default="zhou2020")
     b.add_argument("--hand", default="typical")
-    b.add_argument("--rate", type=float, default=100.0)
+    b.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), default=100.0,
+                   help="sample rate, Hz, in (0, 1e6] (default 100)")
     b.set_defaults(func=cmd_bench)
     return p
 
 
+EXIT_OK, EXIT_NOT_OK, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+
+
 def run_cli(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
-    """Parse, run the chosen command; a bad-input error prints one line and exits 2."""
-    args = parser.parse_args(argv)
+    """Parse, run the chosen command and return its exit code (the same in-process and as a script).
+
+    0: done; 1: done, but the result is not "ok" (e.g. a diverged filter, said on stderr);
+    2: bad input or bad arguments (one line on stderr saying what is wrong and what to do);
+    3: an internal error (a bug: one line; ``GYROSIM_TRACEBACK=1`` shows the traceback)."""
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help/--version (0) or a usage error (2, message printed)
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
     try:
         return int(args.func(args))
     except GyrosimError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except OSError as exc:  # the file system refused (disk full, permissions changed meanwhile, ...)
+        print(f"{parser.prog}: error: {exc.strerror or exc}{f': {exc.filename}' if exc.filename else ''}",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except Exception as exc:  # noqa: BLE001 - the last line of defence: one line, not a traceback
+        if os.environ.get("GYROSIM_TRACEBACK"):
+            raise
+        print(f"{parser.prog}: internal error (a bug, please report it with the command line): "
+              f"{type(exc).__name__}: {exc}; set GYROSIM_TRACEBACK=1 to see the traceback", file=sys.stderr)
+        return EXIT_INTERNAL
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -20,7 +20,10 @@ caller passes.  Random unit-to-unit parameters (turn-on bias, scale tolerance, .
 ``<param>_sigma`` next to the nominal value and are drawn by :meth:`Effect.realize`.
 
 Frames: x and δ in the body frame (RFU); the Earth rate uses the attitude body→ENU.  Parameters
-are SI (rad/s, m/s², s, Hz, °C); presets convert datasheet units with :mod:`gyrosim.units`.
+are SI (rad/s, m/s², s, Hz, °C) except the magnetometer triad's, which are in µT like the
+``Recording``; presets convert datasheet units with :mod:`gyrosim.units`.  Each effect class
+declares the triads it applies to and the unit quantity of its main parameter (``quantities``):
+nothing else switches on effect names.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ __all__ = [
     "Effect",
     "EFFECTS",
     "effect_from_dict",
+    "rotation_matrix",
 ]
 
 EARTH_RATE_RAD_S = 7.2921150e-5  # WGS-84 ω_ie
@@ -103,9 +107,16 @@ class Effect:
     stage: ClassVar[str] = "error"  # "error" (additive on truth) or "output" (transform, in order)
     stochastic: ClassVar[bool] = False
     invertible: ClassVar[bool] = True  # an exact compensation exists (deterministic effects)
-    triads: ClassVar[tuple[str, ...]] = ("gyro", "accelerometer")
+    # triad → unit quantity of the main parameter (gyrosim.units.QUANTITIES), how a preset in
+    # datasheet units is read; the triads an effect applies to are the keys (``triads``)
+    quantities: ClassVar[dict[str, str]] = {}
+    triads: ClassVar[tuple[str, ...]] = ()
     param_fields: ClassVar[tuple[str, ...]] = ()
     pointwise: ClassVar[bool] = False  # δ_k depends on sample k only (a single in-place pass)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.triads = tuple(cls.quantities)
 
     # ---------------------------------------------------------------- parameters
     def params(self) -> np.ndarray:
@@ -181,6 +192,14 @@ class Effect:
         frequency domain (:func:`spectral_noise`), else None."""
         return None
 
+    def ieee952_terms(self) -> dict[str, np.ndarray]:
+        """This effect's share of the IEEE Std 952 three-term noise model, per axis (SI):
+        ``arw`` N (white: σ_A = N/√τ), ``bias_instability`` B (flicker: σ_A = 0.664 B),
+        ``rate_random_walk`` K (Wiener: σ_A = K√(τ/3)).  {} for everything else, so a caller
+        (e.g. the covariance of window means in calib.noisecov) can sum over a triad's effects
+        without knowing their kinds."""
+        return {}
+
     def transform(self, y: np.ndarray, ctx: SignalContext, rng: np.random.Generator | None = None) -> np.ndarray:
         """Output-stage transform of the sensor output y (N, 3)."""
         raise NotImplementedError
@@ -229,6 +248,7 @@ class Bias(Effect):
     """
 
     kind: ClassVar[str] = "bias"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration"}
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -271,6 +291,7 @@ class ScaleFactor(Effect):
     """Scale-factor error: δ = S x, S = diag(Sx, Sy, Sz) (dimensionless).  Zhou 2020 eq. 2."""
 
     kind: ClassVar[str] = "scale_factor"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -309,6 +330,7 @@ class NonOrthogonality(Effect):
     """
 
     kind: ClassVar[str] = "nonorthogonality"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -345,6 +367,7 @@ class Misalignment(Effect):
     value = [m_xy, m_xz, m_yx, m_yz, m_zx, m_zy] (row = sensing axis, column = input axis)."""
 
     kind: ClassVar[str] = "misalignment"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros(6))
@@ -384,6 +407,7 @@ class ScaleNonlinearity(Effect):
     ±p % of full scale R" gives k = p/100 / R (the error at full scale is p % of R)."""
 
     kind: ClassVar[str] = "scale_nonlinearity"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "per_rate", "accelerometer": "per_acceleration"}
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -417,8 +441,8 @@ class GSensitivity(Effect):
     """Gyro sensitivity to specific force: δ = K f, K 3×3 in (rad/s)/(m/s²) (gyro only)."""
 
     kind: ClassVar[str] = "g_sensitivity"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate_per_acceleration"}
     pointwise: ClassVar[bool] = True
-    triads: ClassVar[tuple[str, ...]] = ("gyro",)
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     value_sigma: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
@@ -457,6 +481,7 @@ class TemperatureBias(Effect):
     rad/s/°C^p or m/s²/°C^p.  Valid on ``range_c``; a temperature outside it is an error."""
 
     kind: ClassVar[str] = "temperature_bias"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration"}  # per °C^p
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("coefficients",)
     coefficients: np.ndarray = field(default_factory=lambda: np.zeros((3, 1)))
@@ -505,6 +530,7 @@ class TemperatureScale(TemperatureBias):
     """Scale factor over temperature: δ = diag(Σ_p s_p (T − T_ref)^p) x, s in 1/°C^p."""
 
     kind: ClassVar[str] = "temperature_scale"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}  # per °C^p
 
     def delta(self, x, ctx, rng=None):
         return x * _poly(self._dT(ctx), self.coefficients)
@@ -531,6 +557,7 @@ class ThermalHysteresis(Effect):
     warming (dT/dt > 0) and cooling (< 0), which opens the loop of a bias-vs-T plot."""
 
     kind: ClassVar[str] = "thermal_hysteresis"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration"}  # per (°C/s)
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros(3))
     value_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -576,6 +603,8 @@ class TemperaturePiecewise(Effect):
     ``bias`` (3, K) in rad/s or m/s², ``scale`` (3, K) fraction (SI in presets too)."""
 
     kind: ClassVar[str] = "temperature_pwl"
+    # bias values in the preset unit; scale in SI
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration"}
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("bias", "scale")
     points_c: np.ndarray = field(default_factory=lambda: np.array([-40.0, 85.0]))
@@ -630,6 +659,7 @@ class TemperatureRBF(Effect):
     rad/s or m/s² (an RBF network whose output layer is fitted by least squares)."""
 
     kind: ClassVar[str] = "temperature_rbf"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration"}
     pointwise: ClassVar[bool] = True
     param_fields: ClassVar[tuple[str, ...]] = ("weights",)
     centres_c: np.ndarray = field(default_factory=lambda: np.linspace(-40.0, 85.0, 6))
@@ -676,8 +706,8 @@ class EarthRate(Effect):
     Ω = 7.2921150e-5 rad/s (15.04 °/h), L = latitude.  Needs the attitude; gyro only."""
 
     kind: ClassVar[str] = "earth_rate"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "angle"}
     pointwise: ClassVar[bool] = True
-    triads: ClassVar[tuple[str, ...]] = ("gyro",)
     param_fields: ClassVar[tuple[str, ...]] = ("latitude_rad",)
     latitude_rad: float = 0.0
 
@@ -697,8 +727,8 @@ class MagneticSensitivity(Effect):
     K 3×3 in (rad/s)/µT; unshielded FOG ~1e4 °/(h·T), POS grade 1–10 °/(h·T).  Gyro only."""
 
     kind: ClassVar[str] = "magnetic_sensitivity"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate_per_tesla"}
     pointwise: ClassVar[bool] = True
-    triads: ClassVar[tuple[str, ...]] = ("gyro",)
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     value: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
 
@@ -721,6 +751,121 @@ class MagneticSensitivity(Effect):
         for i in range(3):
             out[:, i, 3 * i : 3 * i + 3] = b
         return out
+
+
+# ---------------------------------------------------------------- magnetometer (µT)
+@dataclass(frozen=True)
+class HardIron(Bias):
+    """Hard iron: a field fixed in the body frame, δ = h (µT) — the magnetised parts of the board
+    and the sensor's own zero-field offset, which the magnetometer cannot tell apart (both turn
+    with the board).  ``value_sigma`` draws it per device.  Magnetometer only.
+
+    Model m = A B + h (Ozyagcilar, "Calibrating an eCompass in the Presence of Hard- and Soft-Iron
+    Interference", Freescale AN4246, eq. 8): h is this effect, A the :class:`SoftIron` matrix.
+    """
+
+    kind: ClassVar[str] = "hard_iron"
+    quantities: ClassVar[dict[str, str]] = {"magnetometer": "magnetic_field"}
+
+
+def _matrix(v: Any, name: str) -> np.ndarray:
+    a = np.array(v, dtype=float)
+    a = np.diag(a) if a.shape == (3,) else a.reshape(3, 3) if a.size == 9 else a
+    if a.shape != (3, 3) or not np.all(np.isfinite(a)):
+        raise GyrosimError(f"{name} must be a finite 3×3 matrix (or 3 diagonal values), got shape {np.shape(v)}")
+    return a
+
+
+@dataclass(frozen=True)
+class SoftIron(Effect):
+    """Soft iron (and the sensor's scale and cross-axis errors): m = A B + h, so δ = (A − I) B
+    with A 3×3 dimensionless (AN4246 eq. 8; soft iron = field induced in the board's
+    ferromagnetic parts, proportional to the applied field, so it turns with the board but its
+    effect depends on the attitude).  Induced magnetisation is a symmetric tensor: with
+    ``symmetric`` True a device draw (``matrix_sigma``) mirrors the upper triangle, and the
+    sensor's rotation against the IMU frame is the separate :class:`FrameRotation`.
+    Magnetometer only.
+    """
+
+    kind: ClassVar[str] = "soft_iron"
+    quantities: ClassVar[dict[str, str]] = {"magnetometer": "fraction"}
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("matrix",)
+    matrix: np.ndarray = field(default_factory=lambda: np.eye(3))
+    matrix_sigma: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    symmetric: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "matrix", _matrix(self.matrix, "soft_iron matrix"))
+        object.__setattr__(self, "matrix_sigma", _matrix(self.matrix_sigma, "soft_iron matrix_sigma"))
+        _check_invertible(self.matrix, self.kind, self.matrix)
+
+    def realize(self, rng):
+        if not np.any(self.matrix_sigma):
+            return self
+        draw = self.matrix_sigma * rng.standard_normal((3, 3))
+        if self.symmetric:
+            draw = np.triu(draw) + np.triu(draw, 1).T
+        return replace(self, matrix=self.matrix + draw, matrix_sigma=np.zeros((3, 3)))
+
+    def delta(self, x, ctx, rng=None):
+        return x @ (self.matrix - np.eye(3)).T
+
+    def affine(self):
+        return self.matrix - np.eye(3), np.zeros(3)
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(self.matrix - np.eye(3), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (9,))
+        for i in range(3):
+            out[:, i, 3 * i : 3 * i + 3] = x  # ∂(A x)_i/∂A_ij = x_j
+        return out
+
+
+def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
+    """R = exp([θ]×) of a rotation vector θ (rad), Rodrigues' formula."""
+    th = np.asarray(rotvec, dtype=float)
+    a = float(np.linalg.norm(th))
+    k = np.array([[0.0, -th[2], th[1]], [th[2], 0.0, -th[0]], [-th[1], th[0], 0.0]])
+    if a < 1e-12:
+        return np.eye(3) + k
+    return np.eye(3) + math.sin(a) / a * k + (1 - math.cos(a)) / a**2 * (k @ k)
+
+
+@dataclass(frozen=True)
+class FrameRotation(Effect):
+    """The triad's axes rotated against the IMU (body) frame by the rotation vector θ (rad): a
+    body-frame vector x has the sensor coordinates R(θ)ᵀ x, so δ = (R(θ)ᵀ − I) x with R from
+    Rodrigues' formula.  The magnetometer-to-IMU misalignment (a separate die, or a separate chip
+    on the board): an ellipsoid fit cannot see it (it keeps |B|), a fit that knows the attitude
+    can.  Magnetometer only.
+    """
+
+    kind: ClassVar[str] = "frame_rotation"
+    quantities: ClassVar[dict[str, str]] = {"magnetometer": "angle"}
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("angles",)
+    angles: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    angles_sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "angles", _vec(self.angles, name="frame_rotation angles"))
+        object.__setattr__(self, "angles_sigma", _vec(self.angles_sigma, name="frame_rotation angles sigma"))
+
+    def matrix(self) -> np.ndarray:
+        """The sensor-from-body matrix R(θ)ᵀ."""
+        return rotation_matrix(self.angles).T
+
+    def delta(self, x, ctx, rng=None):
+        return x @ (self.matrix() - np.eye(3)).T
+
+    def affine(self):
+        return self.matrix() - np.eye(3), np.zeros(3)
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(self.matrix() - np.eye(3), x.shape + (3,))
 
 
 # ---------------------------------------------------------------- random processes
@@ -760,6 +905,8 @@ class WhiteNoise(Effect):
     """
 
     kind: ClassVar[str] = "white_noise"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate_density", "accelerometer": "acceleration_density",
+                                            "magnetometer": "magnetic_field_density"}
     stochastic: ClassVar[bool] = True
     invertible: ClassVar[bool] = False
     param_fields: ClassVar[tuple[str, ...]] = ("density",)
@@ -778,6 +925,9 @@ class WhiteNoise(Effect):
     def add_delta(self, y, x, ctx, rng=None):
         kern.add_scaled(y, _need_rng(rng, self.kind).standard_normal(x.shape), self.density * math.sqrt(ctx.rate_hz))
 
+    def ieee952_terms(self):
+        return {"arw": self.density}
+
 
 @dataclass(frozen=True)
 class BiasInstability(Effect):
@@ -793,6 +943,8 @@ class BiasInstability(Effect):
     """
 
     kind: ClassVar[str] = "bias_instability"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
+                                            "magnetometer": "magnetic_field"}
     stochastic: ClassVar[bool] = True
     invertible: ClassVar[bool] = False
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
@@ -842,6 +994,10 @@ class BiasInstability(Effect):
         out[:, pos] = (self.value**2)[:, None] / (2 * math.pi * f_hz[pos])
         return out
 
+    def ieee952_terms(self):
+        # a Gauss–Markov process is not one of the three terms (its Allan curve has a bump)
+        return {"bias_instability": self.value} if self.model == "flicker" else {}
+
 
 @dataclass(frozen=True)
 class RandomWalk(Effect):
@@ -851,6 +1007,8 @@ class RandomWalk(Effect):
     K low by 3.5 % over 2 h in our Monte Carlo.)"""
 
     kind: ClassVar[str] = "random_walk"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate_random_walk", "accelerometer": "acceleration_random_walk",
+                                            "magnetometer": "magnetic_field_random_walk"}
     stochastic: ClassVar[bool] = True
     invertible: ClassVar[bool] = False
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
@@ -872,6 +1030,9 @@ class RandomWalk(Effect):
         steps *= (self.value * math.sqrt(dt_s))[:, None]
         return steps.T
 
+    def ieee952_terms(self):
+        return {"rate_random_walk": self.value}
+
     def coarse_step_s(self, white_density, dt_s):
         # K²/(2πf)² ≤ 0.01 N²  ⇔  f ≥ 10 K / (2π N)
         if np.any(white_density <= 0):
@@ -888,6 +1049,8 @@ class Bandwidth(Effect):
     (y_0 = u_0).  Inverse: u_k = (y_k − a y_{k−1}) / (1 − a), exact."""
 
     kind: ClassVar[str] = "bandwidth"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "frequency", "accelerometer": "frequency",
+                                            "magnetometer": "frequency"}
     stage: ClassVar[str] = "output"
     param_fields: ClassVar[tuple[str, ...]] = ("cutoff_hz",)
     cutoff_hz: float = 50.0
@@ -918,6 +1081,7 @@ class TimeOffset(Effect):
     Linearised sensitivity ∂y/∂d = −ẋ."""
 
     kind: ClassVar[str] = "time_offset"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "time", "accelerometer": "time", "magnetometer": "time"}
     stage: ClassVar[str] = "output"
     param_fields: ClassVar[tuple[str, ...]] = ("delay_s",)
     delay_s: float = 0.0
@@ -958,6 +1122,7 @@ class Jitter(Effect):
     is the signal interpolated there (cubic spline).  Random, not invertible."""
 
     kind: ClassVar[str] = "jitter"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "time", "accelerometer": "time", "magnetometer": "time"}
     stage: ClassVar[str] = "output"
     stochastic: ClassVar[bool] = True
     invertible: ClassVar[bool] = False
@@ -977,6 +1142,8 @@ class Quantization(Effect):
     information-losing: compensation leaves it (error ≤ LSB/2, RMS LSB/√12)."""
 
     kind: ClassVar[str] = "quantization"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
+                                            "magnetometer": "magnetic_field"}
     pointwise: ClassVar[bool] = True
     stage: ClassVar[str] = "output"
     invertible: ClassVar[bool] = False
@@ -1002,6 +1169,8 @@ class Saturation(Effect):
     (:meth:`check`) naming how many samples sit at the rails."""
 
     kind: ClassVar[str] = "saturation"
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
+                                            "magnetometer": "magnetic_field"}
     pointwise: ClassVar[bool] = True
     stage: ClassVar[str] = "output"
     invertible: ClassVar[bool] = False
@@ -1036,7 +1205,7 @@ EFFECTS: dict[str, type[Effect]] = {
     for cls in (
         Bias, ScaleFactor, NonOrthogonality, Misalignment, ScaleNonlinearity, GSensitivity,
         TemperatureBias, TemperatureScale, ThermalHysteresis, TemperaturePiecewise, TemperatureRBF, EarthRate,
-        MagneticSensitivity,
+        MagneticSensitivity, HardIron, SoftIron, FrameRotation,
         WhiteNoise, BiasInstability, RandomWalk, Bandwidth, TimeOffset, Jitter, Quantization, Saturation,
     )
 }

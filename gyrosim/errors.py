@@ -21,3 +21,8 @@ class ReachError(GyrosimError):
 
 class RecordingError(GyrosimError):
     """A recording is malformed: shapes, NaNs, timestamps, units or metadata."""
+
+
+class OutputPathError(GyrosimError):
+    """An output path that cannot or must not be written: a missing or read-only folder, a
+    directory where a file is expected, or a path equal to one of the command's inputs."""

@@ -34,7 +34,7 @@ import numpy as np
 
 from .errors import RecordingError
 
-__all__ = ["Truth", "Recording", "save_hdf5", "load_hdf5", "FRAMES"]
+__all__ = ["Truth", "Recording", "save_hdf5", "load_hdf5", "save_csv", "FRAMES"]
 
 FRAMES = "body RFU, navigation ENU"
 
@@ -123,8 +123,8 @@ class Recording:
         if np.any(dt <= 0):
             k = int(np.argmax(dt <= 0))
             raise RecordingError(
-                f"timestamps are not strictly increasing: t[{k}] = {self.t_s[k]!r} s, "
-                f"t[{k + 1}] = {self.t_s[k + 1]!r} s; sort or de-duplicate the samples first"
+                f"timestamps are not strictly increasing: t[{k}] = {float(self.t_s[k])!r} s, "
+                f"t[{k + 1}] = {float(self.t_s[k + 1])!r} s; sort or de-duplicate the samples first"
             )
         if self.truth is not None:
             for key, arr in self.truth.channels().items():
@@ -206,6 +206,35 @@ def save_hdf5(rec: Recording, path: str | os.PathLike[str]) -> Path:
             meta = {"frames": FRAMES, **rec.meta}
             for key in sorted(meta):
                 f.attrs[key] = _attr_value(meta[key])
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def save_csv(rec: Recording, path: str | os.PathLike[str]) -> Path:
+    """Write ``rec``'s samples as CSV (SI units, the layout ``calib`` reads with its default units):
+    header ``t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z[,temp][,mag_x,mag_y,mag_z]`` — s, rad/s, m/s²,
+    °C, µT, body frame RFU — 17 significant digits (float64 round-trips exactly).  Truth and
+    metadata are not written (use HDF5 for those).  Atomic like :func:`save_hdf5`."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise RecordingError(f"cannot write {path}: folder {folder} does not exist; create it first")
+    cols = [rec.t_s[:, None], rec.gyro_rad_s, rec.acc_m_s2]
+    header = ["t", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"]
+    if rec.temp_c is not None:
+        cols.append(rec.temp_c[:, None])
+        header.append("temp")
+    if rec.mag_ut is not None:
+        cols.append(rec.mag_ut)
+        header += ["mag_x", "mag_y", "mag_z"]
+    data = np.hstack(cols)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
+    os.close(fd)
+    try:
+        np.savetxt(tmp, data, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -110,6 +110,7 @@ class HandScene:
         self.hand_start_pos_m = m.body("hand").pos.copy()
         self.acc_site_body_m = m.site("imu_acc").pos.copy()
         self.gyro_site_body_m = m.site("imu_gyro").pos.copy()
+        self.mag_site_body_m = m.site("imu_mag").pos.copy()
         self.mass_kg = float(m.body_mass[self.hand_id])
         self.com_body_m = m.body_ipos[self.hand_id].copy()
         r_i = quat_to_matrix(m.body_iquat[self.hand_id])
@@ -124,6 +125,10 @@ class HandScene:
         sensor = {m.sensor(i).name: (m.sensor_adr[i], m.sensor_dim[i]) for i in range(m.nsensor)}
         self.sensor_slices = {k: slice(a, a + d) for k, (a, d) in sensor.items()}
         self._control_layout()
+
+    def set_earth_field(self, earth_enu_ut: np.ndarray) -> None:
+        """MuJoCo's uniform field (``option/magnetic``, tesla, world = ENU) from µT."""
+        self.model.opt.magnetic[:] = np.asarray(earth_enu_ut, dtype=float) * 1e-6
 
     @property
     def timestep_s(self) -> float:

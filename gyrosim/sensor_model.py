@@ -1,4 +1,4 @@
-"""A sensor model = an ordered list of effects per triad (gyro, accelerometer), plus presets.
+"""A sensor model = an ordered list of effects per triad (gyro, accelerometer, magnetometer), plus presets.
 
 Forward (simulation), per triad with true input x:
 
@@ -33,40 +33,18 @@ from .errors import GyrosimError, PresetError
 from .thermal import ThermalModel
 from .units import to_si
 
-__all__ = ["SensorModel", "load_sensor", "sensor_preset_names", "TRIADS"]
+__all__ = ["SensorModel", "load_sensor", "sensor_preset_names", "stored_sensor_model", "TRIADS"]
 
-TRIADS = ("gyro", "accelerometer")
+TRIADS = ("gyro", "accelerometer", "magnetometer")
 
-# unit quantity of each effect's main parameter, per triad (for presets in datasheet units)
-_QUANTITY: dict[str, dict[str, str]] = {
-    "bias": {"gyro": "rate", "accelerometer": "acceleration"},
-    "scale_factor": {"gyro": "fraction", "accelerometer": "fraction"},
-    "nonorthogonality": {"gyro": "fraction", "accelerometer": "fraction"},
-    "misalignment": {"gyro": "fraction", "accelerometer": "fraction"},
-    "scale_nonlinearity": {"gyro": "per_rate", "accelerometer": "per_acceleration"},
-    "g_sensitivity": {"gyro": "rate_per_acceleration"},
-    "temperature_bias": {"gyro": "rate", "accelerometer": "acceleration"},  # per °C^p
-    "temperature_scale": {"gyro": "fraction", "accelerometer": "fraction"},  # per °C^p
-    "thermal_hysteresis": {"gyro": "rate", "accelerometer": "acceleration"},  # per (°C/s)
-    "temperature_pwl": {"gyro": "rate", "accelerometer": "acceleration"},  # bias values; scale in SI
-    "temperature_rbf": {"gyro": "rate", "accelerometer": "acceleration"},
-    "earth_rate": {"gyro": "angle"},
-    "magnetic_sensitivity": {"gyro": "rate_per_tesla"},
-    "white_noise": {"gyro": "rate_density", "accelerometer": "acceleration_density"},
-    "bias_instability": {"gyro": "rate", "accelerometer": "acceleration"},
-    "random_walk": {"gyro": "rate_random_walk", "accelerometer": "acceleration_random_walk"},
-    "bandwidth": {"gyro": "frequency", "accelerometer": "frequency"},
-    "time_offset": {"gyro": "time", "accelerometer": "time"},
-    "jitter": {"gyro": "time", "accelerometer": "time"},
-    "quantization": {"gyro": "rate", "accelerometer": "acceleration"},
-    "saturation": {"gyro": "rate", "accelerometer": "acceleration"},
-}
 _MAIN_FIELD = {cls.kind: cls.param_fields[0] for cls in EFFECTS.values()}
 
 
 @dataclass(frozen=True)
 class SensorModel:
-    """Effects of the gyro and accelerometer triads, an optional thermal model, and provenance."""
+    """Effects of the gyro, accelerometer and (optional) magnetometer triads, an optional thermal
+    model, and provenance.  A model without magnetometer effects is a 6-axis IMU: a recording
+    corrupted with it carries no ``/mag`` (the truth field stays in ``/truth/mag_field``)."""
 
     name: str = "truth"
     gyro: tuple[Effect, ...] = ()
@@ -76,6 +54,7 @@ class SensorModel:
     description: str = ""
     source: str = ""
     notes: dict[str, str] = field(default_factory=dict)
+    magnetometer: tuple[Effect, ...] = ()  # µT; last so that positional construction keeps working
 
     def __post_init__(self) -> None:
         for triad in TRIADS:
@@ -88,16 +67,24 @@ class SensorModel:
             raise GyrosimError(f"triad must be one of {TRIADS}, got {triad!r}")
         return getattr(self, triad)
 
+    @property
+    def has_magnetometer(self) -> bool:
+        return bool(self.magnetometer)
+
     def realize(self, rng: np.random.Generator) -> "SensorModel":
-        """One device of this model: unit-to-unit random parameters (``*_sigma``) drawn."""
-        streams = rng.spawn(2)
+        """One device of this model: unit-to-unit random parameters (``*_sigma``) drawn.
+
+        Streams: ``rng.spawn(2)`` → (gyro, accelerometer), then one more child for the
+        magnetometer, so adding a magnetometer leaves the gyro and accelerometer draws unchanged."""
+        streams = rng.spawn(2) + rng.spawn(1)
         out = {}
         for triad, r in zip(TRIADS, streams):
             effs = self.effects(triad)
             subs = r.spawn(len(effs)) if effs else []
             out[triad] = tuple(e.realize(s) for e, s in zip(effs, subs))
         return SensorModel(self.name, out["gyro"], out["accelerometer"], self.thermal,
-                           self.temperature_range_c, self.description, self.source, dict(self.notes))
+                           self.temperature_range_c, self.description, self.source, dict(self.notes),
+                           out["magnetometer"])
 
     # ---------------------------------------------------------------- forward
     def apply_triad(self, triad: str, x: np.ndarray, ctx: SignalContext, rng: np.random.Generator) -> np.ndarray:
@@ -142,6 +129,12 @@ class SensorModel:
             self.apply_triad("accelerometer", ctx.specific_force_true_m_s2, ctx, a_rng),
         )
 
+    def apply_magnetometer(self, ctx: SignalContext, rng: np.random.Generator) -> np.ndarray:
+        """Magnetometer output (µT, body frame) from the true field ``ctx.mag_body_ut``."""
+        if not self.magnetometer:
+            raise GyrosimError(f"sensor {self.name!r} has no magnetometer effects (a 6-axis model)")
+        return self.apply_triad("magnetometer", ctx.require("mag_body_ut", "magnetometer"), ctx, rng)
+
     def check_temperature(self, ctx: SignalContext) -> None:
         if ctx.temperature_c is None:
             return
@@ -182,7 +175,7 @@ class SensorModel:
 
     # ---------------------------------------------------------------- description
     def to_dict(self) -> dict[str, Any]:
-        return {
+        d = {
             "name": self.name,
             "description": self.description,
             "source": self.source,
@@ -192,6 +185,9 @@ class SensorModel:
             "gyro": [e.to_dict() for e in self.gyro],
             "accelerometer": [e.to_dict() for e in self.accelerometer],
         }
+        if self.magnetometer:  # a 6-axis model's JSON stays as it was
+            d["magnetometer"] = [e.to_dict() for e in self.magnetometer]
+        return d
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True)
@@ -208,6 +204,7 @@ class SensorModel:
             description=d.get("description", ""),
             source=d.get("source", ""),
             notes=dict(d.get("notes", {})),
+            magnetometer=tuple(effect_from_dict(e) for e in d.get("magnetometer", [])),
         )
 
 
@@ -219,7 +216,7 @@ def _effect_from_preset(triad: str, raw: dict[str, Any], where: str) -> Effect:
         raise PresetError(f"{where}: unknown effect {kind!r}; known: {', '.join(EFFECTS)}")
     unit = raw.pop("unit", None)
     raw.pop("note", None)
-    quantity = _QUANTITY[kind].get(triad)
+    quantity = EFFECTS[kind].quantities.get(triad)
     if quantity is None:
         raise PresetError(f"{where}: effect {kind!r} does not apply to the {triad}")
     main = _MAIN_FIELD[kind]
@@ -248,7 +245,25 @@ def _effect_from_preset(triad: str, raw: dict[str, Any], where: str) -> Effect:
         raise PresetError(f"{where}: {exc}") from exc
 
 
-_SENSOR_KEYS = {"name", "description", "source", "notes", "temperature_range_c", "thermal", "gyro", "accelerometer"}
+_SENSOR_KEYS = {"name", "description", "source", "notes", "temperature_range_c", "thermal", "gyro", "accelerometer",
+                "magnetometer", "extends"}
+
+
+def _resolve_extends(data: dict[str, Any], name: str, seen: tuple[str, ...] = ()) -> dict[str, Any]:
+    """A preset with ``extends = "base"`` is the base preset's table with this table's keys on top:
+    a triad list given here replaces the base's list, ``notes`` are merged, every other key is
+    replaced.  (The 9-axis ``mpu9250_9axis`` is ``mpu9250`` plus a magnetometer.)"""
+    base_name = data.get("extends")
+    if base_name is None:
+        return data
+    if base_name in seen:
+        raise PresetError(f"sensor preset {name!r}: 'extends' loops through {' → '.join(seen + (base_name,))}")
+    _, base = load_named_toml(("presets", "sensors"), base_name, "sensor preset (extends)", PresetError)
+    base = _resolve_extends(base, base_name, seen + (name,))
+    out = {k: v for k, v in base.items() if k != "name"}
+    out.update({k: v for k, v in data.items() if k not in ("extends", "notes")})
+    out["notes"] = {**base.get("notes", {}), **data.get("notes", {})}
+    return out
 
 
 def sensor_from_toml_dict(data: dict[str, Any], default_name: str) -> SensorModel:
@@ -256,6 +271,7 @@ def sensor_from_toml_dict(data: dict[str, Any], default_name: str) -> SensorMode
     bad = set(data) - _SENSOR_KEYS
     if bad:
         raise PresetError(f"sensor preset {default_name!r}: unknown key(s) {sorted(bad)}; allowed: {sorted(_SENSOR_KEYS)}")
+    data = _resolve_extends(data, default_name)
     effects = {}
     for triad in TRIADS:
         effects[triad] = tuple(
@@ -272,6 +288,7 @@ def sensor_from_toml_dict(data: dict[str, Any], default_name: str) -> SensorMode
         description=str(data.get("description", "")),
         source=str(data.get("source", "")),
         notes={str(k): str(v) for k, v in data.get("notes", {}).items()},
+        magnetometer=effects["magnetometer"],
     )
 
 
@@ -280,6 +297,25 @@ def sensor_preset_names() -> list[str]:
 
 
 def load_sensor(name_or_path: str | Path) -> SensorModel:
-    """Load a sensor preset by name (``mpu9250``, ``zhou2020_sim``, ...) or a TOML path."""
+    """Load a sensor preset by name (``mpu9250``, ``zhou2020_sim``, ...), a TOML path, or a Kalibr
+    ``imu.yaml`` (white noise and bias random walk of both triads, :func:`gyrosim.exchange.sensor_from_kalibr`)."""
+    if str(name_or_path).lower().endswith((".yaml", ".yml")):
+        from .exchange import sensor_from_kalibr
+
+        return sensor_from_kalibr(name_or_path)
     name, data = load_named_toml(("presets", "sensors"), name_or_path, "sensor preset", PresetError)
     return sensor_from_toml_dict(data, name)
+
+
+def stored_sensor_model(meta: dict[str, Any]) -> SensorModel | None:
+    """The exact device a simulated recording was corrupted with (``meta['sensor_model']``, a JSON
+    string or, once read back from HDF5, a dict), or None for measured data or a truth recording."""
+    raw = meta.get("sensor_model")
+    if isinstance(raw, str):
+        try:
+            raw = json.loads(raw)
+        except json.JSONDecodeError:
+            return None
+    if not isinstance(raw, dict) or "note" in raw and not (raw.get("gyro") or raw.get("accelerometer")):
+        return None
+    return SensorModel.from_dict(raw)

@@ -21,6 +21,7 @@ import numpy as np
 from . import __version__
 from .errors import GyrosimError
 from .hand import Hand, HandMotion, load_hand
+from .magnetic import DEFAULT_EARTH_FIELD_ENU_UT, MagneticEnvironment
 from .recording import FRAMES, Recording, Truth
 from .rotations import quat_conjugate, quat_rotate
 from .scene import ArmPose, HandScene
@@ -32,9 +33,9 @@ if TYPE_CHECKING:
 
 __all__ = ["SimulationGrid", "simulation_grid", "simulate_truth", "simulate", "apply_sensor", "EARTH_FIELD_ENU_UT"]
 
-# Geomagnetic field at the simulated site (µT, ENU): 48° N, central Europe (WMM-class values:
-# 20 µT north, 44 µT down); only effects that need a magnetic field read it.
-EARTH_FIELD_ENU_UT = np.array([1.5, 20.0, -44.0])
+# Default geomagnetic field at the simulated site (µT, ENU): 48° N, central Europe (WMM-class
+# values: 20 µT north, 44 µT down); a session may set its own (gyrosim.magnetic).
+EARTH_FIELD_ENU_UT = np.array(DEFAULT_EARTH_FIELD_ENU_UT)
 
 
 @dataclass(frozen=True)
@@ -92,8 +93,9 @@ def simulate_truth(
     progress: Callable[[int], None] | None = None,
     chunk_steps: int = 20000,
     pipeline: bool = True,
+    magnetic: MagneticEnvironment | None = None,
 ) -> Recording:
-    """Simulate one session and return its truth Recording (``gyro``/``acc`` = truth).
+    """Simulate one session and return its truth Recording (``gyro``/``acc``/``mag`` = truth).
 
     Args:
         schedule: a :class:`Schedule` or a built-in name / TOML path.
@@ -109,6 +111,11 @@ def simulate_truth(
         pipeline: step MuJoCo in a second thread while the next chunk is prepared (one session on
             two cores); False runs everything in the calling thread with identical results, for
             callers that already keep every core busy with their own processes (campaigns).
+        magnetic: the magnetic field (Earth field and anomalies, :mod:`gyrosim.magnetic`);
+            default: :data:`EARTH_FIELD_ENU_UT`, no anomalies.  MuJoCo's ``imu_mag``
+            magnetometer reads the Earth field in the board frame; the anomalies' fields are added
+            at the magnetometer site's position.  ``/mag`` and ``/truth/mag_field`` hold the total
+            (µT, body frame).
     """
     if isinstance(schedule, (str, Path)):
         schedule = load_schedule(schedule)
@@ -117,8 +124,10 @@ def simulate_truth(
     if rng is None:
         rng = np.random.default_rng(seed)
     grid = simulation_grid(schedule.duration_s, rate_hz, physics_rate_hz)
+    magnetic = magnetic or MagneticEnvironment()
     scene = scene or HandScene()
     scene.model.opt.timestep = grid.dt_physics_s
+    scene.set_earth_field(magnetic.earth_enu_ut)
 
     # one physics step beyond the last sample: the rate at t_k is ½(ω_k + ω_{k+1}) (scene docstring)
     t_phys = np.append(grid.t_physics_s, grid.t_physics_s[-1] + grid.dt_physics_s)
@@ -167,6 +176,10 @@ def simulate_truth(
     quat = sens[rows, s["imu_quat"]]
     quat = quat * np.where(quat[:, :1] < 0, -1.0, 1.0)
     pos = sens[rows, s["imu_acc_pos"]]
+    mag = sens[rows, s["imu_mag"]] * 1e6  # T → µT, board frame
+    if magnetic.anomalies:
+        mag_site = pos + quat_rotate(quat, scene.mag_site_body_m - scene.acc_site_body_m)
+        mag = mag + quat_rotate(quat_conjugate(quat), magnetic.anomaly_nav_ut(mag_site))
     omega_schedule = np.concatenate([m.omega_schedule_body_rad_s for m, _ in sampled])
     segment_index = np.concatenate([m.segment_index for m, _ in sampled])
     wrist = np.concatenate([arm.wrist_m for _, arm in sampled])
@@ -183,6 +196,7 @@ def simulate_truth(
             "segment_index": segment_index.astype(float),
             "wrist_position": wrist,
             "elbow_position": elbow,
+            "mag_field": mag,
         },
     )
     meta = {
@@ -197,11 +211,13 @@ def simulate_truth(
         "gravity_m_s2": scene.gravity_m_s2,
         "source": "gyrosim simulation (MuJoCo hand-held scene)",
         "model": scene.model_path.name,
+        "magnetic_field": json.dumps(magnetic.to_dict(), sort_keys=True),
     }
     return Recording(
         t_s=grid.t_samples_s,
         gyro_rad_s=omega,
         acc_m_s2=f_b,
+        mag_ut=mag,
         truth=truth,
         meta=meta,
     )
@@ -232,14 +248,17 @@ def _pick_arm(arm: ArmPose, idx: np.ndarray) -> ArmPose:
 
 
 def signal_context(rec: Recording) -> "SignalContext":
-    """The :class:`~gyrosim.effects.SignalContext` of a truth recording (magnetic field from
-    :data:`EARTH_FIELD_ENU_UT` rotated into the body frame)."""
+    """The :class:`~gyrosim.effects.SignalContext` of a truth recording (magnetic field: the
+    truth ``mag_field`` channel, else :data:`EARTH_FIELD_ENU_UT` rotated into the body frame)."""
     from .effects import SignalContext
 
     t = rec.truth
     if t is None or t.omega_body_rad_s is None or t.specific_force_body_m_s2 is None:
         raise GyrosimError("applying a sensor model needs a recording with truth omega and specific force")
-    mag = quat_rotate(quat_conjugate(t.quat_nb), EARTH_FIELD_ENU_UT) if t.quat_nb is not None else None
+    if "mag_field" in t.extra:
+        mag = t.extra["mag_field"]
+    else:
+        mag = quat_rotate(quat_conjugate(t.quat_nb), EARTH_FIELD_ENU_UT) if t.quat_nb is not None else None
     return SignalContext(
         t_s=rec.t_s,
         omega_true_rad_s=t.omega_body_rad_s,
@@ -260,7 +279,10 @@ def apply_sensor(
     temperature from the model's thermal model (power-on at the first sample; ``temperature_c``
     overrides it), and stores the
     device's exact model (drawn values, SI) as JSON in ``meta['sensor_model']``.
-    Random streams: ``rng.spawn(2)`` → (device draw, measurement noise).
+    Random streams: ``rng.spawn(2)`` → (device draw, measurement noise), then one more child for
+    the magnetometer's noise, so a 9-axis model gives the same gyro and accelerometer as its
+    6-axis part.  A model without magnetometer effects (a 6-axis IMU) leaves no ``/mag``; the
+    true field stays in ``/truth/mag_field``.
     """
     from .sensor_model import load_sensor
 
@@ -274,10 +296,12 @@ def apply_sensor(
     with_temp = truth.with_signals(temp_c=temp)
     ctx = signal_context(with_temp)
     gyro, acc = device.apply(ctx, noise_rng)
+    mag_rng = rng.spawn(1)[0]
+    mag = device.apply_magnetometer(ctx, mag_rng) if device.has_magnetometer and ctx.mag_body_ut is not None else None
     meta = dict(truth.meta)
     meta["sensor_model"] = device.to_json()
     meta["sensor"] = device.name
-    return with_temp.with_signals(gyro_rad_s=gyro, acc_m_s2=acc, meta=meta)
+    return with_temp.with_signals(gyro_rad_s=gyro, acc_m_s2=acc, mag_ut=mag, meta=meta)
 
 
 def simulate(
@@ -291,6 +315,7 @@ def simulate(
     scene: HandScene | None = None,
     progress: Callable[[int], None] | None = None,
     pipeline: bool = True,
+    magnetic: MagneticEnvironment | None = None,
 ) -> Recording:
     """Simulate a session and (if ``sensor`` is given) corrupt it with one drawn device.
 
@@ -299,7 +324,7 @@ def simulate(
     """
     hand_rng, sensor_rng = np.random.default_rng(seed).spawn(2)
     rec = simulate_truth(schedule, hand, rate_hz, rng=hand_rng, physics_rate_hz=physics_rate_hz,
-                         scene=scene, progress=progress, pipeline=pipeline)
+                         scene=scene, progress=progress, pipeline=pipeline, magnetic=magnetic)
     rec = rec.with_signals(meta={**rec.meta, "seed": -1 if seed is None else int(seed)})
     if sensor is None:
         return rec

@@ -61,6 +61,11 @@ QUANTITIES: dict[str, dict[str, float]] = {
     "temperature": {"degc": 1.0},
     "rate_per_degc_per_s": {"(rad/s)/(degc/s)": 1.0, "(deg/s)/(degc/s)": DEG},
     "acceleration_per_degc_per_s": {"(m/s^2)/(degc/s)": 1.0, "mg/(degc/s)": 1e-3 * G0},
+    # magnetometer quantities are in µT (the Recording's unit), not tesla
+    "magnetic_field": {"ut": 1.0, "nt": 1e-3, "mt": 1e3, "t": 1e6, "gauss": 100.0, "mgauss": 0.1,
+                       "milligauss": 0.1},
+    "magnetic_field_density": {"ut/sqrt(hz)": 1.0, "nt/sqrt(hz)": 1e-3, "mgauss/sqrt(hz)": 0.1},
+    "magnetic_field_random_walk": {"ut/sqrt(s)": 1.0, "nt/sqrt(s)": 1e-3, "ut/sqrt(h)": 1 / 60.0},
 }
 
 

@@ -1,13 +1,20 @@
 """A small IMU data generator that does NOT import gyrosim (nor calib): data from outside our
-simulator for the calibrator (issue 4).  Kinematic, numpy only, written independently:
+simulator for the calibrator.  Kinematic, numpy only, written independently:
 
 * body frame right-forward-up, navigation east-north-up, quaternion (w, x, y, z) body→nav;
-* a rotation schedule of (axis, angle, duration) steps with a raised-cosine rate profile
+* a rotation schedule of (kind, axis, angle, duration) steps with a raised-cosine rate profile
   ω(t) = (A/T)(1 − cos 2πt/T) — a different profile from gyrosim's quintic, on purpose;
 * attitude in closed form: each step turns about one fixed body axis by
   θ(t) = (A/T)(t − (T/2π) sin 2πt/T), so q(t) = q_start ⊗ (cos θ/2, sin θ/2 · axis);
-* gyro = (I + S + N(G)) ω + b + white noise; accelerometer = Cᵀ (0, 0, g) + white noise;
+* gyro = (I + S + N(G)) ω + b + white noise;
+  accelerometer = (I + S_a + N(G_a)) Cᵀ (0, 0, g) + b_a + white noise (a raw accelerometer when
+  S_a, G_a, b_a are given; N(G) = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]] for both triads);
+* noise-free when both noise levels are 0 (the CSV then carries 9 significant digits);
 * CSV in deg/s and g with the header t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z.
+
+Schedules: ``STEPS`` (Zhou 2020 Table 6-like: vertical and horizontal turns, two rest poses) and
+``MULTIPOSE_STEPS`` (the same turns plus rests at the six faces and six 45° poses, as a Ferraris /
+Tedaldi multi-position session would hold).
 """
 
 from __future__ import annotations
@@ -34,6 +41,26 @@ STEPS = [
     ("rest", None, 0.0, 10.0),
 ]
 
+_Q = math.pi / 2
+# the turns of STEPS, then 3-s rests in turn at: x down, z up, x down, z down, x up, z up, y up, y down,
+# z up, y and z up at 45°, x and z up at 45°, x and y at 45°, back level
+MULTIPOSE_STEPS = STEPS[:-1] + [
+    ("rest", None, 0.0, 3.0),                                   # z horizontal (x down) after the last tip
+    ("rot", 1, -_Q, 5.0), ("rest", None, 0.0, 3.0),             # level: z up
+    ("rot", 1, _Q, 5.0), ("rest", None, 0.0, 3.0),              # x down
+    ("rot", 1, _Q, 5.0), ("rest", None, 0.0, 3.0),              # z down
+    ("rot", 1, _Q, 5.0), ("rest", None, 0.0, 3.0),              # x up
+    ("rot", 1, _Q, 5.0), ("rest", None, 0.0, 3.0),              # z up
+    ("rot", 0, _Q, 5.0), ("rest", None, 0.0, 3.0),              # y up
+    ("rot", 0, 2 * _Q, 6.0), ("rest", None, 0.0, 3.0),          # y down
+    ("rot", 0, _Q, 5.0), ("rest", None, 0.0, 3.0),              # z up
+    ("rot", 0, _Q / 2, 4.0), ("rest", None, 0.0, 3.0),          # y and z up at 45°
+    ("rot", 0, -_Q / 2, 4.0), ("rot", 1, -_Q / 2, 4.0), ("rest", None, 0.0, 3.0),  # x and z up at 45°
+    ("rot", 1, -_Q / 2, 4.0), ("rot", 2, _Q / 2, 4.0), ("rest", None, 0.0, 3.0),   # x and y at 45° (z level)
+    ("rot", 2, -_Q / 2, 4.0), ("rot", 1, _Q, 5.0),
+    ("rest", None, 0.0, 8.0),                                   # level again
+]
+
 
 def _qmul(p, q):
     w1, x1, y1, z1 = p
@@ -49,42 +76,77 @@ def _dcm(q):
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def generate(path: Path, *, rate_hz: float = 100.0, seed: int = 0, bias_deg_s=(1.5, -1.0, 0.8),
-             scale=(0.03, -0.02, 0.04), nonortho=(0.015, -0.01, 0.02), gyro_noise_deg_s=0.05,
-             acc_noise_g=0.001) -> dict:
-    """Write a CSV and return the true parameters (bias in rad/s)."""
-    rng = np.random.default_rng(seed)
+def _m(scale, nonortho):
+    gx, gy, gz = nonortho
+    return np.eye(3) + np.diag(scale) + np.array([[0, gz, gy], [gz, 0, gx], [gy, gx, 0]])
+
+
+def kinematics(rate_hz: float = 100.0, steps=STEPS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t (N,), body rate (N, 3) rad/s, quaternion body→nav (N, 4)) of a schedule, closed form."""
     w_list, q_list = [], []
     q_start = np.array([1.0, 0.0, 0.0, 0.0])
-    for kind, axis, angle, dur in STEPS:
+    for kind, axis, angle, dur in steps:
         t = np.arange(int(round(dur * rate_hz))) / rate_hz
         w = np.zeros((t.size, 3))
         q = np.tile(q_start, (t.size, 1))
         if kind == "rot":
             w[:, axis] = angle / dur * (1 - np.cos(2 * np.pi * t / dur))
             theta = angle / dur * (t - dur / (2 * np.pi) * np.sin(2 * np.pi * t / dur))
-            for k in range(t.size):
-                half = np.zeros(4)
-                half[0] = math.cos(theta[k] / 2)
-                half[1 + axis] = math.sin(theta[k] / 2)
-                q[k] = _qmul(q_start, half)
+            half = np.zeros((t.size, 4))
+            half[:, 0] = np.cos(theta / 2)
+            half[:, 1 + axis] = np.sin(theta / 2)
+            q = np.stack([_qmul(q_start, h) for h in half])
             end = np.zeros(4)
             end[0], end[1 + axis] = math.cos(angle / 2), math.sin(angle / 2)
             q_start = _qmul(q_start, end)
         w_list.append(w)
         q_list.append(q)
-    omega_s, quat_s = np.concatenate(w_list), np.concatenate(q_list)
-    n = omega_s.shape[0]
-    gx, gy, gz = nonortho
-    m = np.eye(3) + np.diag(scale) + np.array([[0, gz, gy], [gz, 0, gx], [gy, gx, 0]])
-    bias = np.radians(np.asarray(bias_deg_s))
-    gyro = omega_s @ m.T + bias + rng.normal(size=(n, 3)) * math.radians(gyro_noise_deg_s)
-    acc = np.stack([_dcm(qq).T @ np.array([0.0, 0.0, G]) for qq in quat_s]) + rng.normal(size=(n, 3)) * acc_noise_g * G
-    t = np.arange(n) / rate_hz
-    with path.open("w", newline="") as fh:
+    omega, quat = np.concatenate(w_list), np.concatenate(q_list)
+    return np.arange(omega.shape[0]) / rate_hz, omega, quat
+
+
+def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_deg_s=(1.5, -1.0, 0.8),
+                    scale=(0.03, -0.02, 0.04), nonortho=(0.015, -0.01, 0.02), gyro_noise_deg_s=0.05,
+                    acc_noise_g=0.001, acc_bias_g=(0.0, 0.0, 0.0), acc_scale=(0.0, 0.0, 0.0),
+                    acc_nonortho=(0.0, 0.0, 0.0), kin=None, g_sensitivity=None, delay_s: float = 0.0) -> dict:
+    """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
+
+    ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
+    ``delay_s``: the gyro output at t is its noise-free value at t − d (linear interpolation; the
+    first samples hold the first value)."""
+    rng = np.random.default_rng(seed)
+    t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
+    n = omega.shape[0]
+    bias = np.radians(np.asarray(bias_deg_s, float))
+    gravity_body = np.einsum("nji,j->ni", np.stack([_dcm(q) for q in quat]), np.array([0.0, 0.0, G]))
+    clean = omega @ _m(scale, nonortho).T + bias
+    if g_sensitivity is not None:
+        clean = clean + gravity_body @ np.asarray(g_sensitivity, float).T
+    if delay_s:
+        clean = np.stack([np.interp(t - delay_s, t, clean[:, i]) for i in range(3)], axis=1)
+    gyro = clean + rng.normal(size=(n, 3)) * math.radians(gyro_noise_deg_s)
+    acc_bias = np.asarray(acc_bias_g, float) * G
+    acc = gravity_body @ _m(acc_scale, acc_nonortho).T + acc_bias + rng.normal(size=(n, 3)) * acc_noise_g * G
+    return {"t_s": t, "gyro_rad_s": gyro, "acc_m_s2": acc, "omega_rad_s": omega, "quat_nb": quat,
+            "bias_rad_s": bias, "scale_factor": np.asarray(scale, float), "nonorthogonality": np.asarray(nonortho, float),
+            "acc_bias_m_s2": acc_bias, "acc_scale_factor": np.asarray(acc_scale, float),
+            "acc_nonorthogonality": np.asarray(acc_nonortho, float),
+            "gyro_noise_rad_s": math.radians(gyro_noise_deg_s), "acc_noise_m_s2": acc_noise_g * G}
+
+
+def write_csv(path: Path, data: dict) -> Path:
+    """The CSV layout (deg/s, g, 9 significant digits)."""
+    t, gyro, acc = data["t_s"], np.degrees(data["gyro_rad_s"]), data["acc_m_s2"] / G
+    with Path(path).open("w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(["t", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"])
-        for k in range(n):
-            wr.writerow([f"{t[k]:.6f}", *(f"{v:.9g}" for v in np.degrees(gyro[k])), *(f"{v:.9g}" for v in acc[k] / G)])
-    return {"bias_rad_s": bias, "scale_factor": np.asarray(scale), "nonorthogonality": np.asarray(nonortho),
-            "gyro_noise_rad_s": math.radians(gyro_noise_deg_s), "acc_noise_m_s2": acc_noise_g * G}
+        for k in range(t.size):
+            wr.writerow([f"{t[k]:.6f}", *(f"{v:.9g}" for v in gyro[k]), *(f"{v:.9g}" for v in acc[k])])
+    return Path(path)
+
+
+def generate(path: Path, **kwargs) -> dict:
+    """Write a CSV (see :func:`generate_arrays` for the keywords) and return the true parameters."""
+    data = generate_arrays(**kwargs)
+    write_csv(path, data)
+    return {k: v for k, v in data.items() if k not in ("t_s", "gyro_rad_s", "acc_m_s2", "omega_rad_s", "quat_nb")}

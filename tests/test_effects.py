@@ -59,7 +59,15 @@ def deterministic_effects():
         ("accelerometer", Misalignment(value=[0.01, -0.02, 0.005, 0.01, -0.01, 0.02])),
         ("accelerometer", ScaleNonlinearity(value=[1e-4, -2e-4, 5e-5])),
         ("accelerometer", Bandwidth(cutoff_hz=44.8)),
+        ("magnetometer", E.HardIron(value=[40.0, -25.0, 60.0])),
+        ("magnetometer", E.SoftIron(matrix=[[1.05, 0.03, -0.02], [0.03, 0.96, 0.01], [-0.02, 0.01, 1.02]])),
+        ("magnetometer", E.FrameRotation(angles=[0.01, -0.02, 0.015])),
     ]
+
+
+def _truth_of(ctx: SignalContext, triad: str) -> np.ndarray:
+    return {"gyro": ctx.omega_true_rad_s, "accelerometer": ctx.specific_force_true_m_s2,
+            "magnetometer": ctx.mag_body_ut}[triad]
 
 
 def test_every_kind_is_covered_or_declared_random_or_lossy():
@@ -70,7 +78,7 @@ def test_every_kind_is_covered_or_declared_random_or_lossy():
 
 @pytest.mark.parametrize("triad, effect", deterministic_effects(), ids=lambda v: getattr(v, "kind", v))
 def test_round_trip_compensate_apply_is_identity(ctx, triad, effect):
-    x = ctx.omega_true_rad_s if triad == "gyro" else ctx.specific_force_true_m_s2
+    x = _truth_of(ctx, triad)
     model = SensorModel("one", **{triad: (effect,)})
     y = model.apply_triad(triad, x, ctx, np.random.default_rng(0))
     assert np.abs(y - x).max() > 1e-7  # the effect does something
@@ -81,8 +89,10 @@ def test_round_trip_compensate_apply_is_identity(ctx, triad, effect):
 def test_whole_deterministic_model_round_trips_together(ctx):
     effs = deterministic_effects()
     model = SensorModel("all", gyro=tuple(e for t, e in effs if t == "gyro"),
-                        accelerometer=tuple(e for t, e in effs if t == "accelerometer"))
-    for triad, x in (("gyro", ctx.omega_true_rad_s), ("accelerometer", ctx.specific_force_true_m_s2)):
+                        accelerometer=tuple(e for t, e in effs if t == "accelerometer"),
+                        magnetometer=tuple(e for t, e in effs if t == "magnetometer"))
+    for triad in ("gyro", "accelerometer", "magnetometer"):
+        x = _truth_of(ctx, triad)
         y = model.apply_triad(triad, x, ctx, np.random.default_rng(0))
         assert np.abs(model.compensate_triad(triad, y, ctx) - x).max() <= 1e-12 * np.abs(x).max()
 
@@ -106,7 +116,7 @@ def test_lossy_effects_compensate_as_far_as_information_allows(ctx):
 )
 def test_analytic_sensitivity_matches_finite_differences(ctx, triad, effect):
     """Effects with a closed-form ∂y/∂θ (the others use the generic central differences)."""
-    x = (ctx.omega_true_rad_s if triad == "gyro" else ctx.specific_force_true_m_s2)[::50]
+    x = _truth_of(ctx, triad)[::50]
     sub = SignalContext(ctx.t_s[::50], ctx.omega_true_rad_s[::50], ctx.specific_force_true_m_s2[::50],
                         ctx.temperature_c[::50], ctx.quat_nb[::50], ctx.mag_body_ut[::50])
     analytic = effect.sensitivity(x, sub)

@@ -1,5 +1,7 @@
-"""Close the model loop (issue 5): residual → missing effect → refit → report before/after."""
+"""Close the model loop: residual → missing effect (a cause, not a proxy) → refit → report before/after."""
 
+from .candidates import CandidateFamily, Channel, register_family
 from .loop import DEFAULT_DECLARED, CloseloopResult, Finding, run_closeloop
 
-__all__ = ["run_closeloop", "CloseloopResult", "Finding", "DEFAULT_DECLARED"]
+__all__ = ["run_closeloop", "CloseloopResult", "Finding", "DEFAULT_DECLARED", "CandidateFamily", "Channel",
+           "register_family"]

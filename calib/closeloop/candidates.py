@@ -1,207 +1,317 @@
-"""Candidate effects from the shared vocabulary (``gyrosim.effects.EFFECTS``) as regressors.
+"""Candidate effects: what the loop may add to the declared model, built and described by their family.
 
-A candidate is an effect of the gyro triad whose output change is linear in its parameters at
-the null point: R(t) = ∂y/∂θ (N, 3, P) from the effect's own :meth:`Effect.sensitivity`,
-evaluated on the reference rate (body frame, rad/s) and the recording's context (specific force,
-temperature, attitude body→ENU, magnetic field).  The fitted θ is turned back into the same
-effect class with :meth:`Effect.with_params`, so what the loop finds can be injected by the
-simulator unchanged.
+A *candidate* is an effect of the gyro triad whose output change is linear in its parameters at
+the null point, R(t) = ∂y/∂θ (N, 3, P), taken from the effect's own :meth:`Effect.sensitivity` on
+the reference rate (body frame RFU, rad/s) and the recording's context (specific force,
+temperature, attitude body→ENU, magnetic field).  The fitted θ is turned back into the same effect
+class, so what the loop finds can be injected by the simulator unchanged.
 
-Two vocabulary entries need a parameterisation that is linear at the null point:
+Everything the loop needs to know about one effect kind lives in its :class:`CandidateFamily`
+(:mod:`calib.closeloop.families`): how its regressor is built, what it claims to depend on (its
+*driver*) and through which channel that driver reaches the regressor, the size that matters
+(its largest plausible size, for the identifiability gate), how to display and finalise what was fitted, and what
+recording would separate it from an effect of another driver.  Families register themselves with
+:func:`register_family`; the loop asks :func:`family_for` and never tests an effect's name.  A
+gyro effect of the vocabulary without a registered family is still proposed, through
+:class:`GenericFamily` (its default-constructed prototype's sensitivity).
 
-* ``earth_rate``: δ = C_nᵇ ω_ieⁿ is fitted as the 3-vector ω_ieⁿ (ENU); latitude
-  L = atan2(ω_U, ω_N) and |ω_ie| (7.29e-5 rad/s on Earth) are reported from it.
-* ``random_walk`` (bias drift, also standing for ``bias_instability``: on one recording the two
-  only differ in the spectrum of the same slow bias): a piecewise-linear bias with knots every
-  ``drift_knot_s``; its random-walk coefficient K is estimated afterwards by maximum likelihood
-  (:func:`calib.closeloop.drift.random_walk_mle`).
+Adding a candidate family (e.g. a magnetometer-driven term)::
 
-Effects that are not parameters of a deterministic term say why (:data:`NOT_CANDIDATES`).
+    @register_family
+    class MyFamily(CandidateFamily):
+        kinds = ("my_effect",)
+        driver = "the thing it depends on"
+        channel = Channel.OTHER_SENSOR
+        separated_by = "what recording separates it"
+        def build(self, kind, ctx, ref, options): ...     # → Candidate | Untestable
 """
 
 from __future__ import annotations
 
+import enum
 import math
-from dataclasses import dataclass, replace
-from typing import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable, ClassVar
 
 import numpy as np
 
-from gyrosim.effects import (EARTH_RATE_RAD_S, EFFECTS, Bias, Effect, EarthRate, GSensitivity, MagneticSensitivity,
-                             Misalignment, NonOrthogonality, RandomWalk, ScaleFactor, ScaleNonlinearity, SignalContext,
-                             TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale,
-                             ThermalHysteresis, TimeOffset)
-from gyrosim.rotations import quat_conjugate, quat_rotate
+from gyrosim.effects import EFFECTS, Effect, SignalContext
 
-DIMENSIONLESS = ("scale_factor", "nonorthogonality", "misalignment")
-DIMENSIONLESS_BOUND = 0.3
+if TYPE_CHECKING:  # annotations only
+    from .reference import Reference
 
-__all__ = ["Candidate", "build_candidate", "candidate_kinds", "NOT_CANDIDATES"]
+__all__ = ["Channel", "Candidate", "Untestable", "FittedTerm", "ReportedTerm", "BuildOptions", "CandidateFamily", "GenericFamily",
+           "register_family", "unregister_family", "family_for", "candidate_kinds", "build_candidate"]
 
-NOT_CANDIDATES = {
-    "white_noise": "the noise floor itself: its level is the held-out residual the loop reports, not a term to fit",
-    "jitter": "random sampling-time error: checked as residual variance growing with |dω/dt|² (structure tests)",
-    "bias_instability": "tested together with random_walk as 'bias drift' (one slow bias; one recording cannot "
-                        "separate the two spectra reliably)",
-    "bandwidth": "a first-order low-pass equals a time offset d = 1/(2π f_c) to first order in f/f_c; tested as "
-                 "time_offset, whose equivalent cutoff is reported",
-    "quantization": "not a residual term (RMS LSB/√12): detected from the output's granularity (checks)",
-    "saturation": "not a residual term: detected as samples at the rails (checks)",
-}
+
+class Channel(enum.IntEnum):
+    """How directly a candidate's regressor measures what the effect depends on (lower = more direct).
+
+    The confounding rule (:mod:`calib.closeloop.confounding`) prefers the lowest channel."""
+
+    RATE = 0          # the gyro's own input: the reference rate, its derivative, a constant
+    DEDICATED = 1     # a dedicated sensor of the quantity at the gyro (thermometer) or the reference attitude
+    OTHER_SENSOR = 2  # a quantity measured through another sensor whose own errors enter (accelerometer, magnetometer)
+    TIME = 3          # nothing measured: a function of time (the catch-all)
+
+    def describe(self) -> str:
+        return {Channel.RATE: "the gyro's own input rate (from the reference)",
+                Channel.DEDICATED: "a dedicated measurement of the quantity (thermometer at the gyro, reference attitude)",
+                Channel.OTHER_SENSOR: "another sensor whose own errors enter the regressor",
+                Channel.TIME: "time only (nothing measured)"}[self]
 
 
 @dataclass(frozen=True)
-class Candidate:
-    """One effect as columns of the design: what it is, its regressors, how to make the effect."""
+class Untestable:
+    """A candidate that cannot be built on this recording, and why (said in the report's "Not tested")."""
 
-    effect: str                              # vocabulary kind
-    regressors: np.ndarray                   # (N, 3, P) ∂y/∂θ, rad/s per parameter unit
+    kind: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    """Options of candidate construction that the loop passes through."""
+
+    drift_knot_s: float = 20.0                 # bias drift: knot spacing (s)
+    modelled_rate: np.ndarray | None = None    # output-stage terms: the error-stage output (I + S + N) ω + b (N, 3)
+
+
+@dataclass(frozen=True)
+class FittedTerm:
+    """A term of the final model as fitted on all rows (input of :meth:`CandidateFamily.report`)."""
+
+    kind: str
+    names: tuple[str, ...]
+    values: np.ndarray
+    sigmas: np.ndarray
+    effect: Effect                                   # the candidate's own effect at ``values``
+    total: np.ndarray | None                         # output stage: the value undone on the gyro before the fit
+    residual_without: Callable[[], tuple[np.ndarray, np.ndarray] | None]   # (row times (B,), residual (B, 3)) of
+    # the final model without this term (rate references), else None
+    candidate: "Candidate | None" = None
+
+    def params(self) -> dict[str, dict[str, float]]:
+        return {n: {"value": float(v), "sigma": float(s)} for n, v, s in zip(self.names, self.values, self.sigmas)}
+
+
+@dataclass(frozen=True)
+class ReportedTerm:
+    params: dict[str, dict[str, float]]
+    effect: Effect
+    summary: str
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """One effect as columns of the design: its family, regressors, parameters and how to make the effect.
+
+    ``regressors`` (N, 3, P) are ∂y/∂θ per sample (rad/s per parameter unit).  A family whose
+    per-sample regressors would be large (bias drift: a column per knot) gives ``lazy`` instead and
+    ``apply`` (θ ↦ Σ R θ without building R); ``rows`` are the design rows (M, P) of a linear
+    reference, computed once."""
+
+    family: "CandidateFamily"
+    kind: str
     param_names: tuple[str, ...]
     to_effect: Callable[[np.ndarray], Effect]
-    follows: str                             # what the residual follows, in words
-    follows_series: np.ndarray               # (N, 3) the regressor signal, for plots
-    implausible: Callable[[np.ndarray], str | None] | None = None  # physics check of fitted θ
-
-    def check(self, theta: np.ndarray) -> str | None:
-        """Why fitted parameters cannot be this effect (None: plausible)."""
-        if self.effect in DIMENSIONLESS and np.any(np.abs(theta) >= 0.99 * DIMENSIONLESS_BOUND):
-            return (f"fitted {self.effect} reaches ±{DIMENSIONLESS_BOUND:g} (a {DIMENSIONLESS_BOUND * 100:.0f} % axis error): "
-                    "not a sensor defect but a different solution of the self-consistency equations")
-        return self.implausible(theta) if self.implausible is not None else None
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Box for a nonlinear fit: dimensionless axis errors within ±DIMENSIONLESS_BOUND (a real
-        scale or axis error is a few %; the pose-to-pose equations have far-away spurious solutions)."""
-        b = DIMENSIONLESS_BOUND if self.effect in DIMENSIONLESS else np.inf
-        return np.full(self.n_params, -b), np.full(self.n_params, b)
+    follows: str                                  # what the residual follows, in words
+    follows_series: np.ndarray | None             # (N, 3) the driver signal, for plots
+    regressors: np.ndarray | None = None
+    rows: np.ndarray | None = None
+    lazy: Callable[[], np.ndarray] | None = None
+    apply: Callable[[np.ndarray], np.ndarray] | None = None
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n_params(self) -> int:
-        return self.regressors.shape[2]
+        return len(self.param_names)
+
+    def sample_regressors(self) -> np.ndarray:
+        """(N, 3, P) ∂y/∂θ per sample (built on first use for lazy families, then kept)."""
+        if self.regressors is not None:
+            return self.regressors
+        if "reg" not in self._cache:
+            self._cache["reg"] = self.lazy()
+        return self._cache["reg"]
+
+    def correction(self, theta: np.ndarray) -> np.ndarray:
+        """Σ_j R_j θ_j per sample (N, 3), rad/s."""
+        if self.apply is not None and self.regressors is None and "reg" not in self._cache:
+            return self.apply(np.asarray(theta, float))
+        return self.sample_regressors() @ np.asarray(theta, float)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        b = self.family.bound
+        return np.full(self.n_params, -b), np.full(self.n_params, b)
 
 
-def _null_candidate(proto: Effect, ctx: SignalContext, follows: str, series: np.ndarray) -> Candidate:
-    x = ctx.omega_true_rad_s
-    reg = np.asarray(proto.sensitivity(x, ctx), dtype=float)
-    return Candidate(proto.kind, reg, tuple(proto.param_names()), proto.with_params, follows, series)
+class CandidateFamily:
+    """What the loop knows about one or more effect kinds (see the module docstring).
 
+    Subclasses set the class attributes and implement :meth:`build`; the defaults of the other
+    methods suit a linear, error-stage effect whose regressor is its driver measured directly."""
 
-def _earth_rate(ctx: SignalContext) -> Candidate:
-    q = ctx.quat_nb
-    reg = np.stack([quat_rotate(quat_conjugate(q), np.broadcast_to(e, (q.shape[0], 3))) for e in np.eye(3)], axis=2)
+    kinds: ClassVar[tuple[str, ...]] = ()
+    triad: ClassVar[str] = "gyro"
+    driver: ClassVar[str] = ""                   # what the effect claims to depend on, in words
+    quantity: ClassVar[str] = ""                 # short token of the driver ("rate", "temperature", ...)
+    channel: ClassVar[Channel] = Channel.RATE
+    separated_by: ClassVar[str] = ""             # what recording or motion separates it from other drivers
+    catch_all: ClassVar[bool] = False            # chosen only when no measured-channel candidate helps
+    output_stage: ClassVar[bool] = False         # linearised about the value found so far (see loop)
+    bound: ClassVar[float] = math.inf            # |θ| box of a nonlinear fit
+    display: ClassVar[tuple[float, str]] = (1.0, "SI")   # report factor and unit of the parameters
 
-    def to_effect(theta: np.ndarray) -> Effect:
-        return EarthRate(latitude_rad=float(math.atan2(theta[2], theta[1])))
+    def build(self, kind: str, ctx: SignalContext, ref: "Reference", options: BuildOptions) -> Candidate | Untestable:
+        raise NotImplementedError
 
-    def implausible(theta: np.ndarray) -> str | None:
-        ratio = float(np.linalg.norm(theta)) / EARTH_RATE_RAD_S
-        if not 0.5 <= ratio <= 1.5:
-            return (f"the rate fixed in ENU is {ratio:.2g} × the Earth rate: not the Earth's rotation (something "
-                    "else that follows the attitude, e.g. gravity or the magnetic field)")
+    # ------------------------------------------------------------ identifiability (calib.closeloop.identify)
+    def plausible_max(self, kind: str, ctx: SignalContext) -> float | np.ndarray:
+        """Each parameter's largest plausible |θ| (its units): an effect this size must be detectable for
+        the candidate to count as identifiable, and a fit beyond it is refused.  NaN: no stated size."""
+        return math.nan
+
+    def driver_signal(self, cand: "Candidate", ref: "Reference") -> np.ndarray | None:
+        """The candidate's regressor signal (``cand.follows_series``) as predicted from the driver alone
+        (N, k), when the regressor may also move through something else (another sensor's own errors,
+        the model's own terms); None when the regressor is the driver itself.  The identifiability
+        gate requires the driver to explain most of the signal's variation."""
         return None
 
-    return Candidate("earth_rate", reg, ("earth_rate.omega_ie_enu[0]", "earth_rate.omega_ie_enu[1]",
-                                         "earth_rate.omega_ie_enu[2]"), to_effect,
-                     "the attitude (a constant rate fixed in the ENU frame)", reg[:, :, 2], implausible)
+    def proxy_reason(self, share: float, ref: "Reference") -> str:
+        """Why the regressor follows something other than the driver (share < ½), in words."""
+        return (f"{self.driver} explains only {share:.0%} of its regressor's variation (needs ≥ 50 %): the rest "
+                f"comes through {self.channel.describe()}")
+
+    def measurement_check(self, ctx: SignalContext) -> str | None:
+        """Why the driver's own measurement is too coarse for a regressor (None: fine)."""
+        return None
+
+    def unexcited(self, kind: str, ref: "Reference") -> str:
+        """Why the regressor has no excitation here (rank 0 against the model), in words."""
+        return (f"no excitation on this recording: {self.driver} does not vary independently of what the model "
+                "already holds (its regressor is zero or spanned by the model)")
+
+    # ------------------------------------------------------------ reporting
+    def implausible(self, kind: str, theta: np.ndarray, sigma: np.ndarray, ctx: SignalContext) -> str | None:
+        """Why fitted parameters (with their σ) cannot be this effect (None: plausible): a parameter
+        beyond the fit box, or beyond the largest plausible size by more than 3σ."""
+        if math.isfinite(self.bound) and np.any(np.abs(theta) >= 0.99 * self.bound):
+            return (f"fitted {kind} reaches ±{self.bound:g}: not a sensor defect but a different solution of the "
+                    "reference's equations")
+        big = np.broadcast_to(np.asarray(self.plausible_max(kind, ctx), float), theta.shape)
+        over = (np.abs(theta) - 3 * sigma > big) & np.isfinite(big)
+        if np.any(over):
+            j = int(np.argmax(np.where(over, np.abs(theta) / big, 0)))
+            f, unit = self.display
+            return (f"fitted {kind} reaches {theta[j] * f:.3g} {unit}, beyond the largest plausible size "
+                    f"({big[j] * f:.3g} {unit}) by more than 3σ: a proxy for something else, not this effect")
+        return None
+
+    def summary(self, kind: str, values: np.ndarray, sigmas: np.ndarray) -> str:
+        f, unit = self.display
+        vals = ", ".join(f"{v * f:.3g}±{s * f:.2g}" for v, s in zip(values, sigmas))
+        return f"{kind} [{vals}] {unit}"
+
+    def caveat(self, kind: str, reference_kind: str) -> str | None:
+        """What else, in this reference, looks exactly like the effect (appended to the trace)."""
+        return None
+
+    def absorb(self, total: np.ndarray | None, increment: np.ndarray) -> np.ndarray:
+        """Output-stage families: the value found so far plus the fitted remainder."""
+        return increment if total is None else total + increment
+
+    def undo(self, kind: str, total: np.ndarray, gyro_rad_s: np.ndarray, ctx: SignalContext) -> np.ndarray:
+        """Output-stage families: the measured gyro with the effect of parameters ``total`` undone."""
+        raise NotImplementedError
+
+    def report(self, kind: str, fitted: "FittedTerm") -> "ReportedTerm":
+        """What the report says of a term the loop added: its parameters (SI, 1σ), the effect the
+        simulator can inject, and a one-line summary."""
+        return ReportedTerm(fitted.params(), fitted.effect, self.summary(kind, fitted.values, fitted.sigmas))
+
+    def extra_covariance(self, cand: "Candidate", influence: np.ndarray, ref: "Reference",
+                         residual_without: Callable[[], tuple[np.ndarray, np.ndarray] | None]) -> np.ndarray | None:
+        """Covariance (P, P) the term's own stochastic part adds to every parameter of the final model,
+        given the influence U = (JᵀJ)⁺Jᵀ (P, M) of the rows on θ̂ (None: nothing)."""
+        return None
+
+    def compare_with_truth(self, kind: str, finding_params: dict, declared_params: dict, true_effect: Effect,
+                           device: dict[str, Effect]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(estimate, truth, σ) of what the loop can identify of ``true_effect`` (for the suites)."""
+        vals = np.array([v["value"] for v in finding_params.values()])
+        sig = np.array([v["sigma"] for v in finding_params.values()])
+        return vals, np.asarray(true_effect.params()), sig
 
 
-def _bias_drift(ctx: SignalContext, knot_s: float) -> Candidate:
-    t = ctx.t_s
-    span = t[-1] - t[0]
-    k = min(max(2, int(math.ceil(span / knot_s)) + 1), 41)  # ≤ 40 intervals: long records get longer ones
-    knots = np.linspace(t[0], t[-1], k)
-    hats = np.stack([np.interp(t, knots, np.eye(k)[j]) for j in range(k)], axis=1)  # (N, k)
-    reg = np.zeros((t.size, 3, 3 * k))
-    for i in range(3):
-        reg[:, i, i * k : (i + 1) * k] = hats
-    names = tuple(f"random_walk.knot[{i}][{j}]" for i in range(3) for j in range(k))
-
-    def to_effect(theta: np.ndarray) -> Effect:  # K is set by the maximum-likelihood step afterwards
-        return RandomWalk(value=np.zeros(3))
-
-    return Candidate("random_walk", reg, names, to_effect, f"time (piecewise-linear bias, knots every {knots[1] - knots[0]:.0f} s)",
-                     np.broadcast_to(t[:, None], (t.size, 3)))
+_FAMILIES: dict[str, CandidateFamily] = {}
 
 
-def _temperature_range(ctx: SignalContext) -> tuple[float, tuple[float, float]]:
-    temp = ctx.temperature_c
-    return float(np.mean(temp)), (float(np.min(temp)) - 1.0, float(np.max(temp)) + 1.0)
+def register_family(cls: type[CandidateFamily]) -> type[CandidateFamily]:
+    """Class decorator: make the family's kinds candidates of the loop (a later registration wins)."""
+    inst = cls()
+    for kind in cls.kinds:
+        _FAMILIES[kind] = inst
+    return cls
 
 
-def build_candidate(kind: str, ctx: SignalContext, *, drift_knot_s: float = 20.0,
-                    modelled_rate: np.ndarray | None = None) -> Candidate | str:
-    """The candidate for vocabulary ``kind`` on this context, or the reason it cannot be tested.
+class GenericFamily(CandidateFamily):
+    """A gyro effect of the vocabulary that no family describes: its default-constructed prototype's
+    sensitivity is the regressor, its own parameters the columns (only the rank gates it)."""
 
-    ``modelled_rate``: for output-stage effects (time offset), the sensor's error-stage output
-    (I + S + N) ω + b of the current model, which is what the output stage delays; without it the
-    delay would absorb the scale factor (d̂ = d (1 + s)) and leave N ω̇ in the residual."""
-    if kind == "time_offset" and modelled_rate is not None:
-        ctx = replace(ctx, omega_true_rad_s=modelled_rate)
-    if kind in NOT_CANDIDATES:
-        return NOT_CANDIDATES[kind]
+    driver = "its own inputs"
+    quantity = "unknown"
+    channel = Channel.OTHER_SENSOR
+    separated_by = "a recording that varies its inputs independently"
+
+    def build(self, kind, ctx, ref, options):
+        cls = EFFECTS[kind]
+        try:
+            proto = cls()
+            reg = np.asarray(proto.sensitivity(ctx.omega_true_rad_s, ctx), dtype=float)
+        except Exception as err:  # noqa: BLE001 - an effect needing context the recording lacks says so
+            return Untestable(kind, f"cannot be evaluated on this recording: {err}")
+        return Candidate(self, kind, tuple(proto.param_names()), proto.with_params, f"the inputs of {kind}", None, reg)
+
+
+def unregister_family(kind: str) -> None:
+    """Remove ``kind``'s registered family (a test's toy family, or to fall back to the generic one)."""
+    _FAMILIES.pop(kind, None)
+
+
+def family_for(kind: str) -> CandidateFamily | Untestable:
+    """The family proposing ``kind``, or why the vocabulary entry is no candidate."""
+    from . import families  # noqa: F401 - registers the vocabulary's families
+
+    if kind in _FAMILIES:
+        return _FAMILIES[kind]
     if kind not in EFFECTS:
-        return f"not in the effect vocabulary (known: {', '.join(EFFECTS)})"
-    if "gyro" not in EFFECTS[kind].triads:
-        return "not an effect of the gyro triad"
-    w = ctx.omega_true_rad_s
-    dw = np.gradient(w, ctx.t_s, axis=0)
-    simple: dict[str, tuple[Callable[[], Effect], str, np.ndarray]] = {
-        "bias": (Bias, "a constant", np.ones_like(w)),
-        "scale_factor": (ScaleFactor, "the rate on the same axis", w),
-        "nonorthogonality": (NonOrthogonality, "the rate on the other axes (symmetric)", w),
-        "misalignment": (Misalignment, "the rate on the other axes", w),
-        "scale_nonlinearity": (ScaleNonlinearity, "ω·|ω| on the same axis", w * np.abs(w)),
-        "time_offset": (TimeOffset, "dω/dt", dw),
-        "g_sensitivity": (GSensitivity, "the specific force", ctx.specific_force_true_m_s2),
-    }
-    if kind in simple:
-        make, follows, series = simple[kind]
-        return _null_candidate(make(), ctx, follows, series)
-    if kind == "magnetic_sensitivity":
-        if ctx.mag_body_ut is None:
-            return "the recording has no magnetometer channel"
-        return _null_candidate(MagneticSensitivity(), ctx, "the magnetic field", ctx.mag_body_ut)
-    if kind in ("temperature_bias", "temperature_scale", "thermal_hysteresis", "temperature_pwl", "temperature_rbf"):
-        if ctx.temperature_c is None:
-            return "the recording has no temperature channel"
-        span = float(np.ptp(ctx.temperature_c))
-        if span < 0.5:
-            return f"temperature span {span:.2f} °C is too small to fit a temperature term (needs ≥ 0.5 °C)"
-        t_ref, rng = _temperature_range(ctx)
-        lo, hi = float(np.min(ctx.temperature_c)), float(np.max(ctx.temperature_c))
-        temp_series = np.broadcast_to((ctx.temperature_c - t_ref)[:, None], w.shape)
-        if kind == "temperature_pwl":  # seed 001: values at 5 temperature points, linear between
-            proto = TemperaturePiecewise(points_c=np.linspace(lo, hi, 5), bias=np.zeros((3, 5)), scale=np.zeros((3, 5)))
-            return _null_candidate(proto, ctx, "the temperature (piecewise linear)", temp_series)
-        if kind == "temperature_rbf":  # seed 003: Gaussian RBF on ΔT and ΔT², 6 centres
-            centres = np.linspace(lo, hi, 6)
-            proto = TemperatureRBF(centres_c=centres, width_c=float(centres[1] - centres[0]), t_ref_c=t_ref,
-                                   weights=np.zeros((3, 6)))
-            return _null_candidate(proto, ctx, "the temperature (RBF of ΔT, ΔT²)", temp_series)
-        if kind == "thermal_hysteresis":
-            proto = ThermalHysteresis(tau_s=300.0)
-            return _null_candidate(proto, ctx, "the low-passed temperature rate dT/dt",
-                                   np.broadcast_to(proto.regressor(ctx)[:, None], w.shape))
-        cls = TemperatureBias if kind == "temperature_bias" else TemperatureScale
-        proto = cls(coefficients=np.zeros((3, 1)), t_ref_c=t_ref, range_c=rng)
-        temp = np.broadcast_to((ctx.temperature_c - t_ref)[:, None], w.shape)
-        return _null_candidate(proto, ctx, "the temperature" if kind == "temperature_bias" else "temperature × rate",
-                               temp if kind == "temperature_bias" else temp * w)
-    if kind == "earth_rate":
-        if ctx.quat_nb is None:
-            return "needs an attitude (truth or optical orientation) to project the Earth rate"
-        return _earth_rate(ctx)
-    if kind == "random_walk":
-        return _bias_drift(ctx, drift_knot_s)
-    return "no parameterisation for the loop yet"
+        return Untestable(kind, f"not in the effect vocabulary (known: {', '.join(EFFECTS)})")
+    cls = EFFECTS[kind]
+    if "gyro" not in cls.triads:
+        return Untestable(kind, "not an effect of the gyro triad")
+    if cls.stochastic or cls.stage == "output":
+        return Untestable(kind, "a random process or output transform with no family to linearise it")
+    return GenericFamily()
 
 
 def candidate_kinds() -> list[str]:
-    """Every gyro-triad kind of the vocabulary, in vocabulary order."""
-    return [k for k, cls in EFFECTS.items() if "gyro" in cls.triads]
+    """Every gyro-triad kind of the vocabulary, in vocabulary order (then families' own kinds)."""
+    from . import families  # noqa: F401
+
+    kinds = [k for k, cls in EFFECTS.items() if "gyro" in cls.triads]
+    return kinds + [k for k, f in _FAMILIES.items() if k not in kinds and f.triad == "gyro"]
 
 
-def earth_rate_summary(theta: np.ndarray) -> dict[str, float]:
-    """Latitude (°) and |ω_ie| relative to the WGS-84 value from the fitted ENU vector."""
-    return {"latitude_deg": math.degrees(math.atan2(theta[2], theta[1])),
-            "magnitude_over_wgs84": float(np.linalg.norm(theta) / EARTH_RATE_RAD_S)}
+def build_candidate(kind: str, ctx: SignalContext, ref: "Reference", options: BuildOptions | None = None
+                    ) -> Candidate | Untestable:
+    """The candidate for ``kind`` on this reference (design rows computed for a linear one), or why not."""
+    fam = family_for(kind)
+    if isinstance(fam, Untestable):
+        return fam
+    cand = fam.build(kind, ctx, ref, options or BuildOptions())
+    if isinstance(cand, Untestable) or cand.rows is not None or not ref.linear:
+        return cand
+    return Candidate(cand.family, cand.kind, cand.param_names, cand.to_effect, cand.follows, cand.follows_series,
+                     cand.regressors, ref.jacobian(cand.sample_regressors()), cand.lazy, cand.apply, cand._cache)

@@ -1,51 +1,55 @@
-"""The model loop (issue 5): fit the declared model, find what its residual lacks, add it, repeat.
+"""The model loop: fit the declared model, find what its residual lacks, add it, repeat — naming causes, not proxies.
 
-1. Reference (:func:`~calib.closeloop.reference.build_reference`): truth rate > optical
-   orientation > at rest (zero rate) | gravity self-consistency.
-2. Declared model: the vocabulary effects the user names (default bias, scale factor,
-   non-orthogonality: Zhou 2020 eq. 1), fitted by least squares against the reference.
-3. Every other gyro effect of the vocabulary is a candidate; each is scored by its held-out
-   information gain G (:mod:`calib.closeloop.fit`): fitted on the even held-out groups (4 s
-   stretches by default), scored on the odd ones, penalised by BIC for the parameters it adds.
-4. The candidate with the largest G > 0 joins the model; repeat until no candidate has G > 0.
-   Bias drift (a spline in time) can mimic any slow term, so it is chosen only in a round where
-   no candidate tied to a measured channel (temperature, specific force, field, rate) has G > 0.
-   A runner-up whose G is within the winner's own penalty of it is reported as *not
-   distinguished* from the winner (both explain the same residual on this recording).
-5. What remains is tested for structure no candidate explains (:mod:`calib.closeloop.structure`).
+Small named steps over typed values:
 
-Errors are reported on held-out rows only (the model fitted on the fit rows).
+1. **reference** (:func:`~calib.closeloop.reference.build_reference`): truth rate > optical
+   orientation > at rest (zero rate) | gravity self-consistency; its rows are split into
+   alternating fit / held-out stretches (4 s by default).
+2. **residual of the declared model**: the vocabulary effects the user names (default bias,
+   scale factor, non-orthogonality: Zhou 2020 eq. 1), fitted by least squares on the fit rows
+   (:func:`~calib.closeloop.state.refit`).
+3. **candidates**: every other gyro effect of the vocabulary, built by its family
+   (:mod:`calib.closeloop.families`); one that cannot be built says why.
+4. **select** (:func:`~calib.closeloop.select.run_round`): identifiability gate → held-out gain →
+   confounding rule → acceptance on every held-out metric.
+5. **add**: the accepted term joins the model; repeat until no candidate is accepted.
+6. **report**: parameters on all rows, errors on held-out rows, the trace of each finding, what
+   could not be tested and why, confounded groups, refused additions and metric disagreements, and
+   the structure no candidate explains (:mod:`calib.closeloop.structure`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-from gyrosim.effects import EFFECTS, RandomWalk, TimeOffset
+from gyrosim.effects import EFFECTS
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_angle_between
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0
 
-from ..inputs import check_recording
-from ..timeblocks import block_means, time_block_index
-from .candidates import Candidate, build_candidate, candidate_kinds, earth_rate_summary
-from .drift import random_walk_mle
-from .fit import FitResult, fit_model, held_out_score, held_out_split
-from .reference import GravityReference, RateReference, Reference, build_reference
+from ..inputs import CLOSELOOP, check_recording
+from .candidates import BuildOptions, Candidate, FittedTerm, Untestable, build_candidate, candidate_kinds, family_for
+from .confounding import ConfoundedGroup, overlap_summary
+from .fit import FitResult, cluster_robust, design_rows, fit_model
+from .identify import Excitation
+from .jsonview import JsonView
+from .metrics import MetricChange, compare_metrics, explain_disagreement
+from .reference import GravityReference, NoReferenceError, RateReference, Reference, build_reference
+from .select import Rejection, RoundOutcome, run_round
+from .state import LoopSetup, ModelState, refit
 from .structure import channel_correlations, spectral_lines, variance_growth, whiteness
 
-__all__ = ["Finding", "CloseloopResult", "run_closeloop", "DEFAULT_DECLARED"]
+__all__ = ["Finding", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED"]
 
 DEFAULT_DECLARED = ("bias", "scale_factor", "nonorthogonality")
-_DIMENSIONLESS = ("scale_factor", "nonorthogonality", "misalignment")
-CATCH_ALL = ("random_walk",)  # chosen only when no candidate tied to a measured channel is worth adding
-DEG = 180.0 / math.pi
+RAD2DEG = 180.0 / math.pi
 
 
 @dataclass(frozen=True)
@@ -59,7 +63,50 @@ class Finding:
     trace: str
 
 
-@dataclass
+@dataclass(frozen=True)
+class Unexplained(JsonView):
+    """Structure in the final residual that no candidate explains."""
+
+    spectral_lines: tuple = ()
+    channel_correlations: tuple = ()
+    whiteness: dict = field(default_factory=dict)
+    variance_growth: dict | None = None
+    summary: str = ""
+
+    def to_json(self) -> dict:
+        return {"spectral_lines": [asdict(x) for x in self.spectral_lines],
+                "channel_correlations": [asdict(x) for x in self.channel_correlations],
+                "whiteness": dict(self.whiteness), "variance_growth": self.variance_growth, "summary": self.summary}
+
+
+@dataclass(frozen=True)
+class Checks(JsonView):
+    """What the output itself says: quantization step per axis (rad/s), saturated samples, input warnings."""
+
+    quantization_lsb: dict
+    saturated_samples: int
+    warnings: tuple[str, ...]
+
+    def to_json(self) -> dict:
+        return {"quantization_lsb": self.quantization_lsb, "saturated_samples": self.saturated_samples,
+                "warnings": list(self.warnings)}
+
+
+@dataclass(frozen=True)
+class RoundRecord:
+    """A round as the report shows it: every candidate's score, the gate, what was added or refused."""
+
+    round: int
+    scores: tuple
+    excitations: tuple[Excitation, ...]
+    added: str | None
+    rejections: tuple[Rejection, ...]
+
+    def table(self) -> list[dict]:
+        return [s.to_json() for s in self.scores]
+
+
+@dataclass(frozen=True)
 class CloseloopResult:
     reference: str
     reference_description: str
@@ -67,18 +114,22 @@ class CloseloopResult:
     declared: list[str]
     declared_params: dict[str, dict[str, float]]
     found: list[Finding]
-    unexplained: dict
+    unexplained: Unexplained
     not_tested: dict[str, str]
-    not_distinguished: list[dict]
+    not_distinguished: list[ConfoundedGroup]
     error_before: dict[str, float]
     error_after: dict[str, float]
-    checks: dict
-    rounds: list[list[dict]]
-    row_time_s: np.ndarray = field(repr=False, default=None)
-    row_axis: np.ndarray = field(repr=False, default=None)
-    held_out_rows: np.ndarray = field(repr=False, default=None)
-    residual_before: np.ndarray = field(repr=False, default=None)
-    residual_after: np.ndarray = field(repr=False, default=None)
+    checks: Checks
+    rounds: list[RoundRecord]
+    metrics: list[MetricChange] = field(default_factory=list)       # declared → after the loop, held out
+    rejected: list[Rejection] = field(default_factory=list)
+    disagreements: list[str] = field(default_factory=list)
+    tested: list[str] = field(default_factory=list)                 # candidates that passed the gate
+    row_time_s: np.ndarray | None = field(repr=False, default=None)
+    row_axis: np.ndarray | None = field(repr=False, default=None)
+    held_out_rows: np.ndarray | None = field(repr=False, default=None)
+    residual_before: np.ndarray | None = field(repr=False, default=None)
+    residual_after: np.ndarray | None = field(repr=False, default=None)
     follows_series: dict = field(repr=False, default_factory=dict)
     rows_of: Callable | None = field(repr=False, default=None)   # per-sample (N, 3) → residual rows
 
@@ -86,40 +137,113 @@ class CloseloopResult:
         return {
             "reference": self.reference, "reference_description": self.reference_description, "notes": self.notes,
             "declared": self.declared, "declared_params": self.declared_params,
-            "found": [asdict(f) for f in self.found], "unexplained": self.unexplained,
-            "not_tested": self.not_tested, "not_distinguished": self.not_distinguished,
-            "error_before": self.error_before, "error_after": self.error_after, "checks": self.checks,
-            "rounds": self.rounds,
+            "found": [asdict(f) for f in self.found], "unexplained": self.unexplained.to_json(),
+            "not_tested": self.not_tested, "not_distinguished": [g.to_json() for g in self.not_distinguished],
+            "error_before": self.error_before, "error_after": self.error_after, "checks": self.checks.to_json(),
+            "rounds": [r.table() for r in self.rounds],
+            "metrics": [m.to_json() for m in self.metrics], "rejected": [r.to_json() for r in self.rejected],
+            "disagreements": self.disagreements, "tested": self.tested,
+            "identifiability": [e.to_json() for r in self.rounds for e in r.excitations],
         }
 
 
-def _bounds(cands: list[Candidate]) -> tuple[np.ndarray, np.ndarray]:
-    lo = [c.bounds()[0] for c in cands]
-    hi = [c.bounds()[1] for c in cands]
-    return (np.concatenate(lo), np.concatenate(hi)) if cands else (np.zeros(0), np.zeros(0))
+# ================================================================ steps
+def _check_declared(declared) -> list[str]:
+    declared = list(declared)
+    unknown = [k for k in declared if k not in EFFECTS]
+    if unknown:
+        raise RecordingError(f"--declared: unknown effect(s) {unknown}; the vocabulary has {', '.join(EFFECTS)}")
+    return declared
 
 
-def _stack(cands: list[Candidate], n: int) -> np.ndarray:
-    return np.concatenate([c.regressors for c in cands], axis=2) if cands else np.zeros((n, 3, 0))
+def _declared_terms(setup: LoopSetup, declared: list[str]) -> tuple[Candidate, ...]:
+    terms = []
+    for kind in declared:
+        c = build_candidate(kind, setup.ref.ctx, setup.ref, setup.options)
+        if isinstance(c, Untestable):
+            raise RecordingError(f"declared effect {kind!r} cannot be fitted here: {c.reason}")
+        terms.append(c)
+    return tuple(terms)
 
 
-def _params(cands: list[Candidate], fit: FitResult) -> list[dict[str, dict[str, float]]]:
-    out, i = [], 0
-    sig = np.sqrt(np.maximum(np.diag(fit.cov), 0.0))
-    for c in cands:
-        out.append({name: {"value": float(fit.theta[i + j]), "sigma": float(sig[i + j])}
-                    for j, name in enumerate(c.param_names)})
-        i += c.n_params
-    return out
+def _fit_declared(setup: LoopSetup, terms: tuple[Candidate, ...]) -> ModelState:
+    ref = setup.ref
+    if setup.held_rows.sum() < 3 or setup.fit_rows.sum() < 3:
+        raise RecordingError(
+            f"the recording is too short for a held-out split: {setup.fit_rows.sum()} fit and {setup.held_rows.sum()} "
+            f"held-out rows with {ref.holdout_s:g} s held-out groups; record longer or pass a shorter --holdout")
+    state = refit(setup, terms)
+    if isinstance(ref, GravityReference):
+        ref.reweight(state.fit.residual)
+        state = refit(setup, terms, theta0=state.fit.theta)
+    return state
 
 
-def _theta_of(cands: list[Candidate], theta: np.ndarray, kind: str) -> np.ndarray:
-    i = 0
-    for c in cands:
-        if c.effect == kind:
-            return theta[i : i + c.n_params]
-        i += c.n_params
-    raise KeyError(kind)
+def _pool(setup: LoopSetup, declared: list[str], kinds: list[str] | None) -> tuple[dict[str, Candidate], dict[str, str]]:
+    pool: dict[str, Candidate] = {}
+    not_tested: dict[str, str] = {}
+    for kind in kinds if kinds is not None else candidate_kinds():
+        if kind in declared:
+            continue
+        c = build_candidate(kind, setup.ref.ctx, setup.ref, setup.options)
+        if isinstance(c, Untestable):
+            not_tested[kind] = c.reason
+        else:
+            pool[kind] = c
+    return pool, not_tested
+
+
+def run_closeloop(
+    rec: Recording,
+    declared: tuple[str, ...] | list[str] = DEFAULT_DECLARED,
+    *,
+    reference: str | None = None,
+    holdout_s: float = 4.0,
+    candidates: list[str] | None = None,
+    max_rounds: int = 6,
+    drift_knot_s: float = 20.0,
+    progress: Callable[[str], None] | None = None,
+) -> CloseloopResult:
+    """Run the loop on a recording (the input is not modified); see the module docstring.
+
+    BLAS runs single-threaded inside (the project's rule for many small factorizations, as in
+    ``calib.mag``): a QR of 20 000 × 130 rows took 0.15 s on one thread and 7.5 s with OpenBLAS's
+    threads contending on the loaded 2-core machine (measured, same run)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _run(rec, declared, reference=reference, holdout_s=holdout_s, candidates=candidates,
+                    max_rounds=max_rounds, drift_knot_s=drift_knot_s, progress=progress)
+
+
+def _run(rec: Recording, declared, *, reference, holdout_s, candidates, max_rounds, drift_knot_s,
+         progress) -> CloseloopResult:
+    declared = _check_declared(declared)
+    check = check_recording(rec, allow_gaps=True, requirements=CLOSELOOP)
+    try:  # saturated samples carry no information about the rate: their rows are left out
+        ref = build_reference(rec, holdout_s=holdout_s, prefer=reference, exclude=check.excluded)
+    except NoReferenceError as err:
+        return _no_reference(rec, declared, str(err), check)
+    setup = LoopSetup.of(rec, ref, BuildOptions(drift_knot_s=drift_knot_s), progress or (lambda s: None))
+    declared_state = _fit_declared(setup, _declared_terms(setup, declared))
+    pool, not_tested = _pool(setup, declared, candidates)
+    state = declared_state
+    outcomes: list[RoundOutcome] = []
+    for rnd in range(1, max_rounds + 1):
+        outcome, pool, gone = run_round(setup, state, declared_state, pool, rnd)
+        outcomes.append(outcome)
+        for e in outcome.excitations:       # tested this round: an earlier "not identifiable" no longer holds
+            if e.identifiable:
+                not_tested.pop(e.effect, None)
+        not_tested.update(gone)             # the latest reason of every candidate not (yet) taken
+        if outcome.added is None:
+            break
+        not_tested.pop(outcome.added, None)
+        state = outcome.state
+    return _report(setup, check, declared, declared_state, state, outcomes, not_tested)
+
+
+# ================================================================ report
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
 def _quantization(y: np.ndarray) -> dict:
@@ -135,33 +259,14 @@ def _quantization(y: np.ndarray) -> dict:
     return out
 
 
-def _rms(x: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
+def _checks(rec: Recording, check) -> Checks:
+    return Checks(_quantization(np.asarray(rec.gyro_rad_s)), int(check.saturated.sum()), tuple(check.warnings))
 
 
-def _summary(kind: str, values: np.ndarray, sigmas: np.ndarray) -> str:
-    if kind == "time_offset":
-        d, s = values[0], sigmas[0]
-        fc = 1 / (2 * math.pi * abs(d)) if d else math.inf
-        return f"time offset of {d * 1e3:.2f} ± {s * 1e3:.2f} ms (≡ first-order bandwidth {fc:.0f} Hz)"
-    if kind == "earth_rate":
-        e = earth_rate_summary(values)
-        return f"a rate fixed in ENU: latitude {e['latitude_deg']:.1f}°, |ω| = {e['magnitude_over_wgs84']:.2f} × Earth rate"
-    if kind == "random_walk":
-        return f"bias drift: knot biases RMS {np.std(values) * DEG:.4f} °/s"
-    unit = {"g_sensitivity": (DEG * G0, "°/s/g"), "temperature_bias": (DEG, "°/s/°C"),
-            "temperature_scale": (1e6, "ppm/°C"), "misalignment": (1e3, "mrad"),
-            "scale_nonlinearity": (1.0, "1/(rad/s)"), "magnetic_sensitivity": (DEG * 3600, "°/h/µT"),
-            "thermal_hysteresis": (DEG, "(°/s)/(°C/s)"), "bias": (DEG, "°/s"), "scale_factor": (1e6, "ppm"),
-            "nonorthogonality": (1e3, "mrad")}.get(kind, (1.0, "SI"))
-    vals = ", ".join(f"{v * unit[0]:.3g}±{s * unit[0]:.2g}" for v, s in zip(values, sigmas))
-    return f"{kind} [{vals}] {unit[1]}"
-
-
-def _attitude_rms(ref: Reference, rec: Recording, corrected: np.ndarray) -> float | None:
+def _attitude_rms(rec: Recording, corrected: np.ndarray) -> float | None:
     """Strapdown orientation error RMS (°) over the movement phase (BROAD's definition: the
     ``movement`` mask; else the whole record), integrated from its first sample with the reference
-    orientation there."""
+    orientation there.  Not held out: one integration over fit and held-out stretches alike."""
     tr = rec.truth
     if tr is None or tr.quat_nb is None:
         return None
@@ -174,7 +279,175 @@ def _attitude_rms(ref: Reference, rec: Recording, corrected: np.ndarray) -> floa
     q = integrate_gyro(rec.t_s[start:b], corrected[start:b], q_ref[start])
     err = quat_angle_between(q, q_ref[start:b])
     ok = mask[start:b] & np.isfinite(err)
-    return float(np.sqrt(np.mean(err[ok] ** 2)) * DEG)
+    return float(np.sqrt(np.mean(err[ok] ** 2)) * RAD2DEG)
+
+
+def _errors(setup: LoopSetup, state: ModelState) -> dict[str, float]:
+    ref = setup.ref
+    held = setup.held_rows
+    unit = "°/s" if ref.row_unit == "rad/s" else "weighted"
+    scale = RAD2DEG if ref.row_unit == "rad/s" else 1.0
+    out: dict = {"held_out_residual_rms": _rms(state.fit.residual[held]) * scale, "unit": unit}
+    if isinstance(ref, GravityReference):
+        out.update(ref.split_rms(state.fit.residual, held))
+    for name, m in state.metrics(setup).items():
+        out.setdefault(name, m.value)
+    att = _attitude_rms(setup.rec, state.corrected_gyro())
+    if att is not None:
+        out["strapdown_orientation_rms_deg"] = att
+    return out
+
+
+def _residual_without(setup: LoopSetup, final: ModelState, index: int):
+    def compute():
+        ref = setup.ref
+        if not isinstance(ref, RateReference):
+            return None
+        terms = tuple(t for i, t in enumerate(final.terms) if i != index)
+        fit = fit_model(ref, terms, final.gyro_rad_s)
+        return ref.row_time_s.reshape(-1, 3)[:, 0], fit.residual.reshape(-1, 3)
+    return compute
+
+
+def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, outcome: RoundOutcome, scale: float,
+             unit: str) -> Finding:
+    term = final.terms[index]
+    fam = term.family
+    sig = np.sqrt(np.maximum(np.diag(full.cov), 0.0))
+    i0 = sum(t.n_params for t in final.terms[:index])
+    vals, sigs = full.theta[i0 : i0 + term.n_params], sig[i0 : i0 + term.n_params]
+    fitted = FittedTerm(term.kind, term.param_names, vals, sigs, term.to_effect(vals), final.totals.get(term.kind),
+                        _residual_without(setup, final, index), term)
+    rep = fam.report(term.kind, fitted)
+    s = outcome.score
+    exc = next((e for e in outcome.excitations if e.effect == term.kind), None)
+    group = outcome.confounded
+    rivals = group.rivals if group is not None else []
+    evidence = {
+        "round": outcome.round, "criterion_gain": s.gain, "added_parameters": s.added_rank, "n_eff": s.n_eff,
+        "held_out_rms_before": s.rms_before, "held_out_rms_after": s.rms_after,
+        "explained_fraction": 1 - (s.rms_after / s.rms_before) ** 2, "follows": term.follows, "rivals": rivals,
+        "identifiability": exc.to_json() if exc is not None else None,
+        "metrics": [m.to_json() for m in outcome.metrics], "summary": rep.summary,
+    }
+    trace = (f"the residual follows {term.follows} → {rep.summary}; adding it cut the held-out residual from "
+             f"{s.rms_before * scale:.4g} to {s.rms_after * scale:.4g} {unit} (G = {s.gain:.0f} for {s.added_rank} "
+             f"parameter(s))")
+    others = [m for m in outcome.metrics if m.name != "held_out_residual_rms"]
+    if others:
+        trace += "; " + ", ".join(m.describe() for m in others)
+    caveat = fam.caveat(term.kind, setup.ref.kind)
+    if caveat:
+        trace += f" — {caveat}"
+    if group is not None:
+        trace += (f". Confounded with {overlap_summary(group, exclude=(term.kind,))}: they explain the same residual "
+                  f"here; chosen by the stated rule (under not_distinguished). What would separate them: "
+                  f"{group.separate_by}")
+    return Finding(term.kind, rep.params, _jsonable(rep.effect.to_dict()), evidence, trace)
+
+
+def _report(setup: LoopSetup, check, declared: list[str], declared_state: ModelState, state: ModelState,
+            outcomes: list[RoundOutcome], not_tested: dict[str, str]) -> CloseloopResult:
+    ref = setup.ref
+    notes = list(ref.notes) + list(check.warnings)
+    p_decl = sum(t.n_params for t in declared_state.terms)
+    if declared_state.fit.rank < p_decl:
+        notes.append(f"the declared model has {p_decl} parameters but the recording identifies only "
+                     f"{declared_state.fit.rank}: the motion does not excite all of them")
+    full_state = refit(setup, state.terms, base=state, theta0=state.fit.theta, rows=np.ones(ref.groups.size, bool))
+    full = _final_covariance(setup, full_state)
+    sig = np.sqrt(np.maximum(np.diag(full.cov), 0.0))
+    n_decl = len(declared)
+    declared_params = {}
+    i = 0
+    for t in full_state.terms[:n_decl]:
+        for j, name in enumerate(t.param_names):
+            declared_params[name] = {"value": float(full.theta[i + j]), "sigma": float(sig[i + j])}
+        i += t.n_params
+    # dimensionless axis errors (the families with a finite fit box) reported when σ > 0.1 %
+    weak = [f"{k} ± {v['sigma'] * 100:.2g} %" for k, v in declared_params.items()
+            if math.isfinite(family_bound(k.split(".")[0])) and v["sigma"] > 1e-3]
+    if weak:
+        notes.append("weakly determined (σ > 0.1 %: little motion excites them): " + ", ".join(weak))
+    unit = "°/s" if ref.row_unit == "rad/s" else "weighted"
+    scale = RAD2DEG if ref.row_unit == "rad/s" else 1.0
+    added = [o for o in outcomes if o.added is not None]
+    found = [_finding(setup, full_state, full, n_decl + k, o, scale, unit) for k, o in enumerate(added)]
+
+    err_b, err_a = _errors(setup, declared_state), _errors(setup, state)
+    raw = _attitude_rms(setup.rec, setup.measured_gyro)
+    if raw is not None:
+        err_b["strapdown_orientation_rms_deg_raw_gyro"] = raw
+    metrics = compare_metrics(declared_state.metrics(setup), state.metrics(setup)) if added else []
+    rejected = [r for o in outcomes for r in o.rejections]
+    disagreements = [f"{r.effect} (round {r.round}): {r.disagreement}" for r in rejected if r.disagreement]
+    final_dis = explain_disagreement(metrics, f"the {ref.kind} reference's residual rows", None)
+    if final_dis:
+        disagreements.append(f"after the loop: {final_dis}")
+    tested = sorted({e.effect for o in outcomes for e in o.excitations if e.identifiable})
+    if not tested and not found:
+        notes.insert(0, "nothing could be tested on this recording: no candidate is identifiable here "
+                        f"({len(not_tested)} reasons under not_tested)")
+    follows = {t.kind: t.follows_series for t in full_state.terms[n_decl:] if t.follows_series is not None}
+    rate_ref = isinstance(ref, RateReference)
+    return CloseloopResult(
+        reference=ref.kind, reference_description=ref.description, notes=notes, declared=declared,
+        declared_params=declared_params, found=found, unexplained=_unexplained(ref, setup.rec, state.fit.residual,
+                                                                                setup.held_rows),
+        not_tested=not_tested, not_distinguished=[o.confounded for o in outcomes if o.confounded is not None],
+        error_before=err_b, error_after=err_a, checks=_checks(setup.rec, check),
+        rounds=[RoundRecord(o.round, o.scores, o.excitations, o.added, o.rejections) for o in outcomes],
+        metrics=metrics, rejected=rejected, disagreements=disagreements, tested=tested,
+        row_time_s=ref.row_time_s, row_axis=ref.row_axis, held_out_rows=setup.held_rows,
+        residual_before=declared_state.fit.residual, residual_after=state.fit.residual, follows_series=follows,
+        rows_of=ref.rows_of if rate_ref else None)
+
+
+def _final_covariance(setup: LoopSetup, final: ModelState) -> FitResult:
+    """The final fit's covariance: cluster-robust over the held-out stretches, plus what each term's
+    own stochastic part adds (the drift the spline leaves between its knots)."""
+    ref = setup.ref
+    if not ref.linear or final.fit.theta.size == 0:
+        return final.fit
+    j = design_rows(ref, final.terms, final.gyro_rad_s)
+    fit = cluster_robust(ref, final.fit, j)
+    f0 = final.fit
+    influence = (f0.cov / (f0.sigma**2 * f0.tau_int)) @ j.T if f0.sigma > 0 else None
+    cov = fit.cov
+    for i, t in enumerate(final.terms):
+        extra = t.family.extra_covariance(t, influence, ref, _residual_without(setup, final, i)) if influence is not None \
+            else None
+        if extra is not None:
+            cov = cov + extra
+    return replace(fit, cov=cov)
+
+
+def family_bound(kind: str) -> float:
+    fam = family_for(kind)
+    return math.inf if isinstance(fam, Untestable) else fam.bound
+
+
+def _no_reference(rec: Recording, declared: list[str], why: str, check) -> CloseloopResult:
+    """The report of a recording that cannot separate candidates: say why, guess nothing."""
+    kinds = [k for k in candidate_kinds() if k not in declared]
+    return CloseloopResult(
+        reference="none", reference_description="no usable reference",
+        notes=[f"nothing could be tested on this recording: {why}"] + list(check.warnings), declared=declared,
+        declared_params={}, found=[], unexplained=Unexplained(summary="not analysed: no reference"),
+        not_tested={k: f"not distinguishable on this recording: {why}" for k in kinds}, not_distinguished=[],
+        error_before={}, error_after={}, checks=_checks(rec, check), rounds=[])
+
+
+def _jsonable(d: dict) -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, float) and not math.isfinite(v):
+            out[k] = str(v)
+        elif isinstance(v, tuple):
+            out[k] = list(v)
+        else:
+            out[k] = v
+    return out
 
 
 def _channels(ref: RateReference, rec: Recording) -> dict[str, np.ndarray]:
@@ -199,267 +472,12 @@ def _channels(ref: RateReference, rec: Recording) -> dict[str, np.ndarray]:
     return out
 
 
-def run_closeloop(
-    rec: Recording,
-    declared: tuple[str, ...] | list[str] = DEFAULT_DECLARED,
-    *,
-    reference: str | None = None,
-    holdout_s: float = 4.0,
-    candidates: list[str] | None = None,
-    max_rounds: int = 6,
-    drift_knot_s: float = 20.0,
-    progress: Callable[[str], None] | None = None,
-) -> CloseloopResult:
-    """Run the loop on a recording (the input is not modified); see the module docstring."""
-    declared = list(declared)
-    unknown = [k for k in declared if k not in EFFECTS]
-    if unknown:
-        raise RecordingError(f"--declared: unknown effect(s) {unknown}; the vocabulary has {', '.join(EFFECTS)}")
-    check = check_recording(rec, allow_gaps=True)
-    try:  # saturated samples carry no information about the rate: their rows are left out
-        ref = build_reference(rec, holdout_s=holdout_s, prefer=reference, exclude=check.saturated)
-    except RecordingError as err:
-        if "rest poses" not in str(err):
-            raise
-        return _no_reference(rec, declared, str(err), check)
-    n = rec.t_s.size
-    say = progress or (lambda s: None)
-
-    model: list[Candidate] = []
-    not_tested: dict[str, str] = {}
-    for kind in declared:
-        c = build_candidate(kind, ref.ctx, drift_knot_s=drift_knot_s)
-        if isinstance(c, str):
-            raise RecordingError(f"declared effect {kind!r} cannot be fitted here: {c}")
-        model.append(c)
-    pool: dict[str, Candidate] = {}
-    for kind in candidates or candidate_kinds():
-        if kind in declared:
-            continue
-        c = build_candidate(kind, ref.ctx, drift_knot_s=drift_knot_s)
-        if isinstance(c, str):
-            not_tested[kind] = c
-        else:
-            pool[kind] = c
-    if ref.kind == "static":
-        for kind in ("scale_factor", "nonorthogonality", "misalignment", "scale_nonlinearity", "time_offset"):
-            if kind in pool:
-                not_tested[kind] = "the recording is at rest: a rate-proportional term has no excitation"
-                pool.pop(kind)
-
-    fit_rows, held = held_out_split(ref)
-    if held.sum() < 3 or fit_rows.sum() < 3:
-        raise RecordingError(
-            f"the recording is too short for a held-out split: {fit_rows.sum()} fit and {held.sum()} held-out rows "
-            f"with {holdout_s:g} s held-out groups; record longer or pass a shorter --holdout")
-    declared_fit = fit_model(ref, _stack(model, n), fit_rows, bounds=_bounds(model))
-    if isinstance(ref, GravityReference):
-        ref.reweight(declared_fit.residual)
-        declared_fit = fit_model(ref, _stack(model, n), fit_rows, theta0=declared_fit.theta, bounds=_bounds(model))
-    p_decl = sum(c.n_params for c in model)
-    notes = list(ref.notes) + list(check.warnings)
-    if declared_fit.rank < p_decl:
-        notes.append(f"the declared model has {p_decl} parameters but the recording identifies only "
-                     f"{declared_fit.rank}: the motion does not excite all of them")
-
-    delay = {"total_s": 0.0}
-    y_measured = np.asarray(rec.gyro_rad_s)
-
-    def refresh_output_stage(fit: FitResult) -> FitResult:
-        """Time offset, fitted exactly: the linear regressor −ẋ leaves ½d²ẍ, which at hand-tremor
-        frequencies (8–12 Hz, 2πf·d ≈ 0.2 rad for 3.4 ms) biased d̂ by 1 % and the scale factor by
-        2e-4 in a noise-free test.  So the delay found so far is undone on the measured gyro (the
-        Fourier shift of the vocabulary's TimeOffset.inverse, exact), and the model keeps only the
-        small remaining δd, linear around it; three passes converge to rounding.  The regressor
-        is evaluated on the error-stage output (I + S + N) ω + b, which is what the output stage delays."""
-        idx = [i for i, c in enumerate(model) if c.effect == "time_offset"]
-        for _ in range(3 if idx and isinstance(ref, RateReference) else 1):
-            if idx and isinstance(ref, RateReference):
-                j = sum(c.n_params for c in model[: idx[0]])
-                delay["total_s"] += float(fit.theta[j])
-                ref.y_rad_s = TimeOffset(delay_s=delay["total_s"]).inverse(y_measured, ref.ctx)
-            rate = _error_stage_rate(ref, model, fit.theta)
-            if "time_offset" in pool:
-                pool["time_offset"] = build_candidate("time_offset", ref.ctx, modelled_rate=rate)
-            if not idx:
-                return fit
-            model[idx[0]] = build_candidate("time_offset", ref.ctx, modelled_rate=rate)
-            fit = fit_model(ref, _stack(model, n), fit_rows)
-        return fit
-
-    declared_fit = refresh_output_stage(declared_fit)
-    found: list[Finding] = []
-    rounds: list[list[dict]] = []
-    not_distinguished: list[dict] = []
-    current = declared_fit
-    for rnd in range(max_rounds):
-        base = _stack(model, n)
-        scores = {}
-        for kind, c in pool.items():
-            say(f"round {rnd + 1}: testing {kind}")
-            scores[kind] = held_out_score(ref, base, c.regressors, current, _bounds(model + [c]))
-        rejected = {k: why for k, s in scores.items() if (why := pool[k].check(s.theta_new)) and s.gain > 0}
-        table = [{"effect": k, "gain": (s.gain if math.isfinite(s.gain) else None), "added_parameters": s.added_rank,
-                  "held_out_rms_before": s.rms_before, "held_out_rms_after": s.rms_after, "n_eff": s.n_eff,
-                  **({"rejected": rejected[k]} if k in rejected else {})}
-                 for k, s in sorted(scores.items(), key=lambda kv: -kv[1].gain)]
-        scores = {k: s for k, s in scores.items() if k not in rejected}
-        rounds.append(table)
-        for k, s in scores.items():
-            if s.added_rank == 0 and k not in not_tested:
-                not_tested[k] = ("no excitation on this recording: its regressor is zero or already spanned by the "
-                                 "model (cannot be distinguished from what is in it)")
-        live = {k: s for k, s in scores.items() if s.added_rank > 0}
-        if any(s.gain > 0 for k, s in live.items() if k not in CATCH_ALL):
-            # a slow bias that a measured channel explains (temperature, field, ...) is that channel's
-            # effect; the time spline of bias drift is the model of what nothing measured explains
-            live = {k: s for k, s in live.items() if k not in CATCH_ALL}
-        if not live:
-            break
-        best_kind, best = max(live.items(), key=lambda kv: kv[1].gain)
-        if best.gain <= 0:
-            break
-        margin = best.added_rank * math.log(best.n_eff)
-        rivals = [k for k, s in live.items() if k != best_kind and s.gain > 0 and best.gain - s.gain < margin]
-        if rivals:
-            not_distinguished.append({"round": rnd + 1, "chosen": best_kind, "rivals": rivals,
-                                      "why": f"their held-out gains are within the chosen one's penalty ({margin:.1f}) "
-                                             "of it: on this recording they explain the same residual"})
-        cand = pool.pop(best_kind)
-        model.append(cand)
-        current = refresh_output_stage(fit_model(ref, _stack(model, n), fit_rows,
-                                                 theta0=np.concatenate([current.theta, np.zeros(cand.n_params)]),
-                                                 bounds=_bounds(model)))
-        found.append(Finding(best_kind, {}, {}, {
-            "round": rnd + 1, "criterion_gain": best.gain, "added_parameters": best.added_rank,
-            "n_eff": best.n_eff, "held_out_rms_before": best.rms_before, "held_out_rms_after": best.rms_after,
-            "explained_fraction": 1 - (best.rms_after / best.rms_before) ** 2, "follows": cand.follows,
-            "rivals": rivals}, ""))
-
-    # final parameters on all rows; errors on held-out rows
-    full = fit_model(ref, _stack(model, n), theta0=current.theta, bounds=_bounds(model))
-    params = _params(model, full)
-    declared_params = {k: v for p in params[: len(declared)] for k, v in p.items()}
-    weak = [f"{k} ± {v['sigma'] * 100:.2g} %" for k, v in declared_params.items()
-            if k.split(".")[0] in _DIMENSIONLESS and v["sigma"] > 1e-3]
-    if weak:
-        notes.append("weakly determined (σ > 0.1 %: little motion excites them): " + ", ".join(weak))
-    unit = "°/s" if ref.row_unit == "rad/s" else "weighted"
-    scale = DEG if ref.row_unit == "rad/s" else 1.0
-    r_before, r_after = declared_fit.residual, current.residual
-    err_b = {"held_out_residual_rms": _rms(r_before[held]) * scale, "unit": unit}
-    err_a = {"held_out_residual_rms": _rms(r_after[held]) * scale, "unit": unit}
-    if isinstance(ref, GravityReference):
-        err_b.update(ref.split_rms(r_before, held))
-        err_a.update(ref.split_rms(r_after, held))
-    y = np.asarray(rec.gyro_rad_s)
-    att_b = _attitude_rms(ref, rec, y - _stack(model[: len(declared)], n) @ declared_fit.theta)
-    if att_b is not None:
-        err_b["strapdown_orientation_rms_deg"] = att_b
-        y_now = getattr(ref, "y_rad_s", None)
-        y_now = y if y_now is None else y_now   # the time offset found is undone on the gyro
-        err_a["strapdown_orientation_rms_deg"] = _attitude_rms(ref, rec, y_now - _stack(model, n) @ current.theta)
-        err_b["strapdown_orientation_rms_deg_raw_gyro"] = _attitude_rms(ref, rec, y)
-
-    final_found = []
-    for f, c, p in zip(found, model[len(declared):], params[len(declared):]):
-        vals = np.array([v["value"] for v in p.values()])
-        sigs = np.array([v["sigma"] for v in p.values()])
-        effect = c.to_effect(vals)
-        extra = {}
-        if f.effect == "random_walk":
-            k, sk = _drift_k(ref, model)
-            effect = RandomWalk(value=np.full(3, k) if math.isfinite(k) else np.zeros(3))
-            extra = {"random_walk.value": {"value": k, "sigma": sk}}
-            p = {**extra}  # the knot biases are a realisation, not parameters of the device
-            text = (f"bias drift with random-walk coefficient K = {k * DEG * 3600 * 60:.3g} ± {sk * DEG * 3600 * 60:.2g} "
-                    "°/h/√h (restricted ML on the residual)") if math.isfinite(k) else _summary(f.effect, vals, sigs)
-        elif f.effect == "time_offset":
-            vals = vals + delay["total_s"]
-            p = {"time_offset.delay_s": {"value": float(vals[0]), "sigma": float(sigs[0])}}
-            effect = TimeOffset(delay_s=float(vals[0]))
-            text = _summary(f.effect, vals, sigs)
-        else:
-            text = _summary(f.effect, vals, sigs)
-        ev = f.evidence
-        trace = (f"the residual follows {ev['follows']} → {text}; adding it cut the held-out residual from "
-                 f"{ev['held_out_rms_before'] * scale:.4g} to {ev['held_out_rms_after'] * scale:.4g} {unit} "
-                 f"(G = {ev['criterion_gain']:.0f} for {ev['added_parameters']} parameter(s))")
-        if ref.kind == "optical" and f.effect == "time_offset":
-            trace += (" — against an optical reference this is the IMU's own delay plus the synchronisation of the two "
-                      "systems; one recording cannot separate them")
-        if ref.kind == "optical" and f.effect == "misalignment":
-            trace += (" — a rotation between the IMU and the optical body frame (the reference's alignment) looks exactly "
-                      "like this")
-        final_found.append(Finding(f.effect, p, _jsonable(effect.to_dict()), {**ev, "summary": text}, trace))
-
-    unexplained = _unexplained(ref, rec, r_after, held)
-    checks = {"quantization_lsb": _quantization(y), "saturated_samples": int(check.saturated.sum()),
-              "warnings": list(check.warnings)}
-    follows = {c.effect: c.follows_series for c in model[len(declared):]}
-    return CloseloopResult(
-        ref.kind, ref.description, notes, declared, declared_params, final_found, unexplained, not_tested,
-        not_distinguished, err_b, err_a, checks, rounds, ref.row_time_s, ref.row_axis, held, r_before, r_after, follows,
-        ref.rows_of if isinstance(ref, RateReference) else None)
-
-
-def _no_reference(rec: Recording, declared: list[str], why: str, check) -> CloseloopResult:
-    """The report of a recording that cannot separate candidates: say why, guess nothing."""
-    kinds = [k for k in candidate_kinds() if k not in declared]
-    return CloseloopResult(
-        "none", "no usable reference", [why] + list(check.warnings), declared, {}, [],
-        {"spectral_lines": [], "channel_correlations": [], "whiteness": {}, "summary": "not analysed: no reference"},
-        {k: f"not distinguishable on this recording: {why}" for k in kinds}, [], {}, {},
-        {"quantization_lsb": _quantization(np.asarray(rec.gyro_rad_s)), "saturated_samples": int(check.saturated.sum()),
-         "warnings": list(check.warnings)}, [])
-
-
-def _error_stage_rate(ref: Reference, model: list[Candidate], theta: np.ndarray) -> np.ndarray:
-    """ω_ref + Σ (error-stage effects) R θ: the rate the sensor's output stage receives (rad/s, body)."""
-    out = np.array(ref.ctx.omega_true_rad_s, dtype=float, copy=True)
-    i = 0
-    for c in model:
-        if EFFECTS[c.effect].stage == "error":
-            out += c.regressors @ theta[i : i + c.n_params]
-        i += c.n_params
-    return out
-
-
-def _drift_k(ref: Reference, model: list[Candidate]) -> tuple[float, float]:
-    """K of the bias drift: REML on the block means of the residual of the model without the drift."""
-    if not isinstance(ref, RateReference):
-        return float("nan"), float("nan")
-    others = [c for c in model if c.effect != "random_walk"]
-    fit = fit_model(ref, _stack(others, ref.ctx.t_s.size))
-    r = fit.residual.reshape(-1, 3)
-    t = ref.row_time_s.reshape(-1, 3)[:, 0]
-    block_s = max(1.0, (t[-1] - t[0]) / 400.0)  # ≤ 400 blocks: the REML is O(n³) in them
-    b = time_block_index(t, block_s)
-    nb = int(b.max())  # drop the last partial block
-    keep = b < nb
-    means, _ = block_means(b[keep], r[keep], nb)
-    return random_walk_mle(list(means.T), block_s)
-
-
-def _jsonable(d: dict) -> dict:
-    out = {}
-    for k, v in d.items():
-        if isinstance(v, float) and not math.isfinite(v):
-            out[k] = str(v)
-        elif isinstance(v, tuple):
-            out[k] = list(v)
-        else:
-            out[k] = v
-    return out
-
-
-def _unexplained(ref: Reference, rec: Recording, r: np.ndarray, held: np.ndarray) -> dict:
+def _unexplained(ref: Reference, rec: Recording, r: np.ndarray, held: np.ndarray) -> Unexplained:
     if not isinstance(ref, RateReference):
         groups = ref.groups
         worst = int(groups[np.argmax(np.abs(r))])
-        return {"spectral_lines": [], "channel_correlations": [], "whiteness": {},
-                "summary": f"self-consistency rows are per pose, not a time series: no spectral or channel tests; "
-                           f"largest weighted residual {np.max(np.abs(r)):.2f} at pose {worst}"}
+        return Unexplained(summary=f"self-consistency rows are per pose, not a time series: no spectral or channel "
+                                   f"tests; largest weighted residual {np.max(np.abs(r)):.2f} at pose {worst}")
     blocks = r.reshape(-1, 3)
     fs = 1.0 / (float(np.median(np.diff(rec.t_s))) * ref.block)
     lines = spectral_lines(blocks, fs)
@@ -468,8 +486,8 @@ def _unexplained(ref: Reference, rec: Recording, r: np.ndarray, held: np.ndarray
     parts = []
     if lines:
         l0 = lines[0]
-        parts.append(f"spectral line at {l0.frequency_hz:.2f} Hz on {l0.axis} (amplitude {l0.amplitude_rad_s * DEG:.3g} °/s, "
-                     f"{l0.ratio:.0f}× the background)" + (f" and {len(lines) - 1} more" if len(lines) > 1 else ""))
+        parts.append(f"spectral line at {l0.frequency_hz:.2f} Hz on {l0.axis} (amplitude {l0.amplitude_rad_s * RAD2DEG:.3g} "
+                     f"°/s, {l0.ratio:.0f}× the background)" + (f" and {len(lines) - 1} more" if len(lines) > 1 else ""))
     if corr:
         c0 = corr[0]
         parts.append(f"residual {c0.axis} correlates with {c0.channel} (ρ = {c0.rho:.3f}, {c0.z:.1f}σ)"
@@ -481,5 +499,4 @@ def _unexplained(ref: Reference, rec: Recording, r: np.ndarray, held: np.ndarray
                      f"would ({jitter['z']:.1f}σ)")
     taus = [white[f"tau_int_{a}"] for a in "xyz"]
     parts.append(f"residual autocorrelation time {min(taus):.1f}–{max(taus):.1f} samples (1 = white)")
-    return {"spectral_lines": [asdict(l) for l in lines], "channel_correlations": [asdict(c) for c in corr],
-            "whiteness": white, "variance_growth": jitter, "summary": "; ".join(parts)}
+    return Unexplained(tuple(lines), tuple(corr), white, jitter, "; ".join(parts))

@@ -1,4 +1,4 @@
-"""The reference a recording offers, and the residual rows it defines (issue 5, step a–b).
+"""The reference a recording offers, and the residual rows it defines.
 
 Every reference turns a gyro error model that is *linear in its parameters*,
 
@@ -42,12 +42,19 @@ from gyrosim.simulate import EARTH_FIELD_ENU_UT
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0
 
-__all__ = ["Reference", "RateReference", "GravityReference", "build_reference", "optical_rate"]
+__all__ = ["Reference", "RateReference", "GravityReference", "build_reference", "optical_rate", "NoReferenceError",
+           "motion_specific_force", "motion_field"]
+
+
+class NoReferenceError(RecordingError):
+    """The recording offers no reference that can separate candidate effects (said in the report)."""
 
 
 def _block_mean(x: np.ndarray, block: int) -> np.ndarray:
     """Means of consecutive blocks of ``block`` samples along axis 0 (the tail is dropped)."""
     n = (x.shape[0] // block) * block
+    if block == 1:  # one sample per block: a mean would only copy (seconds on a 10-hour record)
+        return x[:n]
     return x[:n].reshape((n // block, block) + x.shape[1:]).mean(axis=1)
 
 
@@ -87,6 +94,13 @@ class Reference:
     row_unit: str               # "rad/s" or "rad"
     notes: list[str] = field(default_factory=list)
     linear: bool = True         # r is exactly linear in θ (one Gauss–Newton step)
+    holdout_s: float = 4.0      # length of the alternating fit / held-out stretches (s)
+    specific_force_from: str = "accelerometer"   # "truth" when ctx's specific force is the simulation's
+    position_nav_m: np.ndarray | None = None     # reference position (ENU, m), when the reference has one
+
+    def sample_groups(self) -> np.ndarray:
+        """(N,) held-out group of every sample, on the same time origin as the rows' ``groups``."""
+        return np.floor((self.ctx.t_s - self.row_time_s[0]) / self.holdout_s).astype(int)
 
     def residual(self, gyro_rad_s: np.ndarray, theta_regressors: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -117,6 +131,47 @@ class RateReference(Reference):
         return self.rows_of(regressors)
 
 
+def motion_specific_force(ref: Reference) -> np.ndarray:
+    """The specific force (N, 3) m/s², body frame, that the reference's *motion* explains.
+
+    * the simulation's truth: itself;
+    * a reference attitude q (body→ENU): f_b = C_bn (a_n + g e_U), gravity turned into the body frame
+      plus, when the reference has a position, its acceleration a_n (Savitzky–Golay second
+      derivative over 0.2 s, cubic);
+    * the gravity reference: the measured accelerometer (its rest poses differ by rotations the gyro
+      shows; an accelerometer drift cannot make a pose);
+    * otherwise (a board at rest, no attitude): the mean measured specific force, constant.
+    """
+    ctx = ref.ctx
+    f = np.asarray(ctx.specific_force_true_m_s2, float)
+    if ref.specific_force_from == "truth" or ref.kind == "gravity":
+        return f
+    if ctx.quat_nb is not None and ref.kind != "static":
+        acc_n = np.zeros((ctx.n, 3))
+        pos = ref.position_nav_m
+        ok = np.all(np.isfinite(pos), axis=1) if pos is not None else None
+        if pos is not None and ok.sum() > 10:
+            win = max(5, int(round(0.2 / ctx.dt_s)) | 1)
+            if win < ctx.n:   # occluded samples interpolated, the acceleration there not trusted (gravity only)
+                acc_n = sp_signal.savgol_filter(_fill_nan(pos, ctx.t_s), win, 3, deriv=2, delta=ctx.dt_s, axis=0)
+                acc_n[~ok] = 0.0
+        return quat_rotate(quat_conjugate(ctx.quat_nb), acc_n + np.array([0.0, 0.0, G0]))
+    return np.broadcast_to(np.nanmean(f, axis=0), f.shape).copy()
+
+
+def motion_field(ref: Reference) -> np.ndarray | None:
+    """The magnetic field (N, 3) µT, body frame, that the reference's attitude explains: the mean field
+    in ENU turned into the body frame (constant when there is no attitude or the board is at rest)."""
+    ctx = ref.ctx
+    if ctx.mag_body_ut is None:
+        return None
+    b = np.asarray(ctx.mag_body_ut, float)
+    if ctx.quat_nb is None or ref.kind == "static":
+        return np.broadcast_to(np.nanmean(b, axis=0), b.shape).copy()
+    b_n = np.nanmean(quat_rotate(ctx.quat_nb, b), axis=0)
+    return quat_rotate(quat_conjugate(ctx.quat_nb), np.broadcast_to(b_n, b.shape))
+
+
 def _context(rec: Recording, omega_ref: np.ndarray, quat: np.ndarray | None) -> SignalContext:
     tr = rec.truth
     sf = tr.specific_force_body_m_s2 if tr is not None and tr.specific_force_body_m_s2 is not None else rec.acc_m_s2
@@ -140,10 +195,13 @@ def _rate_reference(kind: str, description: str, rec: Recording, ctx: SignalCont
         notes = notes + [f"{dropped} of {valid.size} blocks dropped (missing reference or saturated samples)"]
     bt = _block_mean(rec.t_s, block)[valid]
     rows_t = np.repeat(bt, 3)
+    tr = rec.truth
     return RateReference(
         kind=kind, description=description, ctx=ctx, groups=_groups_for(rows_t, holdout_s), row_time_s=rows_t,
-        row_axis=np.tile(np.arange(3), bt.size), row_unit="rad/s", notes=notes, block=block,
-        block_ref_rad_s=block_ref, valid_blocks=valid, y_rad_s=np.asarray(rec.gyro_rad_s))
+        row_axis=np.tile(np.arange(3), bt.size), row_unit="rad/s", notes=notes, holdout_s=holdout_s,
+        specific_force_from="truth" if tr is not None and tr.specific_force_body_m_s2 is not None else "accelerometer",
+        position_nav_m=None if tr is None or tr.position_nav_m is None else np.asarray(tr.position_nav_m, float),
+        block=block, block_ref_rad_s=block_ref, valid_blocks=valid, y_rad_s=np.asarray(rec.gyro_rad_s))
 
 
 def truth_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> RateReference:
@@ -192,6 +250,8 @@ class GravityReference(Reference):
     gravity_dirs: np.ndarray | None = None   # (K, 3) unit gravity direction per rest (body)
     rest_sigma_rad_s: float = 1.0            # row weights: noise of a rest mean rate
     tilt_sigma_rad: float = 1.0              # row weights: noise of a tilt error
+    rest_noise_rad_s: float = 1.0            # the rest noise itself (the weights before ``reweight``)
+    tilt_noise_rad: float = 1.0
     rate_rows_share: int = 0
     turns: list[tuple[int, int]] = field(default_factory=list)   # protocol full turns (start, stop)
 
@@ -204,6 +264,15 @@ class GravityReference(Reference):
         tilt = residual[k:] * self.tilt_sigma_rad
         self.rest_sigma_rad_s = max(float(np.sqrt(np.mean(rate**2))), 1e-12)
         self.tilt_sigma_rad = max(float(np.sqrt(np.mean(tilt**2))), 1e-12)
+
+    def noise_floor(self) -> float:
+        """RMS over the rows of the noise-only σ in row (weighted) units: the rest noise over the
+        current weights (which ``reweight`` set from the residual, structure included)."""
+        k = self.rate_rows_share
+        n_tilt = self.groups.size - k
+        rate = (self.rest_noise_rad_s / self.rest_sigma_rad_s) ** 2
+        tilt = (self.tilt_noise_rad / self.tilt_sigma_rad) ** 2
+        return float(np.sqrt((k * rate + n_tilt * tilt) / max(self.groups.size, 1)))
 
     def split_rms(self, residual: np.ndarray, rows: np.ndarray) -> dict[str, float]:
         """Held-out RMS of the rest rate (°/s) and of the pose-to-pose tilt error (°) from weighted rows."""
@@ -306,7 +375,7 @@ def gravity_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> 
     rest = detect_rest(rec)
     rests = [r for r in rest.index_ranges if r[1] - r[0] >= 2 and not exclude[r[0] : r[1]].any()]
     if len(rests) < 2:
-        raise RecordingError(
+        raise NoReferenceError(
             f"self-consistency needs at least two rest poses with motion between them; found {len(rests)} "
             "rest segment(s): the recording cannot separate candidate effects (record rests between rotations)")
     acc = np.asarray(rec.acc_m_s2)
@@ -346,8 +415,9 @@ def gravity_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> 
     return GravityReference(
         kind="gravity", description="self-consistency: gravity direction carried from rest pose to rest pose",
         ctx=ctx, groups=groups, row_time_s=row_t, row_axis=np.tile(np.arange(3), 2 * k - 1 + len(turns)),
-        row_unit="weighted", notes=notes, linear=False, rests=list(rests), gravity_dirs=dirs,
-        rest_sigma_rad_s=max(sig_rate, 1e-9), tilt_sigma_rad=tilt_sigma, rate_rows_share=3 * k, turns=turns)
+        row_unit="weighted", notes=notes, linear=False, holdout_s=holdout_s, rests=list(rests), gravity_dirs=dirs,
+        rest_sigma_rad_s=max(sig_rate, 1e-9), tilt_sigma_rad=tilt_sigma, rest_noise_rad_s=max(sig_rate, 1e-9),
+        tilt_noise_rad=tilt_sigma, rate_rows_share=3 * k, turns=turns)
 
 
 def build_reference(rec: Recording, holdout_s: float = 4.0, prefer: str | None = None,

@@ -1,9 +1,15 @@
 """Write a closeloop result: ``report.json``, ``report.md`` with plots, and ``closeloop.rrd``.
 
-report.json keys (a promise to scripts, issue 5): ``declared``, ``found`` (list of {``effect``,
-``params``, ``evidence``, ...}), ``unexplained``, ``error_before``, ``error_after`` (both on
-held-out rows), plus ``reference``, ``notes``, ``not_tested``, ``not_distinguished``, ``checks``,
-``rounds`` (every candidate's held-out score per round) and ``recording``.
+report.json keys (a promise to scripts): ``declared``, ``found`` (list of {``effect``, ``params``,
+``evidence``, ``model``, ``trace``}), ``unexplained``, ``error_before``, ``error_after`` (both on
+held-out rows), plus ``reference``, ``notes``, ``not_tested`` (kind → why: not buildable, not
+identifiable, or refused by the acceptance), ``not_distinguished`` (confounded groups: ``round``,
+``chosen``, ``rivals``, ``why``, ``members`` with each one's evidence, ``rule``, ``separate_by``),
+``checks``, ``rounds`` (every candidate's held-out score per round), ``metrics`` (every held-out
+metric, declared → after the loop, with its noise z), ``rejected`` (additions refused by the
+acceptance, with their metrics), ``disagreements``, ``tested`` (candidates that passed the
+identifiability gate), ``identifiability`` (the gate's verdict per candidate and round) and
+``recording``.
 """
 
 from __future__ import annotations
@@ -155,8 +161,13 @@ def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
              f"Declared model: {', '.join(res.declared)}.", "", "## What the residual says", ""]
     if res.found:
         lines += [f"{i + 1}. {f.trace}" for i, f in enumerate(res.found)]
+    elif not res.tested:
+        lines.append("Nothing could be tested on this recording: no candidate is identifiable here. Why, for each "
+                     "(see also \"Not tested\"):")
+        lines += [f"- {k}: {v}" for k, v in res.not_tested.items()]
     else:
-        lines.append("Nothing: no candidate explains a significant part of the held-out residual.")
+        lines.append(f"Nothing: no candidate explains a significant part of the held-out residual (tested: "
+                     f"{', '.join(res.tested)}).")
     lines += ["", f"## Error on held-out data ({res.error_before.get('unit', '')} unless named)", "",
               "| | before (declared) | after the loop |", "|---|---|---|"]
     for k in [k for k in res.error_before if k != "unit"]:
@@ -170,12 +181,27 @@ def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
                      f"({l['ratio']:.1f}× background, threshold {l['threshold']:.1f})")
     for c in res.unexplained.get("channel_correlations", [])[:5]:
         lines.append(f"- residual {c['axis']} vs {c['channel']}: ρ = {c['rho']:.3f} ({c['z']:.1f}σ, threshold {c['threshold']:.1f})")
+    if res.metrics:
+        lines += ["", "## Every held-out metric, declared → after the loop", "",
+                  "| metric | declared | after | change | z (noise) | verdict |", "|---|---|---|---|---|---|"]
+        lines += [f"| {m.name} ({m.unit}) | {m.before:.4g} | {m.after:.4g} | {m.relative_change:+.1%} | {m.z:+.1f} | "
+                  f"{m.verdict} |" for m in res.metrics]
+    if res.disagreements:
+        lines += ["", "## Metrics that disagree", ""] + [f"- {d}" for d in res.disagreements]
+    if res.rejected:
+        lines += ["", "## Additions refused (a held-out metric got worse beyond its noise)", ""]
+        lines += [f"- round {r.round}: {r.effect} — {r.why}" for r in res.rejected]
     if res.not_distinguished:
-        lines += ["", "## Not distinguished", ""]
-        lines += [f"- round {d['round']}: {d['chosen']} vs {', '.join(d['rivals'])} — {d['why']}" for d in res.not_distinguished]
+        lines += ["", "## Confounded (not distinguished)", ""]
+        for g in res.not_distinguished:
+            lines.append(f"- round {g.round}: {g.chosen} vs {', '.join(g.rivals)} — {g.why}. "
+                         f"What would separate them: {g.separate_by}")
+            lines += [f"  - {m.effect}: G = {m.gain:.1f}, explains {m.explained_fraction:.1%} alone, overlap with the "
+                      f"best {m.overlap_with_best:.0%}, contribution correlation {m.contribution_correlation:.2f}"
+                      for m in g.members]
     lines += ["", "## Not tested", ""] + [f"- {k}: {v}" for k, v in res.not_tested.items()]
     lines += ["", "## Candidate scores (round 1)", "", "| effect | held-out gain G | added parameters |", "|---|---|---|"]
-    for r in (res.rounds[0] if res.rounds else []):
+    for r in (res.rounds[0].table() if res.rounds else []):
         g = r["gain"]
         lines.append(f"| {r['effect']} | {g:.1f} | {r['added_parameters']} |" if g is not None
                      else f"| {r['effect']} | — | {r['added_parameters']} |")

@@ -1,4 +1,4 @@
-"""Structure in a residual that no candidate explains (issue 5, step c, last part).
+"""Structure in a residual that no candidate explains.
 
 Three tests on the final rate residual r (body frame, rad/s, one series per axis):
 

@@ -1,0 +1,76 @@
+"""``calib bench``: how long a calibration takes, as ratios against the paper's filter in the same run.
+
+The session: zhou2020 (171 s at 100 Hz, 17 101 samples), ideal hand, the MPU-9250 preset (raw
+accelerometer).  Rows, run interleaved (A B C … A B C …) so that all see the same machine state,
+best of ``repeats``:
+
+* today's ``kf`` — :func:`calib.calibrate.calibrate` with the paper's 9 states in the filterpy
+  filter (``engine="filterpy"``, ``accelerometer="calibrated"``): what ``calib run`` ran before the
+  accelerometer states (the baseline, 1.00);
+* ``calib run`` now — 21 states (gyro bias, the accelerometer's 9 parameters), the |f| = g stage,
+  observability and consistency checks, compiled;
+* the same with ``--method iterated`` and with ``--accelerometer calibrated``;
+* the kernel alone (no preparation), batches of 1 and ``batch`` sessions, per filter-sample.
+
+The agreement of the compiled 21-state filter with its filterpy reference on this session is
+printed too (max |Δθ|).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+__all__ = ["run_bench"]
+
+
+def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[str, float, float]]:
+    from gyrosim.simulate import simulate
+
+    from .calibrate import _run, calibrate, prepare
+    from .fastkf import run_filter
+    from .kalman import JOINT
+
+    rec = simulate("zhou2020", "ideal", "mpu9250", 100.0, seed=seed)
+    prep = prepare(rec, accelerometer="estimate")
+    a = prep.start
+    n = rec.n - a
+    calibrate(rec, "kf")  # compile and warm every path once
+    cases = {
+        "today's kf (paper, 9 states, filterpy)": lambda: calibrate(rec, "kf", accelerometer="calibrated", engine="filterpy"),
+        "calib run (21 states, compiled)": lambda: calibrate(rec, "kf"),
+        "calib run --method iterated": lambda: calibrate(rec, "iterated"),
+        "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf", accelerometer="calibrated"),
+    }
+    best = {k: float("inf") for k in cases}
+    for _ in range(max(1, repeats)):
+        for name, fn in cases.items():
+            t0 = time.perf_counter()
+            fn()
+            best[name] = min(best[name], time.perf_counter() - t0)
+    g, f = rec.gyro_rad_s[None, a:], rec.acc_m_s2[None, a:]
+    run_filter(g[:, :200], f[:, :200], rec.t_s[a:a + 200], prep.quat0_nb[None], prep.theta0[None], prep.p0, JOINT,
+               prep.config, rec.rate_hz)  # warm
+    kernel = {}
+    for b in (1, batch):
+        t0 = time.perf_counter()
+        run_filter(np.repeat(g, b, 0), np.repeat(f, b, 0), rec.t_s[a:], np.repeat(prep.quat0_nb[None], b, 0),
+                   prep.theta0[None], prep.p0, JOINT, prep.config, rec.rate_hz)
+        kernel[b] = time.perf_counter() - t0
+    ref = _run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "filterpy", False)
+    fast = _run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "compiled", False)
+    diff = float(np.max(np.abs(ref.theta - fast.theta)))
+    base = best["today's kf (paper, 9 states, filterpy)"]
+    print(f"zhou2020, ideal hand, mpu9250 (raw accelerometer), {n} filter samples; best of {repeats}, interleaved")
+    print(f"max |θ compiled − θ filterpy| (21 states) = {diff:.1e}")
+    print(f"{'':<44} {'s':>8} {'× today’s kf':>13} {'µs/sample':>10}")
+    rows = []
+    for name, sec in best.items():
+        rows.append((name, sec, sec / base))
+        print(f"{name:<44} {sec:8.3f} {sec / base:13.3f} {sec / n * 1e6:10.2f}")
+    for b, sec in kernel.items():
+        name = f"kernel only (21 states), batch {b}"
+        rows.append((name, sec, sec / base))
+        print(f"{name:<44} {sec:8.3f} {sec / base:13.3f} {sec / (n * b) * 1e6:10.2f}")
+    return rows

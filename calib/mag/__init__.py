@@ -1,0 +1,14 @@
+"""Magnetometer calibration (issue 17): hard and soft iron, misalignment, local disturbances.
+
+``calibrate_magnetometer(rec, method)`` → :class:`MagCalibration` (m = A·B + h).  Methods
+(:data:`METHODS`): ``ellipsoid`` (field magnitude only) and ``aided`` (also the inclination
+against the gyro/accelerometer's gravity; sees the misalignment).  Seed 001's in-motion heading
+compensation (KF, Sage–Husa adaptive KF, particle filter) lives in :mod:`calib.mag.filters`,
+their comparison in :mod:`calib.mag.compare`.
+"""
+
+from .calibrate import calibrate_magnetometer, true_magnetometer
+from .methods import METHODS
+from .result import Disturbance, MagCalibration
+
+__all__ = ["calibrate_magnetometer", "true_magnetometer", "METHODS", "MagCalibration", "Disturbance"]

@@ -1,0 +1,120 @@
+"""The measured recordings' magnetometers (``../shared/data``): what calibration does to them.
+
+For every recording with a magnetometer (:func:`gyrosim.loaders.available_datasets`): the
+calibration's status, the spread (standard deviation) of the field magnitude before and after,
+and — where there is an optical reference (BROAD) — the compass heading error against it before
+and after, computed with the optical tilt (so that only the magnetometer is judged) on the
+samples BROAD marks as movement, after removing the constant offset between the optical frame's
+arbitrary yaw and magnetic north.  BROAD's 34 (a magnet attached for part of the trial) is also
+calibrated on its attached stretch alone, where the magnet is a hard iron like any other.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gyrosim.errors import GyrosimError
+from gyrosim.loaders import available_datasets, load_dataset
+from gyrosim.recording import Recording
+
+from .calibrate import calibrate_magnetometer
+from .heading import compass_quaternion, heading_error_rad, up_from_quat, wrap_pi
+from .result import MagCalibration
+
+__all__ = ["MeasuredRow", "measured_rows", "measured_table", "optical_heading_errors"]
+
+
+@dataclass(frozen=True)
+class MeasuredRow:
+    dataset: str
+    window: str
+    status: str
+    used: int
+    disturbed: int
+    spread_before_ut: float
+    spread_after_ut: float
+    heading_before_deg: float
+    heading_after_deg: float
+    notes: str
+
+
+def optical_heading_errors(rec: Recording, field_body_ut: np.ndarray, mask: np.ndarray) -> float:
+    """RMS (°) of the compass heading error against the optical attitude on ``mask`` (constant
+    offset removed), tilt from the optical attitude; NaN without an optical reference."""
+    t = rec.truth
+    if t is None or t.quat_nb is None:
+        return float("nan")
+    q = np.asarray(t.quat_nb)
+    ok = mask & np.all(np.isfinite(q), axis=1)
+    if "movement" in t.extra:
+        ok &= t.extra["movement"] > 0.5
+    if ok.sum() < 10:
+        return float("nan")
+    e = heading_error_rad(compass_quaternion(up_from_quat(q[ok]), field_body_ut[ok]), q[ok])
+    e = wrap_pi(e - math.atan2(float(np.mean(np.sin(e))), float(np.mean(np.cos(e)))))
+    return math.degrees(math.sqrt(float(np.mean(e**2))))
+
+
+def _row(name: str, rec: Recording, res: MagCalibration, window: np.ndarray, label: str, notes: str) -> MeasuredRow:
+    m = np.asarray(rec.mag_ut, dtype=float)
+    b = res.compensate(m)
+    dist = np.zeros(rec.n, dtype=bool)
+    for d in res.disturbances:
+        dist |= (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
+    judge = window & ~dist
+    return MeasuredRow(name, label, res.status, res.samples.get("used", 0), res.samples.get("disturbed", 0),
+                       float(np.std(np.linalg.norm(m[judge], axis=1))), float(np.std(np.linalg.norm(b[judge], axis=1))),
+                       optical_heading_errors(rec, m, judge), optical_heading_errors(rec, b, judge), notes)
+
+
+def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
+    rows = []
+    for name in available_datasets():
+        rec = load_dataset(name)
+        if rec.mag_ut is None:
+            continue
+        everything = np.ones(rec.n, dtype=bool)
+        try:
+            res = calibrate_magnetometer(rec, method)
+        except GyrosimError as exc:
+            rows.append(MeasuredRow(name, "all", "refused", 0, 0, float("nan"), float("nan"), float("nan"),
+                                    float("nan"), str(exc)[:120]))
+            continue
+        notes = "; ".join(w.split(":")[0] for w in res.warnings)
+        rows.append(_row(name, rec, res, everything, "all", notes))
+        if res.disturbances and "stationary" in name:
+            # the disturbed stretches themselves: a field that depends on where the board is cannot be
+            # calibrated away (the row's "after" keeps the calibration of the undisturbed samples)
+            win = np.zeros(rec.n, dtype=bool)
+            for d in res.disturbances:
+                win |= (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
+            rows.append(_row(name, rec, replace(res, disturbances=()), win,
+                             " + ".join(f"{d.t_start_s:.0f}–{d.t_end_s:.0f} s" for d in res.disturbances) + " (disturbed)",
+                             "reported as a local disturbance, not calibrated"))
+        if res.disturbances and "attached" in name:
+            # the attached magnet turns with the board: a hard iron on the stretch it is there
+            d = max(res.disturbances, key=lambda x: x.samples)
+            win = (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
+            try:
+                sub = calibrate_magnetometer(rec, method, time_range_s=(d.t_start_s, d.t_end_s))
+                rows.append(_row(name, rec, sub, win, f"{d.t_start_s:.0f}–{d.t_end_s:.0f} s (magnet on)",
+                                 "the attached magnet calibrated as a hard iron; " +
+                                 "; ".join(w.split(":")[0] for w in sub.warnings)))
+            except GyrosimError as exc:
+                rows.append(MeasuredRow(name, "magnet on", "refused", 0, 0, float("nan"), float("nan"), float("nan"),
+                                        float("nan"), str(exc)[:120]))
+    return rows
+
+
+def measured_table(method: str = "ellipsoid") -> str:
+    rows = measured_rows(method)
+    out = ["| recording | stretch | status | samples used / disturbed | std |B| µT before → after | "
+           "heading RMS vs optical ° before → after | notes |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r.dataset} | {r.window} | {r.status} | {r.used} / {r.disturbed} | "
+                   f"{r.spread_before_ut:.2f} → {r.spread_after_ut:.2f} | {r.heading_before_deg:.2f} → "
+                   f"{r.heading_after_deg:.2f} | {r.notes} |")
+    return "\n".join(out)

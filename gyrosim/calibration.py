@@ -1,0 +1,370 @@
+"""One calibration result for every estimator: effects of the vocabulary, their covariance, a verdict.
+
+A :class:`Calibration` is what any estimator returns (``calib``'s filters, a user's estimator, the
+simulator's own truth as an oracle):
+
+* ``gyro`` / ``accelerometer``: the estimated effects, as objects of the shared vocabulary
+  (:mod:`gyrosim.effects`: ``bias``, ``scale_factor``, ``nonorthogonality``, ..., and the noise
+  processes ``white_noise`` / ``random_walk`` when the estimator measured them).  The measurement
+  model is the vocabulary's (Zhou 2020 eq. 1 for the first three):
+
+      ω̃ = (I + diag(S_g) + N(G_g)) ω + b_g + ε          f̃ = (I + diag(S_a) + N(G_a)) f + b_a + v
+
+  body frame Right-Forward-Up, SI units (rad/s, m/s², dimensionless S and G);
+* ``covariance``: (P, P) over :meth:`Calibration.parameter_names` — every parameter of every
+  deterministic effect, gyro first, in the order of the effects and of ``Effect.param_names``
+  (NaN where the estimator gives no uncertainty);
+* ``status``: ``ok``, ``diverged`` (the estimate ran away: do not use it) or ``inconsistent``
+  (the estimate failed its own consistency check: σ does not describe its error), and
+  ``warnings``: named findings, each saying what to do;
+* ``diagnostics``: JSON-able extras of the estimator (rest segments, noise levels, NIS, ...),
+  written at the top level of the JSON; ``history``: the estimator's run history for viewers
+  (not serialised).
+
+It saves and loads itself (:meth:`to_json` / :meth:`from_json`, versioned, NaN never written:
+``null`` with the reason in ``warnings``) and compensates a recording (:meth:`compensate`, which
+inverts the effects with :meth:`gyrosim.sensor_model.SensorModel.compensate_triad`).  Exports to
+other tools live in :mod:`gyrosim.exchange` (Kalibr ``imu.yaml``, imucal JSON).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .effects import Bias, Effect, NonOrthogonality, ScaleFactor, SignalContext, effect_from_dict
+from .errors import GyrosimError
+from .recording import FRAMES, Recording
+
+__all__ = ["Calibration", "CALIBRATION_FORMAT", "CALIBRATION_VERSION", "STATUSES", "truth_calibration"]
+
+CALIBRATION_FORMAT = "gyrosim.calibration"
+CALIBRATION_VERSION = 1
+STATUSES = ("ok", "diverged", "inconsistent")
+TRIADS = ("gyro", "accelerometer")
+# the summary blocks of the JSON (``calib run --json`` promises these keys): kind → key per triad
+_SUMMARY = {"gyro": (("bias", "bias_rad_s"), ("scale_factor", "scale_factor"), ("nonorthogonality", "nonorthogonality")),
+            "accelerometer": (("bias", "bias_m_s2"), ("scale_factor", "scale_factor"),
+                              ("nonorthogonality", "nonorthogonality"))}
+_LINEAR = {"bias": Bias, "scale_factor": ScaleFactor, "nonorthogonality": NonOrthogonality}
+
+
+def _deterministic(effects: tuple[Effect, ...]) -> tuple[Effect, ...]:
+    return tuple(e for e in effects if not e.stochastic)
+
+
+def _clean(x: Any, path: str, nan_paths: list[str]) -> Any:
+    """JSON-able copy of ``x`` with every non-finite float replaced by None (paths collected)."""
+    if isinstance(x, Mapping):
+        return {str(k): _clean(v, f"{path}.{k}" if path else str(k), nan_paths) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v, f"{path}[{i}]", nan_paths) for i, v in enumerate(x)]
+    if isinstance(x, np.ndarray):
+        return _clean(x.tolist(), path, nan_paths)
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        if not math.isfinite(v):
+            nan_paths.append(path)
+            return None
+        return v
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A calibration of an IMU: estimated vocabulary effects with covariance, status and warnings."""
+
+    gyro: tuple[Effect, ...] = ()
+    accelerometer: tuple[Effect, ...] = ()
+    covariance: np.ndarray | None = None
+    status: str = "ok"
+    warnings: tuple[str, ...] = ()
+    method: str = ""
+    diagnostics: Mapping[str, Any] = field(default_factory=dict)
+    history: Any = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for triad in TRIADS:
+            effs = tuple(getattr(self, triad))
+            for e in effs:
+                if not isinstance(e, Effect):
+                    raise GyrosimError(f"Calibration.{triad} must hold vocabulary effects, got {type(e).__name__}")
+                if triad not in e.triads:
+                    raise GyrosimError(f"effect {e.kind!r} does not apply to the {triad}")
+            object.__setattr__(self, triad, effs)
+        if self.status not in STATUSES:
+            raise GyrosimError(f"Calibration.status must be one of {STATUSES}, got {self.status!r}")
+        n = len(self.parameter_names())
+        cov = np.full((n, n), np.nan) if self.covariance is None else np.array(self.covariance, dtype=float)
+        if cov.shape != (n, n):
+            raise GyrosimError(f"Calibration.covariance must be {n}×{n} over {self.parameter_names()}, got {cov.shape}")
+        cov.setflags(write=False)
+        object.__setattr__(self, "covariance", cov)
+        object.__setattr__(self, "diagnostics", dict(self.diagnostics))
+        missing = [name for name, v in zip(self.parameter_names(), np.diag(cov)) if not np.isfinite(v)]
+        warnings = tuple(self.warnings)
+        if missing:
+            note = (f"no uncertainty for {len(missing)} parameter(s) ({', '.join(missing[:4])}"
+                    f"{', …' if len(missing) > 4 else ''}): the estimator gave none; their std is null in the JSON")
+            if not any(w.startswith("no uncertainty for") for w in warnings):
+                warnings = warnings + (note,)
+        object.__setattr__(self, "warnings", warnings)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_linear(cls, *, gyro: Mapping[str, np.ndarray] | None = None,
+                    accelerometer: Mapping[str, np.ndarray] | None = None, covariance: np.ndarray | None = None,
+                    **kwargs: Any) -> "Calibration":
+        """From the linear model's arrays, e.g. ``gyro={"bias": b, "scale_factor": S, "nonorthogonality": G}``
+        (kinds of the vocabulary, each (3,) in SI); ``covariance`` over the parameters in that order."""
+        def build(d: Mapping[str, np.ndarray] | None) -> tuple[Effect, ...]:
+            out = []
+            for kind, value in (d or {}).items():
+                if kind not in _LINEAR:
+                    raise GyrosimError(f"from_linear takes {tuple(_LINEAR)}, got {kind!r}")
+                out.append(_LINEAR[kind](value=value))
+            return tuple(out)
+
+        return cls(gyro=build(gyro), accelerometer=build(accelerometer), covariance=covariance, **kwargs)
+
+    # ------------------------------------------------------------------ parameters
+    def parameter_names(self) -> list[str]:
+        """``triad.kind.field[i]`` of every parameter of every deterministic effect (covariance order)."""
+        return [f"{triad}.{name}" for triad in TRIADS for e in _deterministic(getattr(self, triad))
+                for name in e.param_names()]
+
+    def parameters(self) -> np.ndarray:
+        return np.concatenate([e.params() for triad in TRIADS for e in _deterministic(getattr(self, triad))] or
+                              [np.zeros(0)])
+
+    def _slice(self, triad: str, kind: str) -> slice | None:
+        i = 0
+        for tr in TRIADS:
+            for e in _deterministic(getattr(self, tr)):
+                n = e.params().size
+                if tr == triad and e.kind == kind:
+                    return slice(i, i + n)
+                i += n
+        return None
+
+    def effect(self, triad: str, kind: str) -> Effect | None:
+        """The (first) effect of ``kind`` in ``triad``, or None."""
+        return next((e for e in getattr(self, triad) if e.kind == kind), None)
+
+    def has(self, triad: str, kind: str) -> bool:
+        return self.effect(triad, kind) is not None
+
+    def value(self, triad: str, kind: str) -> np.ndarray:
+        """Parameters of effect ``kind`` (zeros(3) for an absent linear effect: it is not there)."""
+        e = self.effect(triad, kind)
+        if e is None:
+            if kind in _LINEAR:
+                return np.zeros(3)
+            raise GyrosimError(f"the calibration has no {triad} {kind!r}")
+        return e.params()
+
+    def std(self, triad: str, kind: str) -> np.ndarray:
+        """1σ of effect ``kind`` from the covariance (NaN where unknown; zeros for an absent linear effect)."""
+        s = self._slice(triad, kind)
+        if s is None:
+            return np.zeros(3) if kind in _LINEAR else np.full(0, np.nan)
+        return np.sqrt(np.clip(np.diag(self.covariance)[s], 0.0, None))  # NaN stays NaN
+
+    def block_covariance(self, items: list[tuple[str, str]]) -> np.ndarray:
+        """Covariance of the concatenated parameters of ``[(triad, kind), ...]`` (zeros for absent effects)."""
+        idx, sizes = [], []
+        for triad, kind in items:
+            s = self._slice(triad, kind)
+            idx.append(None if s is None else np.arange(s.start, s.stop))
+            sizes.append(3 if s is None else s.stop - s.start)
+        n = sum(sizes)
+        out = np.zeros((n, n))
+        offs = np.concatenate([[0], np.cumsum(sizes)])
+        for i, ii in enumerate(idx):
+            for j, jj in enumerate(idx):
+                if ii is not None and jj is not None:
+                    out[offs[i]:offs[i + 1], offs[j]:offs[j + 1]] = self.covariance[np.ix_(ii, jj)]
+        return out
+
+    # ---- the gyro's linear model (Zhou 2020 eq. 1), the names every caller used before
+    @property
+    def bias_rad_s(self) -> np.ndarray:
+        return self.value("gyro", "bias")
+
+    @property
+    def scale_factor(self) -> np.ndarray:
+        return self.value("gyro", "scale_factor")
+
+    @property
+    def nonorthogonality(self) -> np.ndarray:
+        return self.value("gyro", "nonorthogonality")
+
+    @property
+    def bias_std_rad_s(self) -> np.ndarray:
+        return self.std("gyro", "bias")
+
+    @property
+    def scale_factor_std(self) -> np.ndarray:
+        return self.std("gyro", "scale_factor")
+
+    @property
+    def nonorthogonality_std(self) -> np.ndarray:
+        return self.std("gyro", "nonorthogonality")
+
+    def vector(self, triad: str = "gyro") -> np.ndarray:
+        """(b, S, G) of ``triad`` (9,), the order of :meth:`linear_covariance`."""
+        return np.concatenate([self.value(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")])
+
+    def linear_covariance(self, triad: str = "gyro") -> np.ndarray:
+        """Covariance (9, 9) of :meth:`vector`."""
+        return self.block_covariance([(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")])
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    # ------------------------------------------------------------------ use
+    def sensor_model(self):
+        """The deterministic effects as a :class:`~gyrosim.sensor_model.SensorModel` (for compensation)."""
+        from .sensor_model import SensorModel
+
+        return SensorModel(name=f"calibration ({self.method or 'unnamed'})", gyro=_deterministic(self.gyro),
+                           accelerometer=_deterministic(self.accelerometer))
+
+    def compensate(self, rec: Recording) -> Recording:
+        """The recording with both triads compensated: the true rate and specific force this calibration
+        implies, ω = (I + S_g + N(G_g))⁻¹(ω̃ − b_g), f likewise (effects inverted by the vocabulary;
+        the accelerometer first, so effects that need the specific force see the compensated one).
+
+        ``rec`` is not modified.  The result's metadata names the calibration; a simulated recording's
+        ``sensor_model`` (the device before compensation) moves to ``sensor_model_before_compensation``.
+        """
+        model = self.sensor_model()
+        ctx = SignalContext(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, None, rec.mag_ut)
+        acc = model.compensate_triad("accelerometer", rec.acc_m_s2, ctx) if model.accelerometer else rec.acc_m_s2
+        ctx = replace(ctx, specific_force_true_m_s2=acc)
+        gyro = model.compensate_triad("gyro", rec.gyro_rad_s, ctx) if model.gyro else rec.gyro_rad_s
+        meta = dict(rec.meta)
+        if "sensor_model" in meta:
+            meta["sensor_model_before_compensation"] = meta.pop("sensor_model")
+        meta["compensated_by"] = {"format": CALIBRATION_FORMAT, "version": CALIBRATION_VERSION, "method": self.method,
+                                  "status": self.status, "parameters": dict(zip(self.parameter_names(),
+                                                                                self.parameters().tolist()))}
+        return replace(rec, gyro_rad_s=gyro, acc_m_s2=acc, meta=meta)
+
+    # ------------------------------------------------------------------ JSON
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON layout (keys are a promise to users' scripts; see module docstring)."""
+        d: dict[str, Any] = {"format": CALIBRATION_FORMAT, "version": CALIBRATION_VERSION, "method": self.method,
+                             "status": self.status}
+        for triad in TRIADS:
+            if triad == "accelerometer" and not any(self.has(triad, k) for k in _LINEAR):
+                continue  # not estimated (e.g. assumed calibrated): no block of zeros that look exact
+            block: dict[str, Any] = {}
+            std: dict[str, Any] = {}
+            for kind, key in _SUMMARY[triad]:
+                block[key] = self.value(triad, kind)
+                std[key] = self.std(triad, kind)
+            block["std"] = std
+            d[triad] = block
+        d.update({k: v for k, v in self.diagnostics.items() if k not in d})
+        d["warnings"] = list(self.warnings)
+        d["frames"] = FRAMES
+        d["effects"] = {triad: [e.to_dict() for e in getattr(self, triad)] for triad in TRIADS}
+        d["parameters"] = self.parameter_names()
+        d["covariance"] = self.covariance
+        nan_paths: list[str] = []
+        out = _clean(d, "", nan_paths)
+        other = [p for p in nan_paths if not (p.startswith("covariance") or ".std." in p)]
+        if other:
+            out["warnings"].append(f"not a number, written as null: {', '.join(other[:6])}"
+                                   f"{' …' if len(other) > 6 else ''}")
+        return out
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+    def save(self, path: str | Path) -> Path:
+        """Write :meth:`to_json` to ``path`` (temporary file, then rename: never half-written)."""
+        path = Path(path)
+        tmp = path.with_name(f".{path.name}.part")
+        tmp.write_text(self.to_json() + "\n")
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "Calibration":
+        """Inverse of :meth:`to_dict` (the ``effects`` and ``covariance`` keys are authoritative)."""
+        if d.get("format") != CALIBRATION_FORMAT:
+            raise GyrosimError(f"not a calibration file: format {d.get('format')!r}, expected {CALIBRATION_FORMAT!r}")
+        version = d.get("version")
+        if not isinstance(version, int) or version > CALIBRATION_VERSION or version < 1:
+            raise GyrosimError(f"calibration format version {version!r} is not supported (this gyrosim reads 1–"
+                               f"{CALIBRATION_VERSION}); upgrade gyrosim")
+        effects = d.get("effects") or {}
+        gyro = tuple(effect_from_dict(e) for e in effects.get("gyro", []))
+        acc = tuple(effect_from_dict(e) for e in effects.get("accelerometer", []))
+        cov = d.get("covariance")
+        cov = None if cov is None else np.array([[np.nan if v is None else v for v in row] for row in cov], float)
+        known = {"format", "version", "method", "status", "warnings", "frames", "effects", "parameters", "covariance",
+                 "gyro", "accelerometer"}
+        diagnostics = {k: v for k, v in d.items() if k not in known}
+        out = cls(gyro=gyro, accelerometer=acc, covariance=cov, status=d.get("status", "ok"),
+                  warnings=tuple(w for w in d.get("warnings", []) if not w.startswith("not a number, written as null")),
+                  method=d.get("method", ""), diagnostics=diagnostics)
+        if d.get("parameters") is not None and list(d["parameters"]) != out.parameter_names():
+            raise GyrosimError("calibration file: 'parameters' does not match its effects; the file was edited by hand?")
+        return out
+
+    @classmethod
+    def from_json(cls, text: str) -> "Calibration":
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise GyrosimError(f"not a calibration JSON: {exc}") from exc
+        return cls.from_dict(d)
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Calibration":
+        path = Path(path)
+        if not path.is_file():
+            raise GyrosimError(f"no such calibration file: {path}")
+        return cls.from_json(path.read_text())
+
+
+def truth_calibration(rec: Recording, *, linear_only: bool = True) -> Calibration | None:
+    """The oracle: the simulated device's own effects (stored in a gyrosim recording's metadata) as a
+    :class:`Calibration` with zero covariance; None for a measured recording.
+
+    Only tests and scoring (campaigns, Monte Carlo) may ask for it — an estimator under test must not.
+    ``linear_only``: the bias, scale-factor and non-orthogonality effects (summed per kind), the model
+    calib estimates; else every deterministic error-stage effect.
+    """
+    from .sensor_model import stored_sensor_model
+
+    model = stored_sensor_model(rec.meta or {})
+    if model is None:
+        return None
+    out = {}
+    for triad in TRIADS:
+        effs = [e for e in model.effects(triad) if e.stage == "error" and not e.stochastic]
+        if linear_only:
+            sums = {}
+            for e in effs:
+                if e.kind in _LINEAR:
+                    sums[e.kind] = sums.get(e.kind, np.zeros(3)) + e.params()
+            out[triad] = tuple(_LINEAR[k](value=v) for k, v in sums.items())
+        else:
+            out[triad] = tuple(effs)
+    n = sum(e.params().size for t in TRIADS for e in out[t])
+    return Calibration(gyro=out["gyro"], accelerometer=out["accelerometer"], covariance=np.zeros((n, n)),
+                       method="truth (simulator)")
