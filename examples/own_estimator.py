@@ -1,4 +1,4 @@
-"""Plug your own estimator into a campaign and compare it with ours (issue 6).
+"""Plug your own estimator into a campaign and compare it with ours.
 
 An estimator is any callable Recording -> Calibration (gyrosim.estimator, gyrosim.calibration).  This one is a user's
 first idea: "the hand is slow, so ignore the external acceleration but average the accelerometer
@@ -10,7 +10,9 @@ running our Zhou filter kernel on it.  Run:
         --hand typical,shaky --seeds 20 --calibrated-accelerometer --out results/   # from the checkout root
 
 The campaign imports the estimator by its path (package.module:attribute), so it must be
-importable where the tasks run (for a remote Dask cluster: installed on the workers).
+importable where the tasks run (for a remote Dask cluster: installed on the workers).  An installed
+package can instead register it under a short name in the entry-point group ``gyrosim.estimators``
+(see pyproject.toml, where calib registers ``kf`` and the others).
 """
 
 from __future__ import annotations

@@ -11,27 +11,39 @@ An *estimator* is any callable ``estimator(rec: Recording) -> Calibration``:
   ω̃ = (I + diag(S) + N(G)) ω + b), their covariance, a status and warnings.  :func:`Estimate`
   builds one from the gyro's three arrays, for estimators written before the result type.
 
-Built-ins live in :mod:`calib.estimators` (``kf``, ``smoother``, ``kf_session_r``, ``kf_adaptive``,
-``kf_gated``, ``kf_adaptive_gated``, ``kf_lever_arm``, ``kf_joint``, ``iterated_joint``); a user's
-estimator is named by import path ``package.module:attribute`` (an estimator, or a class/factory
-called with no arguments that returns one).  ``examples/own_estimator.py`` plugs one in.
+Estimators are found by name through the entry-point group ``gyrosim.estimators``
+(:mod:`gyrosim.plugins`), so gyrosim never imports the package that provides them: calib registers
+its own there (``kf``, ``smoother``, ``kf_session_r``, ... in its ``pyproject.toml``), and a user's
+installed package can register more the same way.  Any estimator can also be named by import path
+``package.module:attribute``.  Either names an estimator, or a class/factory called with no
+arguments that returns one.  ``examples/own_estimator.py`` plugs one in.
 """
 
 from __future__ import annotations
 
-import importlib
 from typing import Callable, Protocol
 
 import numpy as np
 
 from .calibration import Calibration
 from .errors import GyrosimError
+from .plugins import load, registered
 from .recording import Recording
 
-__all__ = ["Estimate", "Estimator", "load_estimator", "BUILTIN_ESTIMATORS"]
+__all__ = ["Estimate", "Estimator", "load_estimator", "registered_estimators", "ENTRY_POINT_GROUP"]
 
-BUILTIN_ESTIMATORS = ("kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated",
-                      "kf_lever_arm", "kf_joint", "iterated_joint")
+ENTRY_POINT_GROUP = "gyrosim.estimators"
+
+
+def registered_estimators() -> tuple[str, ...]:
+    """The names registered in the ``gyrosim.estimators`` entry-point group (calib's and any user's)."""
+    return tuple(registered(ENTRY_POINT_GROUP))
+
+
+def __getattr__(name: str):  # BUILTIN_ESTIMATORS: the registered names, read when asked (was a fixed tuple)
+    if name == "BUILTIN_ESTIMATORS":
+        return registered_estimators()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def Estimate(bias_rad_s: np.ndarray, scale_factor: np.ndarray, nonorthogonality: np.ndarray,  # noqa: N802
@@ -56,24 +68,9 @@ class Estimator(Protocol):
 
 
 def load_estimator(spec: str) -> Callable[[Recording], Calibration]:
-    """A built-in name or ``package.module:attribute``; raises before any work if it cannot be loaded."""
-    if spec in BUILTIN_ESTIMATORS:
-        from calib import estimators
-
-        return getattr(estimators, spec)
-    if ":" not in spec:
-        raise GyrosimError(f"unknown estimator {spec!r}: use a built-in ({', '.join(BUILTIN_ESTIMATORS)}) or an "
-                           "import path package.module:attribute")
-    mod_name, attr = spec.split(":", 1)
-    try:
-        mod = importlib.import_module(mod_name)
-    except ImportError as exc:
-        raise GyrosimError(f"estimator {spec!r}: cannot import module {mod_name!r} ({exc}); is it on PYTHONPATH?") from exc
-    obj = mod
-    for part in attr.split("."):
-        if not hasattr(obj, part):
-            raise GyrosimError(f"estimator {spec!r}: module {mod_name!r} has no attribute {attr!r}")
-        obj = getattr(obj, part)
+    """A registered name (entry-point group ``gyrosim.estimators``) or ``package.module:attribute``;
+    raises :class:`GyrosimError` before any work if it cannot be loaded."""
+    obj = load(ENTRY_POINT_GROUP, spec, what="estimator")
     if isinstance(obj, type):
         obj = obj()
     if not callable(obj):

@@ -42,15 +42,21 @@ def test_model_and_data_ship_in_the_wheel_and_load_from_it(tmp_path):
                 assert f.relative_to(ROOT).as_posix() in names, f"{f.relative_to(ROOT)} is not in the wheel"
     for f in (ROOT / "models").glob("*.xml"):
         assert f"gyrosim/models/{f.name}" in names, f.name
+    # calib's estimators are registered for gyrosim in the wheel's metadata (gyrosim.plugins)
+    (ep_file,) = [n for n in names if n.endswith(".dist-info/entry_points.txt")]
+    ep_text = zipfile.ZipFile(wheel).read(ep_file).decode()
+    assert "[gyrosim.estimators]" in ep_text and "kf = calib.estimators:kf" in ep_text
     target = tmp_path / "site"
     inst = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
                           capture_output=True, text=True)
     assert inst.returncode == 0, inst.stderr
     # run from an unrelated folder with only the installed copy on the path
     code = ("from gyrosim.scene import HandScene; from gyrosim.simulate import simulate_truth; "
-            "s = HandScene(); print(s.model_path); r = simulate_truth('static', 'ideal', 50, scene=s); print(r.n)")
+            "s = HandScene(); print(s.model_path); r = simulate_truth('static', 'ideal', 50, scene=s); print(r.n); "
+            "from gyrosim.estimator import load_estimator; print(load_estimator('kf').__module__)")
     env = {**os.environ, "PYTHONPATH": str(target)}
     run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
-    model_path, n = run.stdout.split()
+    model_path, n, kf_module = run.stdout.split()
     assert Path(model_path).is_relative_to(target) and int(n) == 3001
+    assert kf_module == "calib.estimators"  # found by entry point from the installed copy (no source tree)

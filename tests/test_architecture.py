@@ -1,0 +1,184 @@
+"""The layers stay one-way and estimators are found by registration, not by gyrosim importing calib.
+
+Floors: gyrosim (simulate) → calib (estimate) → score.  gyrosim must run, and find calib's
+estimators by name, without ever importing calib: calib registers them in the entry-point group
+``gyrosim.estimators`` (pyproject.toml), read by :mod:`gyrosim.plugins`.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from gyrosim import plugins
+from gyrosim.errors import GyrosimError
+from gyrosim.estimator import ENTRY_POINT_GROUP, load_estimator, registered_estimators
+
+ROOT = Path(__file__).resolve().parents[1]
+UPPER_FLOORS = ("calib",)
+
+
+def _imports_of(path: Path) -> list[tuple[int, str]]:
+    """(line, module) of every import in ``path``, at any depth (lazy imports inside functions count),
+    and of every ``importlib.import_module("…")`` / ``__import__("…")`` with a literal name."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out.append((node.lineno, node.module))
+        elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant) \
+                and isinstance(node.args[0].value, str):
+            f = node.func
+            name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+            if name in ("import_module", "__import__"):
+                out.append((node.lineno, node.args[0].value))
+    return out
+
+
+def test_gyrosim_source_imports_nothing_from_calib():
+    modules = sorted((ROOT / "gyrosim").rglob("*.py"))
+    assert len(modules) > 20  # the walk sees the package (a wrong ROOT would pass vacuously)
+    back_edges = [f"{m.relative_to(ROOT)}:{line} imports {name}"
+                  for m in modules for line, name in _imports_of(m)
+                  if name.split(".")[0] in UPPER_FLOORS]
+    assert not back_edges, "gyrosim must not import the floors above it:\n" + "\n".join(back_edges)
+
+
+def test_the_import_walk_sees_lazy_and_dynamic_imports(tmp_path):
+    # the walker itself must catch the forms a back-edge takes (else the test above cannot fail)
+    src = tmp_path / "m.py"
+    src.write_text(textwrap.dedent("""
+        import importlib
+        def f():
+            from calib import estimators
+            import calib.kalman as k
+            return importlib.import_module("calib.cli"), __import__("calib")
+    """))
+    found = {name for _, name in _imports_of(src)}
+    assert {"calib", "calib.kalman", "calib.cli"} <= found
+
+
+BLOCKED_RUN = textwrap.dedent("""
+    import importlib, importlib.abc, pkgutil, sys
+
+    class Block(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "calib" or name.startswith("calib."):
+                raise ImportError(f"blocked: gyrosim imported {name}")
+
+    sys.meta_path.insert(0, Block())
+    import gyrosim
+    names = [m.name for m in pkgutil.walk_packages(gyrosim.__path__, "gyrosim.") if not m.name.endswith("__main__")]
+    for name in names:
+        importlib.import_module(name)
+    from gyrosim.cli import build_parser
+    build_parser().format_help()
+    from gyrosim.estimator import load_estimator, registered_estimators
+    assert "kf" in registered_estimators()  # names are read without importing their package
+    try:
+        load_estimator("kf")
+    except Exception as exc:  # the registered target is calib's: refused with a clear message
+        print("REFUSED", type(exc).__name__, exc)
+    print("MODULES", len(names), "CALIB", sorted(m for m in sys.modules if m.split(".")[0] == "calib"))
+""")
+
+
+def test_gyrosim_imports_and_lists_estimators_with_calib_blocked():
+    run = subprocess.run([sys.executable, "-c", BLOCKED_RUN], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    out = run.stdout
+    assert "CALIB []" in out, out
+    assert int(out.split("MODULES ")[1].split()[0]) > 20
+    # asking for calib's estimator while calib cannot be imported is a GyrosimError naming the module
+    assert "REFUSED GyrosimError" in out and "cannot import module 'calib.estimators'" in out, out
+
+
+def test_every_estimator_calib_exports_is_registered_and_resolves():
+    import calib.estimators as est
+
+    assert set(registered_estimators()) >= set(est.__all__)
+    for name in est.__all__:
+        assert load_estimator(name) is getattr(est, name)
+    assert load_estimator("calib.estimators:kf") is est.kf  # the import-path form still works
+
+
+def test_registered_names_come_from_the_source_tree_when_metadata_lacks_them(monkeypatch):
+    # a checkout on PYTHONPATH, or an editable install whose metadata predates the table
+    import calib.estimators as est
+
+    monkeypatch.setattr(plugins, "_from_metadata", lambda group: [])
+    plugins.clear_cache()
+    try:
+        assert set(registered_estimators()) >= set(est.__all__)
+        assert load_estimator("smoother") is est.smoother
+    finally:
+        plugins.clear_cache()
+
+
+def test_no_registration_anywhere_is_a_clear_error(monkeypatch, tmp_path):
+    monkeypatch.setattr(plugins, "_from_metadata", lambda group: [])
+    monkeypatch.setattr(plugins, "SOURCE_TREE_PYPROJECT", tmp_path / "pyproject.toml")  # none there
+    plugins.clear_cache()
+    try:
+        with pytest.raises(GyrosimError, match=r"unknown estimator 'kf'.*none.*pip install -e"):
+            load_estimator("kf")
+    finally:
+        plugins.clear_cache()
+
+
+def _user_distribution(root: Path, dist: str, module: str, entries: dict[str, str]) -> None:
+    """An installed package as importlib.metadata sees one: a module and its .dist-info."""
+    (root / f"{module}.py").write_text(textwrap.dedent("""
+        from gyrosim.estimator import Estimate
+
+        def zeros(rec):
+            return Estimate([0, 0, 0], [0, 0, 0], [0, 0, 0], method="zeros")
+
+        class Factory:
+            def __call__(self, rec):
+                return zeros(rec)
+    """))
+    info = root / f"{dist}-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[{ENTRY_POINT_GROUP}]\n"
+                                           + "".join(f"{k} = {v}\n" for k, v in entries.items()))
+
+
+def test_a_users_installed_package_registers_its_own_estimators(monkeypatch, tmp_path, ideal_session):
+    _user_distribution(tmp_path, "my_filters", "my_filters_mod",
+                       {"my_zeros": "my_filters_mod:zeros", "my_factory": "my_filters_mod:Factory"})
+    monkeypatch.syspath_prepend(str(tmp_path))
+    plugins.clear_cache()
+    try:
+        names = registered_estimators()
+        assert {"my_zeros", "my_factory", "kf"} <= set(names)  # beside calib's, not instead
+        cal = load_estimator("my_factory")(ideal_session)  # a class is instantiated with no arguments
+        assert cal.method == "zeros"
+        origin = plugins.registered(ENTRY_POINT_GROUP)["my_zeros"][0].origin
+        assert origin == "distribution my_filters"
+    finally:
+        plugins.clear_cache()
+
+
+def test_a_name_two_packages_register_differently_is_refused(monkeypatch, tmp_path):
+    for i, dist in enumerate(("pkg_a", "pkg_b")):
+        d = tmp_path / dist
+        d.mkdir()
+        _user_distribution(d, dist, f"{dist}_mod", {"shared_name": f"{dist}_mod:zeros"})
+        monkeypatch.syspath_prepend(str(d))
+    plugins.clear_cache()
+    try:
+        with pytest.raises(GyrosimError, match=r"more than one package") as exc:
+            load_estimator("shared_name")
+        assert "pkg_a_mod:zeros" in str(exc.value) and "pkg_b_mod:zeros" in str(exc.value)
+        assert load_estimator("pkg_b_mod:zeros").__name__ == "zeros"  # the import path disambiguates
+    finally:
+        plugins.clear_cache()
