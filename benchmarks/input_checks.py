@@ -1,4 +1,4 @@
-"""What the input boundary (issue 11) adds to ``calib run``, measured as a ratio in one run.
+"""What the input boundary (calib.inputs) adds to ``calib run``, measured as a ratio in one run.
 
     python benchmarks/input_checks.py [--repeats 5]
 
@@ -14,7 +14,7 @@ measured, when ../shared/data is there), each repeat times, interleaved:
   motion cannot separate the accelerometer).
 
 overhead = (boundary + re-check) / (read + calibrate − re-check): all checking counted, even the
-gap/unit/saturation checks the code made before issue 11.  Times are the process's CPU time
+gap/unit/saturation checks the code made before the input boundary.  Times are the process's CPU time
 (``time.process_time``, all threads), medians over the repeats: on the shared 2-core machine a
 10 ms step measured by the wall clock mostly measures the scheduler (a 1 ms check read 1–60 ms at
 load 10).  The wall-clock ratio is printed too, for reference.

@@ -106,7 +106,7 @@ def mc_gyrosim(seeds: int) -> str:
 
 
 def hands(seeds: int = 5) -> str:
-    """The known limit: what the hand does to σ (issue 13's subject), measured, not hidden."""
+    """The known limit: what the hand does to σ (the hand-aware estimator's subject), measured, not hidden."""
     from gyrosim.calibration import truth_calibration
     from gyrosim.simulate import simulate
 

@@ -14,7 +14,7 @@ multi-position accelerometer calibration feeding Zhou's filter:
 * the gyro and accelerometer errors are estimated *jointly*, so their correlations (an
   accelerometer bias tilts the gravity reference exactly like an attitude error) are in the
   covariance, and σ stays honest for both (Monte Carlo in docs/real_imu.md);
-* the same structure takes further states (issue 13's lever arm and coloured external acceleration):
+* the same structure takes further states (a lever arm, coloured external acceleration):
   a block of :class:`calib.kalman.StateLayout`, its F/H columns and its prior.
 
 A Tedaldi-style |f| = g fit over the session's quasi-static windows (:mod:`calib.gravityfit`) runs

@@ -512,7 +512,7 @@ def _noise_arg(spec: str | None, preset: str | None):
 
 
 def cmd_northfind(args: argparse.Namespace) -> int:
-    """Gyrocompassing on a static multi-position record: heading, σ, the limit, refusal (issue 20)."""
+    """Gyrocompassing on a static multi-position record: heading, σ, the limit, refusal."""
     from .inputs import NORTHFIND
     from .northfind import find_north
 
@@ -914,12 +914,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="accelerometer bias random walk, m/s³/√Hz, ≥ 0")
     ex.set_defaults(func=cmd_export)
     mc = sub.add_parser("montecarlo", help="Monte Carlo of the calibration against the Cramér–Rao bound")
-    mc.add_argument("--schedule", default="zhou2020")
-    mc.add_argument("--hand", default="ideal")
-    mc.add_argument("--sensor", default="zhou2020_sim")
+    mc.add_argument("--schedule", default="zhou2020", help="schedule of every session: built-in name or TOML path (default zhou2020)")
+    mc.add_argument("--hand", default="ideal", help="hand preset or TOML path (default ideal: the paper's motion)")
+    mc.add_argument("--sensor", default="zhou2020_sim", help="sensor preset or TOML path (default zhou2020_sim: Zhou 2020 Table 7)")
     mc.add_argument("--seeds", type=integer(2, 100_000), default=50, help="sessions, 2 … 1e5 (default 50)")
     mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] (default 100)")
-    mc.add_argument("--methods", default="kf,iterated")
+    mc.add_argument("--methods", default="kf,iterated", help="comma-separated calib run methods: kf, iterated (default both)")
     mc.add_argument("--calibrated-accelerometer", action="store_true",
                     help="simulate a calibrated accelerometer: keep only its white noise (Zhou §3.3.2's assumption)")
     mc.add_argument("--accelerometer", default="calibrated", choices=("estimate", "calibrated"),
@@ -928,7 +928,7 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("--json", help="write the table as JSON")
     mc.set_defaults(func=cmd_montecarlo)
     ob = sub.add_parser("observability", help="observability of each schedule segment (Zhou 2020 §4, Tables 5, 10, 11)")
-    ob.add_argument("--schedule", default="zhou2020")
+    ob.add_argument("--schedule", default="zhou2020", help="schedule to analyse: built-in name or TOML path (default zhou2020)")
     ob.add_argument("--rate", type=RATE, default=100.0, help="sample rate, Hz, in (0, 1e6] (default 100)")
     ob.set_defaults(func=cmd_observability)
     be = sub.add_parser("bench", help="calibration speed: calib run (21 states) vs the paper's filterpy kf, same run")
@@ -953,7 +953,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="length of the alternating fit/held-out stretches, s, in [0.01, 3600] (default 4)")
     _input_options(cl, decimate=True)
     cl.set_defaults(func=cmd_closeloop)
-    tp = sub.add_parser("temperature", help="temperature models compared on held-out chamber cycles (issue 7)")
+    tp = sub.add_parser("temperature", help="temperature models compared on held-out chamber cycles")
     tp.add_argument("recording", help="static recording with /temp (gyrosim chamber) or CSV with a temp column")
     tp.add_argument("--train-cycles", type=integer(1, 10_000), default=2,
                     help="chamber cycles to train on, ≥ 1; the rest are held out (default 2)")
@@ -1007,10 +1007,10 @@ def build_parser() -> argparse.ArgumentParser:
     nl.add_argument("--json", help="write the table as JSON")
     nl.set_defaults(func=cmd_northfind_latitude)
     nm = sub.add_parser("northfind-mc", help="north-finding error vs the physical limit over many devices and latitudes")
-    nm.add_argument("--sensor", default="fog_tactical")
+    nm.add_argument("--sensor", default="fog_tactical", help="sensor preset or TOML path (default fog_tactical)")
     nm.add_argument("--shield", type=number(0, None, lo_open=True), default=1e3,
                     help="divide the magnetic sensitivity by this, > 0 (default 1e3: shielded)")
-    nm.add_argument("--latitudes", default="0,45,70")
+    nm.add_argument("--latitudes", default="0,45,70", help="comma-separated site latitudes, ° (default 0,45,70)")
     nm.add_argument("--seeds", type=integer(1, 100_000), default=50, help="devices, 1 … 1e5 (default 50)")
     nm.add_argument("--first-seed", type=seed, default=0, help="first seed, 0 … 2³²−1")
     nm.add_argument("--positions", type=integer(2, 360), default=4, help="positions, 2 … 360 (default 4)")
@@ -1027,7 +1027,7 @@ def build_parser() -> argparse.ArgumentParser:
     _input_options(tl)
     tl.set_defaults(func=cmd_tilt)
     tm = sub.add_parser("tilt-mc", help="each calib tilt figure against the drawn device's value over many devices")
-    tm.add_argument("--sensor", default="tilt_001")
+    tm.add_argument("--sensor", default="tilt_001", help="tilt-sensor preset or TOML path (default tilt_001, seed 001's chip)")
     tm.add_argument("--seeds", type=integer(1, 100_000), default=20, help="devices, 1 … 1e5 (default 20)")
     tm.add_argument("--first-seed", type=seed, default=0, help="first seed, 0 … 2³²−1")
     tm.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=30.0, help="hold per angle, s, > 0")
@@ -1054,14 +1054,16 @@ def build_parser() -> argparse.ArgumentParser:
     _input_options(mg)
     mg.set_defaults(func=cmd_mag)
     mc2 = sub.add_parser("mag-compare", help="seed 001: KF / adaptive KF / particle filter vs calibration (simulated)")
-    mc2.add_argument("--sensor", default="phone")
+    mc2.add_argument("--sensor", default="phone", help="sensor preset with a magnetometer, or TOML path (default phone)")
     mc2.add_argument("--seed", type=seed, default=7, help="seed, 0 … 2³²−1 (default 7)")
-    mc2.add_argument("--hand", default="typical")
-    mc2.add_argument("--method", default="aided", choices=("ellipsoid", "aided"))
+    mc2.add_argument("--hand", default="typical", help="hand preset or TOML path (default typical)")
+    mc2.add_argument("--method", default="aided", choices=("ellipsoid", "aided"),
+                     help="calibration method, as calib mag --method (default aided)")
     mc2.add_argument("--png", help="write the Allan plot of the heading error")
     mc2.set_defaults(func=cmd_mag_compare)
     mm = sub.add_parser("mag-measured", help="magnetometers of the measured recordings: field spread, heading vs optical")
-    mm.add_argument("--method", default="ellipsoid", choices=("ellipsoid", "aided"))
+    mm.add_argument("--method", default="ellipsoid", choices=("ellipsoid", "aided"),
+                    help="calibration method, as calib mag --method (default ellipsoid)")
     mm.set_defaults(func=cmd_mag_measured)
     mb = sub.add_parser("mag-bench", help="speed of the ellipsoid and attitude-aided fits on a 3-minute 100 Hz session")
     mb.add_argument("--repeats", type=integer(1, 1000), default=5, help="timing repeats, 1 … 1000 (default 5)")

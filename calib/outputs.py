@@ -1,6 +1,6 @@
 """The output boundary for calib's commands and library users: :mod:`gyrosim.outputs`, re-exported.
 
-Stable API (issue 11): :func:`check_output_paths` (before any work: writable, not a folder, never an
+Stable API: :func:`check_output_paths` (before any work: writable, not a folder, never an
 input), :func:`write_json_atomic` (any dict; NaN/inf → ``null`` with the reason appended to its
 ``warnings``), :func:`write_text_atomic`, :func:`atomic_path` (temp file + rename for any writer),
 :func:`staged_folder` (a report set, all or nothing), :func:`json_safe`.  It lives in gyrosim

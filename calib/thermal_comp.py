@@ -1,4 +1,4 @@
-"""Temperature-drift compensation of a gyro: fit on some temperature cycles, judge on others (issue 7).
+"""Temperature-drift compensation of a gyro: fit on some temperature cycles, judge on others.
 
 Every method is a set of effects from the shared vocabulary (so what is fitted here can be
 injected by gyrosim, compensated by ``SensorModel.compensate_triad``, and proposed by

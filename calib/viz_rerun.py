@@ -156,7 +156,7 @@ def save_session_rrd(path: str | Path, rec: Recording, application_id: str = "gy
     return path
 
 
-# ---------------------------------------------------------------------- magnetometer (issue 17)
+# ---------------------------------------------------------------------- magnetometer
 def log_magnetometer(stream: rr.RecordingStream, rec: Recording, result, step: int | None = None) -> None:
     """Log the magnetometer before/after calibration.
 

@@ -1,4 +1,4 @@
-"""Robustness campaigns: many simulated sessions × estimators, scored against the truth (issue 6).
+"""Robustness campaigns: many simulated sessions × estimators, scored against the truth.
 
 A campaign is a grid of tasks.  Each task simulates one session (schedule × hand × sensor × seed),
 runs every estimator on it (:mod:`gyrosim.estimator`) and scores each estimate against the

@@ -271,11 +271,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--location", help="Earth field from the World Magnetic Model: LAT,LON[,HEIGHT_M[,YYYY-MM-DD]]")
     s.add_argument("--anomaly", action="append",
                    help="ferrous sphere X,Y,Z,RADIUS_M in the room (m, ENU; the hand starts at 0.18,0.30,1.15); repeatable")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--quiet", action="store_true", help="no progress bar and no summary line")
     s.set_defaults(func=cmd_simulate)
 
     h = sub.add_parser("hands", help="list hand presets with the disturbances they produce")
-    h.add_argument("--schedule", default="zhou2020")
+    h.add_argument("--schedule", default="zhou2020",
+                   help="schedule the expected disturbances are computed over: built-in name or TOML path (default zhou2020)")
     h.set_defaults(func=cmd_hands)
 
     sc = sub.add_parser("schedules", help="list built-in schedules")
@@ -298,7 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     rt = sub.add_parser("ratetable", help="virtual rate table: ±rate / one-position on six faces at each chamber hold")
     rt.add_argument("--profile", default="points_001", help="chamber profile whose holds are the calibration points")
-    rt.add_argument("--sensor", default="consumer_thermal")
+    rt.add_argument("--sensor", default="consumer_thermal", help="sensor preset or TOML path (default consumer_thermal)")
     rt.add_argument("--rate", type=number(0, 1e4, lo_open=True, unit="Hz"), default=100.0,
                     help="output rate, Hz, in (0, 1e4] (default 100)")
     rt.add_argument("--table-rate", type=number(0, 2000, lo_open=True, unit="°/s"), default=30.0,
@@ -354,7 +355,7 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--first-seed", type=seed, help="seed of the first session, 0 … 2³²−1")
     cp.add_argument("--sensor", help="sensor preset (default mpu9250)")
     cp.add_argument("--method", help="comma-separated estimators: built-ins or package.module:attribute")
-    cp.add_argument("--schedule")
+    cp.add_argument("--schedule", help="schedule of every session: built-in name or TOML path (default zhou2020)")
     cp.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), help="sample rate, Hz, in (0, 1e6]")
     cp.add_argument("--severity", type=positive_list(),
                     help="comma-separated factors > 0 on every hand imperfection (default 1)")
@@ -375,9 +376,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",
                    help="scene: simulation vs bare mujoco.rollout; sensor: error model vs bare numpy")
     b.add_argument("--repeats", type=integer(1, 1000), default=5, help="timing repeats, 1 … 1000 (default 5)")
-    b.add_argument("--sensor", default="mpu9250")
-    b.add_argument("--schedule", default="zhou2020")
-    b.add_argument("--hand", default="typical")
+    b.add_argument("--sensor", default="mpu9250", help="sensor preset or TOML path timed in the sensor row (default mpu9250)")
+    b.add_argument("--schedule", default="zhou2020", help="schedule simulated: built-in name or TOML path (default zhou2020)")
+    b.add_argument("--hand", default="typical", help="hand preset or TOML path (default typical)")
     b.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), default=100.0,
                    help="sample rate, Hz, in (0, 1e6] (default 100)")
     b.set_defaults(func=cmd_bench)

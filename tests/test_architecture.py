@@ -203,3 +203,52 @@ def test_public_api_exports_resolve():
     assert inspect.isfunction(simulate) and simulate.__module__ == "gyrosim.simulate"
     assert calib.Calibration is gyrosim.Calibration  # one result type, defined in gyrosim's floor
     assert calib.run_closeloop.__module__.startswith("calib.closeloop")  # a lazily imported export
+
+
+def _parsers():
+    import argparse
+
+    from calib.cli import build_parser as calib_parser
+    from gyrosim.cli import build_parser as gyrosim_parser
+
+    for build in (gyrosim_parser, calib_parser):
+        top = build()
+        (sub,) = [a for a in top._actions if isinstance(a, argparse._SubParsersAction)]
+        helped = {c.dest: c.help for c in sub._choices_actions}
+        yield top, sub.choices, helped
+
+
+def test_every_cli_command_and_option_has_help_text():
+    import argparse
+
+    missing, n_options = [], 0
+    for top, commands, helped in _parsers():
+        assert len(commands) >= 10
+        for name, parser in commands.items():
+            if not helped.get(name):
+                missing.append(f"{top.prog} {name} (the command itself)")
+            for action in parser._actions:
+                if isinstance(action, argparse._HelpAction):
+                    continue
+                n_options += 1
+                if not action.help or action.help == argparse.SUPPRESS or not action.help.strip():
+                    missing.append(f"{top.prog} {name} {'/'.join(action.option_strings) or action.dest}")
+    assert n_options > 100  # the walk reached the options (a broken walk would pass vacuously)
+    assert not missing, "options without help text (add help=...):\n" + "\n".join(missing)
+
+
+ISSUE_REF = r"\bissues? #?\d+"
+
+
+def test_no_issue_numbers_in_code_or_cli_help():
+    import re
+
+    pattern = re.compile(ISSUE_REF, re.I)
+    assert pattern.search("see issue 7") and pattern.search("(Issues 13)")  # the pattern bites
+    hits = [f"{f.relative_to(ROOT)}:{i}: {line.strip()}"
+            for pkg in ("gyrosim", "calib") for f in sorted((ROOT / pkg).rglob("*"))
+            if f.suffix in (".py", ".toml") and "__pycache__" not in f.parts
+            for i, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
+    for top, commands, _ in _parsers():
+        hits += [f"{top.prog} {name} --help" for name, p in commands.items() if pattern.search(p.format_help())]
+    assert not hits, "issue numbers belong in the tracker, not the code (say what, not which ticket):\n" + "\n".join(hits)

@@ -1,4 +1,4 @@
-"""Magnetometer calibration (issue 17): hard and soft iron, misalignment, local disturbances.
+"""Magnetometer calibration: hard and soft iron, misalignment, local disturbances.
 
 ``calibrate_magnetometer(rec, method)`` → :class:`MagCalibration` (m = A·B + h).  Methods
 (:data:`METHODS`): ``ellipsoid`` (field magnitude only) and ``aided`` (also the inclination
