@@ -137,14 +137,14 @@ def kf_lever_arm(rec: Recording) -> Calibration:
     rest attitude, gives g_b(t); least squares over the motion gives r̂; pass 2 runs on
     f − K r̂.  ω̇ from the compensated rate, zero-phase low-passed at 5 Hz (above the schedule,
     below the tremor)."""
-    from gyrosim.effects import _nonortho_matrix
+    from gyrosim.effects import nonortho_matrix
     from gyrosim.rotations import quat_conjugate, quat_rotate, skew
     from gyrosim.strapdown import integrate_gyro
 
     prep = prepare(rec, accelerometer="calibrated")  # the session-R preparation of pass 1, used again for the rest attitude
     first = _run(rec, session_r=True, prep=prep, name="kf_lever_arm")
     a, fs = prep.start, rec.rate_hz
-    m = np.eye(3) + np.diag(first.scale_factor) + _nonortho_matrix(first.nonorthogonality)
+    m = np.eye(3) + np.diag(first.scale_factor) + nonortho_matrix(first.nonorthogonality)
     w = (rec.gyro_rad_s - first.bias_rad_s) @ np.linalg.inv(m).T
     b, c = sp_signal.butter(2, min(5.0 / (fs / 2), 0.9))
     w_s = sp_signal.filtfilt(b, c, w, axis=0)

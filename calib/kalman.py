@@ -74,7 +74,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from gyrosim.effects import _nonortho_matrix
+from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT",
@@ -176,12 +176,12 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def jacobian_nonorthogonality(omega: np.ndarray) -> np.ndarray:
     """J_G(ω) = ∂(N(G) ω)/∂G: the same symmetric pattern as N with G → ω (see module docstring)."""
-    return _nonortho_matrix(np.asarray(omega, dtype=float))
+    return nonortho_matrix(np.asarray(omega, dtype=float))
 
 
 def m_matrix(scale: np.ndarray, nonortho: np.ndarray) -> np.ndarray:
     """M = I + diag(S) + N(G)."""
-    return np.eye(3) + np.diag(scale) + _nonortho_matrix(np.asarray(nonortho, float))
+    return np.eye(3) + np.diag(scale) + nonortho_matrix(np.asarray(nonortho, float))
 
 
 def leave_out_means(x: np.ndarray, half_window: int, midpoint: bool) -> np.ndarray:

@@ -57,6 +57,7 @@ from scipy import stats
 from gyrosim.effects import EARTH_RATE_RAD_S
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
+from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
 
 from .allan import NoiseTerms
 from .holds import fit_hold_noise, still_holds
@@ -66,7 +67,6 @@ __all__ = ["NorthFinding", "HoldInfo", "find_north", "Design"]
 
 P_CHECK = 1e-4           # false-alarm probability of each consistency check
 MAX_SIGMA_RAD = 1.0 / 3  # beyond ~19° the linearised heading σ means nothing: the gyro cannot see North
-DEG_H = math.degrees(1.0) * 3600.0
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,6 @@ from .allan import NoiseTerms
 __all__ = ["procedure_sigma_res", "limit_sigma_deg", "rest_time_needed", "max_latitude_deg", "latitude_curve",
            "plot_latitude_curve"]
 
-DEG_H = math.degrees(1.0) * 3600.0
 HOLD_GRID_S = np.logspace(0.0, 5.0, 41)    # 1 s … 28 h per position
 
 

@@ -25,13 +25,12 @@ import numpy as np
 
 from gyrosim.rotations import quat_to_matrix, skew
 from gyrosim.schedule import Schedule
+from gyrosim.units import G0
 
 from .kalman import STATE_NAMES, jacobian_nonorthogonality
 
 __all__ = ["som", "parameter_gram", "SegmentObservability", "segment_observability", "unobservable_states",
            "unobservable_parameters"]
-
-G0 = 9.80665
 
 
 def som(omega_body_rad_s: np.ndarray, quat_nb: np.ndarray, gravity_m_s2: float = G0,

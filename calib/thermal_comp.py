@@ -36,13 +36,13 @@ from gyrosim.effects import Effect, SignalContext
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.sensor_model import SensorModel
+from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
 
 from .timeblocks import block_means, time_block_index
 
 __all__ = ["METHODS", "ThermalCompensation", "fit_compensation", "evaluate", "compare_methods", "split_cycles"]
 
 METHODS = ("none", "polynomial", "piecewise_linear", "rbf", "polynomial+dT/dt")
-DEG_H = 180.0 / math.pi * 3600.0
 BLOCK_S = 10.0
 
 

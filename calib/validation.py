@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrosim.effects import _nonortho_matrix
+from gyrosim.effects import nonortho_matrix
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_multiply, quat_to_matrix
 from gyrosim.sensor_model import SensorModel
@@ -65,7 +65,7 @@ def validate_attitude(calibration_recording: Recording, result, *, schedule: str
     rec = apply_sensor(truth, device, np.random.default_rng(seed), realize=False)
     q0 = truth.truth.quat_nb[0]
     w_bias = rec.gyro_rad_s - result.bias_rad_s
-    m = np.eye(3) + np.diag(result.scale_factor) + _nonortho_matrix(result.nonorthogonality)
+    m = np.eye(3) + np.diag(result.scale_factor) + nonortho_matrix(result.nonorthogonality)
     w_comp = np.linalg.solve(m, w_bias.T).T
     e_without = attitude_errors(integrate_gyro(rec.t_s, w_bias, q0), truth.truth.quat_nb)
     e_with = attitude_errors(integrate_gyro(rec.t_s, w_comp, q0), truth.truth.quat_nb)

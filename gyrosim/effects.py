@@ -47,6 +47,7 @@ __all__ = [
     "EFFECTS",
     "effect_from_dict",
     "rotation_matrix",
+    "nonortho_matrix",
 ]
 
 EARTH_RATE_RAD_S = 7.2921150e-5  # WGS-84 ω_ie
@@ -281,9 +282,14 @@ def _check_invertible(m: np.ndarray, kind: str, value: np.ndarray) -> None:
         )
 
 
-def _nonortho_matrix(g: np.ndarray) -> np.ndarray:
+def nonortho_matrix(g: np.ndarray) -> np.ndarray:
+    """N(G), the symmetric non-orthogonality matrix of ω̃ = (I + diag(S) + N(G)) ω + b (Zhou 2020 eq. 1):
+    zero diagonal, N[0,1] = N[1,0] = Gz, N[0,2] = N[2,0] = Gy, N[1,2] = N[2,1] = Gx."""
     gx, gy, gz = g
     return np.array([[0.0, gz, gy], [gz, 0.0, gx], [gy, gx, 0.0]])
+
+
+_nonortho_matrix = nonortho_matrix  # the former private name, for branches written before it was public
 
 
 @dataclass(frozen=True)
@@ -339,16 +345,16 @@ class NonOrthogonality(Effect):
     def __post_init__(self) -> None:
         object.__setattr__(self, "value", _vec(self.value, name="non-orthogonality"))
         object.__setattr__(self, "value_sigma", _vec(self.value_sigma, name="non-orthogonality sigma"))
-        _check_invertible(np.eye(3) + _nonortho_matrix(self.value), self.kind, self.value)
+        _check_invertible(np.eye(3) + nonortho_matrix(self.value), self.kind, self.value)
 
     def delta(self, x, ctx, rng=None):
-        return x @ _nonortho_matrix(self.value).T
+        return x @ nonortho_matrix(self.value).T
 
     def affine(self):
-        return _nonortho_matrix(self.value), np.zeros(3)
+        return nonortho_matrix(self.value), np.zeros(3)
 
     def delta_dx(self, x, ctx):
-        return np.broadcast_to(_nonortho_matrix(self.value), x.shape + (3,))
+        return np.broadcast_to(nonortho_matrix(self.value), x.shape + (3,))
 
     def sensitivity(self, x, ctx):
         out = np.zeros(x.shape + (3,))

@@ -138,14 +138,14 @@ def _k_r(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def imucal_json(cal: Calibration, comment: str = "") -> str:
     """imucal's Ferraris JSON layout for ``cal`` (module docstring); raises if a triad is missing."""
-    from .effects import _nonortho_matrix
+    from .effects import nonortho_matrix
 
     for triad in ("gyro", "accelerometer"):
         if not any(cal.has(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")):
             raise GyrosimError(f"imucal's format needs both triads; this calibration has no {triad} intrinsics "
                                "(calibrate with --accelerometer estimate)")
     def m(triad: str) -> np.ndarray:
-        return np.eye(3) + np.diag(cal.value(triad, "scale_factor")) + _nonortho_matrix(cal.value(triad, "nonorthogonality"))
+        return np.eye(3) + np.diag(cal.value(triad, "scale_factor")) + nonortho_matrix(cal.value(triad, "nonorthogonality"))
 
     k_a, r_a = _k_r(m("accelerometer"))
     k_g, r_g = _k_r(m("gyro"))

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 import os
 from pathlib import Path
 
@@ -27,12 +26,11 @@ import numpy as np
 
 from .errors import RecordingError
 from .recording import Recording, Truth
-from .units import G0
+from .units import DEG, G0
 
 __all__ = ["data_root", "available_datasets", "load_dataset", "load_broad", "load_imu_tk", "load_ferraris",
            "load_xio_fusion", "load_xio_thermometer"]
 
-DEG = math.pi / 180.0
 
 
 def data_root() -> Path:

@@ -21,11 +21,13 @@ from typing import Iterable
 
 from .errors import GyrosimError
 
-__all__ = ["G0", "to_si", "accepted_units", "QUANTITIES"]
+__all__ = ["G0", "DEG", "RAD2DEG", "HOUR", "RAD_S_TO_DEG_H", "to_si", "accepted_units", "QUANTITIES"]
 
 G0 = 9.80665
-DEG = math.pi / 180.0
-HOUR = 3600.0
+DEG = math.pi / 180.0  # one degree in rad: x_deg * DEG is rad
+RAD2DEG = 180.0 / math.pi  # one rad in degrees: x_rad * RAD2DEG is °
+HOUR = 3600.0  # s
+RAD_S_TO_DEG_H = RAD2DEG * HOUR  # x_rad_s * RAD_S_TO_DEG_H is °/h
 
 # quantity -> {normalised unit spelling: factor to SI}
 QUANTITIES: dict[str, dict[str, float]] = {

@@ -196,10 +196,11 @@ def test_public_api_exports_resolve():
         assert set(pkg.__all__) <= set(dir(pkg))
     # the function, not the module of the same name; the module stays importable by its path
     from calib import calibrate
-    from calib.calibrate import prepare  # noqa: F401
+    from calib.calibrate import prepare
     from gyrosim import simulate
 
     assert inspect.isfunction(calibrate) and calibrate.__module__ == "calib.calibrate"
+    assert prepare.__module__ == "calib.calibrate"
     assert inspect.isfunction(simulate) and simulate.__module__ == "gyrosim.simulate"
     assert calib.Calibration is gyrosim.Calibration  # one result type, defined in gyrosim's floor
     assert calib.run_closeloop.__module__.startswith("calib.closeloop")  # a lazily imported export
@@ -252,3 +253,33 @@ def test_no_issue_numbers_in_code_or_cli_help():
     for top, commands, _ in _parsers():
         hits += [f"{top.prog} {name} --help" for name, p in commands.items() if pattern.search(p.format_help())]
     assert not hits, "issue numbers belong in the tracker, not the code (say what, not which ticket):\n" + "\n".join(hits)
+
+
+def test_calib_uses_only_gyrosims_public_names():
+    # a private helper imported across the floor (as _nonortho_matrix was, by five modules) is an API
+    # in disguise: make it public in its one module instead
+    private = []
+    for f in sorted((ROOT / "calib").rglob("*.py")):
+        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("gyrosim"):
+                private += [f"{f.relative_to(ROOT)}:{node.lineno} {node.module}.{a.name}"
+                            for a in node.names if a.name.startswith("_")]
+            elif isinstance(node, ast.Import):
+                private += [f"{f.relative_to(ROOT)}:{node.lineno} {a.name}" for a in node.names
+                            if a.name.startswith("gyrosim.") and any(p.startswith("_") for p in a.name.split("."))]
+    assert not private, "calib imports gyrosim's private names:\n" + "\n".join(private)
+
+
+def test_one_meaning_per_unit_constant():
+    # DEG is π/180 (degrees → rad) in gyrosim.units; a module redefining a unit constant with the
+    # opposite meaning (DEG = 180/π once did in the closeloop) is how a factor 3283 error is written
+    import re
+
+    from gyrosim import units
+
+    assert units.DEG * units.RAD2DEG == pytest.approx(1.0) and units.DEG == pytest.approx(0.017453292519943295)
+    pattern = re.compile(r"^(DEG|RAD2DEG|RAD|DEG_H|HOUR|G0)\s*=", re.M)
+    redefined = [f"{f.relative_to(ROOT)}: {m.group(0)}" for pkg in ("gyrosim", "calib")
+                 for f in sorted((ROOT / pkg).rglob("*.py")) if f.name != "units.py"
+                 for m in pattern.finditer(f.read_text(encoding="utf-8"))]
+    assert not redefined, "unit constants are defined once, in gyrosim/units.py:\n" + "\n".join(redefined)

@@ -32,10 +32,10 @@ def independent_csv(tmp_path_factory) -> tuple[Path, dict]:
 
 def test_jacobian_of_the_symmetric_nonorthogonality_is_symmetric_not_skew():
     # ∂(N(G) ω)/∂G by finite differences equals J_G(ω), which is symmetric (Zhou eq. 9's [ω×] is not)
-    from gyrosim.effects import _nonortho_matrix
+    from gyrosim.effects import nonortho_matrix
 
     w = np.array([0.3, -1.2, 0.7])
-    num = np.stack([(_nonortho_matrix(np.eye(3)[j] * 1e-6) @ w) / 1e-6 for j in range(3)], axis=1)
+    num = np.stack([(nonortho_matrix(np.eye(3)[j] * 1e-6) @ w) / 1e-6 for j in range(3)], axis=1)
     np.testing.assert_allclose(jacobian_nonorthogonality(w), num, atol=1e-9)
     np.testing.assert_allclose(num, num.T)
 

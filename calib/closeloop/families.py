@@ -34,9 +34,9 @@ import numpy as np
 from gyrosim.effects import (EARTH_RATE_RAD_S, Bias, EarthRate, Effect, GSensitivity, MagneticSensitivity,
                              Misalignment, NonOrthogonality, RandomWalk, ScaleFactor, ScaleNonlinearity, SignalContext,
                              TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale, ThermalHysteresis,
-                             TimeOffset, _nonortho_matrix)
+                             TimeOffset, nonortho_matrix)
 from gyrosim.rotations import quat_conjugate, quat_rotate
-from gyrosim.units import G0
+from gyrosim.units import G0, RAD2DEG
 
 from ..timeblocks import block_means, time_block_index
 
@@ -46,7 +46,6 @@ from .reference import Reference, motion_field, motion_specific_force
 
 __all__ = ["earth_rate_summary"]
 
-RAD2DEG = 180.0 / math.pi
 
 
 def _proto_candidate(family: CandidateFamily, proto: Effect, ctx: SignalContext, follows: str,
@@ -145,9 +144,9 @@ class MisalignmentFamily(_AxisMatrix):
         n_hat = np.array([declared_params[f"nonorthogonality.value[{i}]"]["value"] for i in range(3)])
         n_sig = np.array([declared_params[f"nonorthogonality.value[{i}]"]["sigma"] for i in range(3)])
         n_true = device["nonorthogonality"].params() if "nonorthogonality" in device else np.zeros(3)
-        tot_hat = _nonortho_matrix(n_hat) + Misalignment(value=vals).matrix()
-        tot_true = _nonortho_matrix(n_true) + true_effect.matrix()
-        sig_tot = np.hypot(_nonortho_matrix(n_sig), Misalignment(value=sig).matrix())
+        tot_hat = nonortho_matrix(n_hat) + Misalignment(value=vals).matrix()
+        tot_true = nonortho_matrix(n_true) + true_effect.matrix()
+        sig_tot = np.hypot(nonortho_matrix(n_sig), Misalignment(value=sig).matrix())
         off = ~np.eye(3, dtype=bool)
         return tot_hat[off], tot_true[off], sig_tot[off]
 

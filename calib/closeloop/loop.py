@@ -32,7 +32,7 @@ from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_angle_between
 from gyrosim.strapdown import integrate_gyro
-from gyrosim.units import G0
+from gyrosim.units import G0, RAD2DEG
 
 from ..inputs import CLOSELOOP, check_recording
 from .candidates import BuildOptions, Candidate, FittedTerm, Untestable, build_candidate, candidate_kinds, family_for
@@ -49,7 +49,6 @@ from .structure import channel_correlations, spectral_lines, variance_growth, wh
 __all__ = ["Finding", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED"]
 
 DEFAULT_DECLARED = ("bias", "scale_factor", "nonorthogonality")
-RAD2DEG = 180.0 / math.pi
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from scipy import stats
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_angle_between, quat_conjugate, quat_multiply
 from gyrosim.strapdown import integrate_gyro
+from gyrosim.units import RAD2DEG
 
 from .fit import held_out_split
 from .reference import GravityReference, RateReference, Reference
@@ -48,7 +49,6 @@ from .reference import GravityReference, RateReference, Reference
 __all__ = ["MetricSums", "MetricChange", "MetricContext", "held_out_metrics", "compare_metrics", "z_worse",
            "explain_disagreement"]
 
-RAD2DEG = 180.0 / math.pi
 
 
 @dataclass(frozen=True)

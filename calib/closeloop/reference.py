@@ -335,7 +335,7 @@ def calibrate_accelerometer_at_rest(means_m_s2: np.ndarray):
     none below: the poses would not over-determine them.  Returns (f_meas ↦ f, a note)."""
     from scipy import optimize
 
-    from gyrosim.effects import _nonortho_matrix
+    from gyrosim.effects import nonortho_matrix
 
     mags = np.linalg.norm(means_m_s2, axis=1)
     dirs = means_m_s2 / mags[:, None]
@@ -350,7 +350,7 @@ def calibrate_accelerometer_at_rest(means_m_s2: np.ndarray):
         return (lambda f: f), before + " (too few distinct poses to calibrate the accelerometer: used as measured)"
 
     def unpack(p):
-        m = np.eye(3) + np.diag(p[3:6]) + (_nonortho_matrix(p[6:9]) if n_par == 9 else 0.0)
+        m = np.eye(3) + np.diag(p[3:6]) + (nonortho_matrix(p[6:9]) if n_par == 9 else 0.0)
         return p[:3], np.linalg.inv(m)
 
     def res(p):

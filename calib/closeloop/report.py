@@ -21,12 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from gyrosim.recording import Recording
+from gyrosim.units import RAD2DEG
 
 from .loop import CloseloopResult
 
 __all__ = ["write_closeloop_report"]
 
-DEG = 180.0 / math.pi
 AXES = "xyz"
 
 
@@ -45,7 +45,7 @@ def _clean(o):
 
 
 def _row_scale(res: CloseloopResult) -> tuple[float, str]:
-    return (DEG, "°/s") if res.reference in ("truth", "optical", "static") else (1.0, "weighted")
+    return (RAD2DEG, "°/s") if res.reference in ("truth", "optical", "static") else (1.0, "weighted")
 
 
 def _plot_residual_time(res: CloseloopResult, path: Path) -> Path:
@@ -177,7 +177,7 @@ def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
         lines.append(f"| {k} | {fb} | {fa} |")
     lines += ["", "## Structure no candidate explains", "", res.unexplained.get("summary", "—"), ""]
     for l in res.unexplained.get("spectral_lines", [])[:5]:
-        lines.append(f"- line at {l['frequency_hz']:.2f} Hz on {l['axis']}: amplitude {l['amplitude_rad_s'] * DEG:.3g} °/s "
+        lines.append(f"- line at {l['frequency_hz']:.2f} Hz on {l['axis']}: amplitude {l['amplitude_rad_s'] * RAD2DEG:.3g} °/s "
                      f"({l['ratio']:.1f}× background, threshold {l['threshold']:.1f})")
     for c in res.unexplained.get("channel_correlations", [])[:5]:
         lines.append(f"- residual {c['axis']} vs {c['channel']}: ρ = {c['rho']:.3f} ({c['z']:.1f}σ, threshold {c['threshold']:.1f})")

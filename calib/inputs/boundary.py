@@ -397,7 +397,6 @@ def check_recording(rec: Recording, *, allow_gaps: bool = False, requirements: R
     without a problem carries a fingerprint of its signals (``meta['input_checked']``); while the
     signals still match it, the degenerate, spike and unit checks are not repeated.  Returns the warnings, the saturation mask and the
     exclusion mask (saturated or repaired samples: no measurement update there)."""
-    where = str(rec.meta.get("source", rec.meta.get("dataset", "the recording")))
     warnings: list[str] = []
     gaps = find_gaps(rec.t_s)
     if gaps.count and allow_gaps:
@@ -432,7 +431,7 @@ def check_recording(rec: Recording, *, allow_gaps: bool = False, requirements: R
         if req.rate_hz is not None and not (req.rate_hz[0] * 0.98 <= rate <= req.rate_hz[1] * 1.02):
             lo, hi = req.rate_hz
             raise RateError(f"{rate:.6g} Hz is outside the {lo:g}–{hi:g} Hz that {req.name} supports"
-                            + (f"; decimate it first (calib.inputs.prepare_recording(rec, decimate='auto'))"
+                            + ("; decimate it first (calib.inputs.prepare_recording(rec, decimate='auto'))"
                                if rate > hi else "; if the time is not in seconds, convert it"))
     sat = saturated_samples(rec.gyro_rad_s) | saturated_samples(rec.acc_m_s2)
     if sat.any():
