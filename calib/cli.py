@@ -409,7 +409,7 @@ def cmd_closeloop_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_closeloop_suite(args: argparse.Namespace) -> int:
-    """The undeclared-effect suites over seeds (README table): a thin wrapper over ``run_suite``."""
+    """The undeclared-effect suites over seeds (docs/closeloop.md table): a thin wrapper over ``run_suite``."""
     from tqdm import tqdm
 
     from .closeloop.suite import HARD_SUITE, SUITE, format_suite, run_suite

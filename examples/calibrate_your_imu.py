@@ -3,7 +3,7 @@ apply the result, save it.
 
     python examples/calibrate_your_imu.py imu.csv --gyro-unit deg/s --acc-unit g
 
-The CSV needs a header t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z (see README). Without an
+The CSV needs a header t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z (README, "your own CSV"). Without an
 argument, the script simulates a zhou2020 session with an MPU-9250-class device (datasheet noise,
 a raw accelerometer: preset ``mpu9250_linear``) and calibrates that.
 """

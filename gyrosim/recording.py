@@ -1,6 +1,6 @@
 """One ``Recording`` type for simulated and measured IMU data, and its HDF5 file format.
 
-HDF5 layout (all arrays float64, one row per sample; see README "Recording format"):
+HDF5 layout (all arrays float64, one row per sample; see docs/recording-format.md):
 
     /t                      (N,)   s, strictly increasing
     /gyro                   (N,3)  rad/s, body frame (RFU)

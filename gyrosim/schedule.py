@@ -18,7 +18,7 @@ bounded (|s'''| ≤ 60): rate(t) = A/T · s'(τ), peak 1.875 A/T; acceleration A
 segment is q₀ ⊗ Exp(axis · A s(τ)) exactly.
 
 Built-in schedules live as TOML files in ``gyrosim/schedules/``; users write their own in the same
-format (see :func:`load_schedule` and README).
+format (see :func:`load_schedule` and docs/simulation.md, "Schedules").
 """
 
 from __future__ import annotations
@@ -254,7 +254,7 @@ _SCHEDULE_KEYS = {"name", "description", "notes", "source", "initial_quat", "seg
 
 
 def schedule_from_dict(data: dict[str, Any], default_name: str = "custom") -> Schedule:
-    """Build a :class:`Schedule` from the TOML/JSON layout documented in the README."""
+    """Build a :class:`Schedule` from the TOML/JSON layout documented in docs/simulation.md."""
     unknown = set(data) - _SCHEDULE_KEYS
     if unknown:
         raise ScheduleError(

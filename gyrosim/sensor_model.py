@@ -14,7 +14,7 @@ u = x + Σδ_i(x) is solved for x by Newton's method with J = I + Σ ∂δ_i/∂
 effect is linear in x).  Random effects cannot be undone and are left as noise.
 
 Presets are TOML files in ``gyrosim/presets/sensors/`` written in datasheet units; see
-:func:`load_sensor` and the README for the layout.
+:func:`load_sensor` and docs/error-model.md for the layout.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The README's main job writes its recording, report and rerun file (issue 2 part of the demo)."""
+"""The README's main job writes its recording, report and rerun file."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ the vocabulary, bad input, the report files and the measured recordings.
 Tolerances:
 * parameters: |θ̂ − θ| ≤ 4 σ̂ for every identifiable parameter, σ̂ the fit's own standard error
   (white-noise least squares inflated by the residual's autocorrelation time).  With Gaussian
-  errors a 4σ miss has probability 6e-5 per parameter; checked on 6 other seeds (README table).
+  errors a 4σ miss has probability 6e-5 per parameter; checked on 6 other seeds (docs/closeloop.md table).
 * held-out error with the loop's model ≤ 1.5 × that of the correct model (the issue's bound).
 * negative control: nothing added in ≥ 19 of 20 seeds (the issue's 95 %).  The criterion's false
   alarm rate per candidate is below the BIC's ≈ e^{−ln n / 2}…: 0 of 40 seeds measured.
@@ -169,7 +169,7 @@ def test_broad_fast_rotation_traces_the_residual_to_a_time_offset():
     first = res.found[0]
     assert first.effect == "time_offset"
     d = first.params["time_offset.delay_s"]["value"]
-    assert 0.002 < d < 0.007, d  # 4.2 ms measured; the same 4.1–4.3 ms on all five trials (README)
+    assert 0.002 < d < 0.007, d  # 4.2 ms measured; the same 4.1–4.3 ms on all five trials (docs/closeloop.md)
     assert "synchronisation" in first.trace
     assert res.error_after["held_out_residual_rms"] < 0.5 * res.error_before["held_out_residual_rms"]
     assert res.error_after["strapdown_orientation_rms_deg"] < res.error_before["strapdown_orientation_rms_deg"]

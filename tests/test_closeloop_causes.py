@@ -6,7 +6,7 @@ Tolerances and counts:
   the residual's autocorrelation time): a Gaussian 4σ miss has probability 6e-5 per parameter, so
   over the ≤ 12 parameters of a pair the chance of a false failure is < 1e-3.
 * pairs "named completely in ≥ 9/10 seeds" (the issue's bound, slow test); one seed in the default
-  suite, where the named-completely rate measured over 10 seeds (README) makes a failure a regression.
+  suite, where the named-completely rate measured over 10 seeds (docs/closeloop.md) makes a failure a regression.
 * negative control ≤ 1/20 (the issue's 95 %), static chamber 0/20 g-sensitivity (the issue's bound).
 * BROAD: every held-out metric after the loop ≤ 1.10 × before (the issue's bound).
 """

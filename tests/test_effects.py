@@ -138,7 +138,7 @@ def test_noise_statistics_match_the_density():
 def test_allan_deviation_recovers_the_mpu9250_noise_terms(tmp_path):
     """2 h static at 100 Hz, all three gyro axes pooled.
 
-    Expected Allan confidence for this length (Monte Carlo over 12 seeds, README "Allan"):
+    Expected Allan confidence for this length (Monte Carlo over 12 seeds, docs/error-model.md, "Allan deviation"):
     N ±0.1 %, B ±2.8 %, K ±10.7 % (1σ), unbiased within the Monte Carlo error.  N and B are held
     to the 10 % asked for (≥ 3.5σ).  K cannot be: its information in 2 h is ~T/τ_cross ≈ 100
     RRW-dominated samples, so "within 10 %" holds for only ~65 % of 2-hour records; it is held to

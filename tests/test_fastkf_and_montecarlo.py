@@ -40,7 +40,7 @@ def test_monte_carlo_reaches_the_bound_and_is_consistent():
     """12 seeds of zhou2020 / ideal hand / Table 7 reading A.
 
     RMSE from R = 12 runs scatters by ≈ 1/√(2R) = 20 % (1σ), so for a method at the bound
-    (efficiency 1; the 50-seed table in the README gives 0.90-1.11) every efficiency must stay
+    (efficiency 1; the 50-seed table in docs/calibration.md gives 0.90-1.11) every efficiency must stay
     below 1 + 3 × 0.2 = 1.6.  NEES: the mean over R runs of 6-dof χ² is inside its 99.9 % band.
     """
     r = monte_carlo("zhou2020", "ideal", "zhou2020_sim", seeds=12)

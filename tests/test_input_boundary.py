@@ -229,7 +229,7 @@ def test_a_10_khz_session_is_refused_and_calibrates_when_decimated(tmp_path):
     as good as the same session's at 100 Hz: every S and G error within twice the 100 Hz run's
     largest error plus 5e-4 (the 100 Hz errors are the hand's, ~3e-3 here; 5e-4 ≈ 5σ of S at 1 kHz).
     The status may read "inconsistent": at 1 kHz the filter's white-noise allowance for the hand
-    already over-counts the accelerometer (the root cause, README "Bad input"), but it is not diverged."""
+    already over-counts the accelerometer (the root cause, docs/bad-input.md), but it is not diverged."""
     from calib.cli import main
     from gyrosim.cli import main as gmain
 

@@ -1,6 +1,6 @@
 """The magnetometer calibration on measured recordings (BROAD, x-io); skipped without the data.
 
-What the data show (README "Magnetometer"): BROAD's magnetometer is already calibrated by its
+What the data show (docs/magnetometer.md): BROAD's magnetometer is already calibrated by its
 maker (|B| 42–46 µT), so a calibration moves little and cannot improve the heading; the stationary
 magnet (trial 30) passes the board a few times and is reported as local disturbances where the
 field magnitude jumps; the magnet attached in trial 34 is a hard iron while it is on (the field

@@ -1,5 +1,5 @@
 """Long statistical runs of the magnetometer calibration (``python -m pytest -q -m slow``): they
-back the numbers in the README's magnetometer section.  Tolerances: for honest σ the mean of z²
+back the numbers in docs/magnetometer.md.  Tolerances: for honest σ the mean of z²
 over n values is χ²(n)/n; its 99.9 % upper bound is 1.4 for n = 150, 1.6 for n = 60."""
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def test_aided_over_hands_and_devices():
 
 
 def test_seed_001_comparison_verdict():
-    """The README's verdict on a phone (strong soft iron): the seed's filters in its own form (a
+    """docs/magnetometer.md's verdict on a phone (strong soft iron): the seed's filters in its own form (a
     random walk: smoothing only) leave the heading error within 10 % of the uncompensated soft
     iron's; calibration with the true tilt reaches the noise floor (≤ 1.2×); the gyro-aided KF beats
     the seed-form KF."""

@@ -1,7 +1,7 @@
 """The README's Python quick start runs as written and does what it says (a docs-snippet test).
 
 The block under "## Python: simulate → calibrate → apply" is taken from README.md verbatim and
-executed in a fresh namespace in a temporary folder; a renamed export, a changed signature or a
+executed in a fresh namespace in a temporary folder (docs/calibration.md carries the same block); a renamed export, a changed signature or a
 broken public API fails here, with the README line to fix.
 """
 
@@ -27,6 +27,16 @@ def quickstart_block(path: Path = ROOT / "README.md") -> str:
     return m.group(1)
 
 
+def docs_block(path: Path = ROOT / "docs" / "calibration.md") -> str:
+    blocks = re.findall(r"```python\n(.*?)```", path.read_text(encoding="utf-8"), re.S)
+    assert blocks, f"{path.name} has no ```python block"
+    return blocks[0]
+
+
+def test_docs_carry_the_same_quickstart():
+    assert docs_block() == quickstart_block(), "docs/calibration.md's Python block differs from the README's"
+
+
 def test_readme_python_quickstart_runs_and_calibrates(tmp_path, monkeypatch, capsys):
     code = quickstart_block()
     monkeypatch.chdir(tmp_path)  # the block writes cal.json to the working folder
@@ -50,3 +60,29 @@ def test_readme_python_quickstart_runs_and_calibrates(tmp_path, monkeypatch, cap
                                 + cal.nonorthogonality_std ** 2 * w2.mean()))
     excess = np.radians(np.sqrt(max(calibrated ** 2 - floor ** 2, 0.0)))
     assert excess < 6 * predicted, (excess, predicted)
+
+
+def test_readme_and_docs_links_resolve():
+    # the README was split into docs/ (one file per topic): every relative link and figure must
+    # still point at a file, and every anchor at a heading of that file
+    def anchors(md: Path) -> set[str]:
+        heads = re.findall(r"^#+ (.*)$", md.read_text(encoding="utf-8"), re.M)
+        return {re.sub(r"[^\w\- ]", "", h.strip().lower()).replace(" ", "-") for h in heads}
+
+    files = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    assert len(files) > 10
+    broken, n = [], 0
+    for md in files:
+        text = re.sub(r"```.*?```", "", md.read_text(encoding="utf-8"), flags=re.S)
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"[a-z]+:", target):
+                continue
+            n += 1
+            path, _, frag = target.partition("#")
+            dest = (md.parent / path).resolve() if path else md
+            if not dest.exists():
+                broken.append(f"{md.relative_to(ROOT)}: {target} (no such file)")
+            elif frag and dest.suffix == ".md" and frag not in anchors(dest):
+                broken.append(f"{md.relative_to(ROOT)}: {target} (no such heading)")
+    assert n > 20 and not broken, "\n".join(broken)
+    assert len((ROOT / "README.md").read_text(encoding="utf-8").splitlines()) <= 250  # details go to docs/

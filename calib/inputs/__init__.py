@@ -9,7 +9,7 @@ Entry points:
 * :func:`check_recording` (Recording → :class:`InputCheck`), the cheap re-check every method runs;
 * :class:`Requirements` and the per-method presets (``KF``, ``CLOSELOOP``, ``ALLAN``, ``INSPECT``, …).
 
-The classes of bad input and what each gets (README "Bad input"):
+The classes of bad input and what each gets (docs/bad-input.md):
 
 =================  ===================================================================  =====================
 class              examples                                                             result

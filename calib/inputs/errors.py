@@ -1,7 +1,7 @@
 """The named classes of bad input.  Every one is a :class:`~gyrosim.errors.RecordingError` (so a
 ``ValueError``); the command lines print the message and exit with code 2.
 
-Each class has a short ``kind`` (the README's "Bad input" table and the test table use it).
+Each class has a short ``kind`` (the table of docs/bad-input.md and the test table use it).
 """
 
 from __future__ import annotations

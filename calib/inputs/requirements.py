@@ -11,7 +11,7 @@ Limits and where they come from:
   the top the filter diverged at 3.3, 5 and 10 kHz but not at 2 or 2.5 kHz — the measurement noise
   R treats the hand's external acceleration as white per sample, so the information the filter
   takes from the accelerometer grows with the rate while the tremor it mistakes for attitude does
-  not average out (root cause, see README "Bad input").  1 kHz keeps a 2.5× margin; faster
+  not average out (root cause, see docs/bad-input.md).  1 kHz keeps a 2.5× margin; faster
   recordings are refused with ``--decimate``.  At least 10 s (2 s of rest + rotations).
 * ``CLOSELOOP``: any rate up to 1 kHz (the truth reference keeps one row per sample; 10 kHz would
   need gigabytes of regressors), gaps allowed (it integrates over the actual Δt; they are listed).
