@@ -12,46 +12,29 @@ The public API (``from calib import …``; the modules keep everything else)::
 ``Calibration`` is defined in gyrosim's floor (:mod:`gyrosim.calibration`), so the testbed uses it
 without importing calib.  Further entry points: :func:`run_closeloop` (find the effects a model
 lacks), :func:`calibrate_magnetometer`, :func:`find_north`, :func:`tilt_test`,
-:func:`allan_deviation` / :func:`fit_noise_terms`; they are imported when first used.
+:func:`allan_deviation` / :func:`fit_noise_terms`.  Names are imported when first used
+(:mod:`gyrosim.exports`).
 
-Note: ``calib.calibrate`` is the function; the module of the same name stays importable as
-``from calib.calibrate import …`` (``import calib.calibrate as m`` would give the function, and
-string targets such as ``mock.patch("calib.calibrate.x")`` do not reach the module).
+Note: ``calib.calibrate`` is the function; the module of the same name stays importable by its
+path (``from calib.calibrate import prepare``).
 
 Frames: body Right-Forward-Up, navigation East-North-Up; quaternions (w, x, y, z) body→navigation.
 """
 
-from __future__ import annotations
-
-import importlib
-
 from gyrosim.calibration import Calibration
+from gyrosim.exports import lazy_exports
 
 __version__ = "0.1.0"
 
-from .calibrate import METHODS, calibrate  # noqa: E402 - after __version__, which calib.cli reads
-from .inputs import InputError, check_recording, load_recording, open_recording  # noqa: E402
-
-# imported when first asked for (PEP 562): these pull in their own machinery (closeloop, magnetometer fits)
-_LAZY = {
+_EXPORTS = {
+    "calibrate": "calib.calibrate", "METHODS": "calib.calibrate",
+    "load_recording": "calib.inputs", "open_recording": "calib.inputs", "check_recording": "calib.inputs",
+    "InputError": "calib.inputs",
     "run_closeloop": "calib.closeloop", "CloseloopResult": "calib.closeloop",
     "calibrate_magnetometer": "calib.mag", "MagCalibration": "calib.mag",
     "find_north": "calib.northfind",
     "tilt_test": "calib.tilt",
     "allan_deviation": "calib.allan", "fit_noise_terms": "calib.allan",
 }
-
-__all__ = ["__version__", "calibrate", "METHODS", "Calibration", "load_recording", "open_recording",
-           "check_recording", "InputError", *_LAZY]
-
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'calib' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__all__ = ["__version__", "Calibration", *_EXPORTS]
+lazy_exports(__name__, _EXPORTS)

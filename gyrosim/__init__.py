@@ -8,34 +8,33 @@ The public API (what ``from gyrosim import …`` offers; the modules keep everyt
     from gyrosim import simulate, save_hdf5, load_hdf5
     rec = simulate("zhou2020", "typical", "mpu9250", 100.0, seed=1)   # Recording, truth included
 
-Note: ``gyrosim.simulate`` is the function; the module of the same name stays importable as
-``from gyrosim.simulate import …`` (``import gyrosim.simulate as m`` would give the function).
+The names are imported when first used (:mod:`gyrosim.exports`), so importing one small module
+does not load MuJoCo.  ``gyrosim.simulate`` is the function; the module of the same name stays
+importable by its path (``from gyrosim.simulate import simulate_truth``).
 """
 
 __version__ = "0.1.0"
 
-# imported after __version__: the modules below read it
-from .calibration import Calibration, truth_calibration
-from .errors import GyrosimError, PresetError, RecordingError, ScheduleError
-from .estimator import Estimate, load_estimator, registered_estimators
-from .hand import Hand, hand_preset_names, load_hand
-from .recording import Recording, Truth, load_hdf5, save_csv, save_hdf5
-from .schedule import Schedule, builtin_schedule_names, load_schedule
-from .sensor_model import SensorModel, load_sensor, sensor_preset_names
-from .simulate import apply_sensor, simulate, simulate_truth
+from .exports import lazy_exports  # noqa: E402 - after __version__, which the submodules read
 
-__all__ = [
-    "__version__",
+_EXPORTS = {
     # simulate a session
-    "simulate", "simulate_truth", "apply_sensor",
+    "simulate": "gyrosim.simulate", "simulate_truth": "gyrosim.simulate", "apply_sensor": "gyrosim.simulate",
     # what a session is made of
-    "Schedule", "load_schedule", "builtin_schedule_names",
-    "Hand", "load_hand", "hand_preset_names",
-    "SensorModel", "load_sensor", "sensor_preset_names",
+    "Schedule": "gyrosim.schedule", "load_schedule": "gyrosim.schedule", "builtin_schedule_names": "gyrosim.schedule",
+    "Hand": "gyrosim.hand", "load_hand": "gyrosim.hand", "hand_preset_names": "gyrosim.hand",
+    "SensorModel": "gyrosim.sensor_model", "load_sensor": "gyrosim.sensor_model",
+    "sensor_preset_names": "gyrosim.sensor_model",
     # recordings
-    "Recording", "Truth", "load_hdf5", "save_hdf5", "save_csv",
+    "Recording": "gyrosim.recording", "Truth": "gyrosim.recording", "load_hdf5": "gyrosim.recording",
+    "save_hdf5": "gyrosim.recording", "save_csv": "gyrosim.recording",
     # calibration results and the estimator interface
-    "Calibration", "truth_calibration", "Estimate", "load_estimator", "registered_estimators",
+    "Calibration": "gyrosim.calibration", "truth_calibration": "gyrosim.calibration",
+    "Estimate": "gyrosim.estimator", "load_estimator": "gyrosim.estimator",
+    "registered_estimators": "gyrosim.estimator",
     # errors
-    "GyrosimError", "RecordingError", "PresetError", "ScheduleError",
-]
+    "GyrosimError": "gyrosim.errors", "RecordingError": "gyrosim.errors", "PresetError": "gyrosim.errors",
+    "ScheduleError": "gyrosim.errors",
+}
+__all__ = ["__version__", *_EXPORTS]
+lazy_exports(__name__, _EXPORTS)

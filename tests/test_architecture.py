@@ -206,6 +206,27 @@ def test_public_api_exports_resolve():
     assert calib.run_closeloop.__module__.startswith("calib.closeloop")  # a lazily imported export
 
 
+EXPORT_ORDER = textwrap.dedent("""
+    import inspect, sys
+    import gyrosim.errors
+    assert "mujoco" not in sys.modules and "gyrosim.simulate" not in sys.modules  # exports load on use
+    import gyrosim.simulate          # the submodule first: the import system announces it to the package
+    import calib.calibrate
+    import calib, gyrosim
+    from calib import calibrate
+    from gyrosim import simulate
+    assert inspect.isfunction(gyrosim.simulate) and gyrosim.simulate is simulate
+    assert inspect.isfunction(calib.calibrate) and calib.calibrate is calibrate
+    assert inspect.ismodule(sys.modules["calib.calibrate"]) and sys.modules["calib.calibrate"].prepare
+    print("OK")
+""")
+
+
+def test_exports_do_not_depend_on_import_order_and_load_on_use():
+    run = subprocess.run([sys.executable, "-c", EXPORT_ORDER], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and run.stdout.strip() == "OK", run.stderr
+
+
 def _parsers():
     import argparse
 
