@@ -301,6 +301,6 @@ def test_one_meaning_per_unit_constant():
     assert units.DEG * units.RAD2DEG == pytest.approx(1.0) and units.DEG == pytest.approx(0.017453292519943295)
     pattern = re.compile(r"^(DEG|RAD2DEG|RAD|DEG_H|HOUR|G0)\s*=", re.M)
     redefined = [f"{f.relative_to(ROOT)}: {m.group(0)}" for pkg in ("gyrosim", "calib")
-                 for f in sorted((ROOT / pkg).rglob("*.py")) if f.name != "units.py"
+                 for f in sorted((ROOT / pkg).rglob("*.py")) if f != ROOT / "gyrosim" / "units.py"
                  for m in pattern.finditer(f.read_text(encoding="utf-8"))]
     assert not redefined, "unit constants are defined once, in gyrosim/units.py:\n" + "\n".join(redefined)

