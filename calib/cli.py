@@ -377,6 +377,14 @@ def cmd_closeloop(args: argparse.Namespace) -> int:
         print("  found nothing beyond the declared model")
     print(f"  unexplained: {res.unexplained.get('summary', '')}")
     print(f"  error before: {res.error_before}\n  error after:  {res.error_after}")
+    mag = res.magnetometer
+    if mag is not None:
+        print(f"magnetometer: {mag.reference}")
+        for f in mag.found:
+            print(f"  found: {f.trace}")
+        if not mag.found:
+            print("  found nothing beyond the declared magnetometer model")
+        print(f"  unexplained: {mag.unexplained.get('summary', '')}")
     print("wrote " + ", ".join(str(p) for p in paths.values()))
     return 0
 
@@ -946,7 +954,8 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--out", required=True,
                     help="output folder: report.json, report.md, plots, closeloop.rrd (written all-or-nothing)")
     cl.add_argument("--declared", default="bias,scale_factor,nonorthogonality",
-                    help="effects of the declared model (vocabulary names, comma-separated)")
+                    help="effects of the declared model (vocabulary names, comma-separated; magnetometer kinds "
+                    "hard_iron, soft_iron, frame_rotation go to the magnetometer's model, which is empty by default)")
     cl.add_argument("--reference", default=None, choices=("truth", "optical", "static", "gravity"),
                     help="force a reference (default: the best the recording has)")
     cl.add_argument("--holdout", type=number(0.01, 3600, unit="s"), default=4.0,

@@ -230,6 +230,9 @@ def run_closeloop(
     gyro_declared = [k for k in declared if not is_mag_kind(k)]
     gyro_cands = None if candidates is None else [k for k in candidates if not is_mag_kind(k)]
     mag_cands = None if candidates is None else [k for k in candidates if is_mag_kind(k)]
+    if mag_declared and rec.mag_ut is None:
+        raise RecordingError(f"--declared names magnetometer effects {mag_declared}, but the recording has no "
+                             "magnetometer channel (/mag, or mag_x,mag_y,mag_z columns)")
     with threadpool_limits(limits=1, user_api="blas"):
         res = _run(rec, gyro_declared, reference=reference, holdout_s=holdout_s, candidates=gyro_cands,
                    max_rounds=max_rounds, drift_knot_s=drift_knot_s, progress=progress)

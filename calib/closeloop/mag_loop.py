@@ -420,7 +420,8 @@ def _unexplained(c: _Ctx, final: MagFit, base: np.ndarray, not_tested: dict[str,
                      f"{np.linalg.norm(base):.1f} µT by up to {d.max_field_deviation_ut:.2f} µT"
                      + (f", the inclination by up to {d.max_inclination_deviation_deg:.2f}°"
                         if math.isfinite(d.max_inclination_deviation_deg) else "") + where
-                     + " — a field that changes with where the board is: excluded from the fit, not absorbed")
+                     + " — a field that changes with where the board is (or when: a magnet brought near, attached, "
+                       "taken off): excluded from the fit, not absorbed")
     out["disturbances"] = [d.to_dict() for d in dist]
     out["disturbed_samples"] = int(mask.sum())
     held = ref.rows(held=True, exclude=mask | c.exclude)
