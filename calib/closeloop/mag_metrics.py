@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from gyrosim.units import RAD2DEG
 
 from ..mag.disturbance import find_disturbances
