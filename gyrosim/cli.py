@@ -314,6 +314,16 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign_bench(args: argparse.Namespace) -> int:
+    if args.orientation:
+        from .orientation_campaign import bench_throughput
+
+        r = bench_throughput(args.sessions)
+        print(json.dumps(r, indent=2))
+        for label in ("raw_and_calibrated", "raw_only"):
+            cpu = r[label]["cpu_s_per_session"]
+            print(f"{label}: {cpu:.2f} CPU s/session in-process; 1000 sessions on 2 cores ≈ {1000 * cpu / 2 / 60:.1f} min "
+                  f"(× 1.3 for Dask workers, README: {1000 * cpu / 2 / 60 * 1.3:.1f} min)")
+        return 0
     from .campaign import bench_scaling
 
     rows = bench_scaling(args.sessions)
@@ -463,6 +473,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     cb = sub.add_parser("campaign-bench", help="campaign scaling: sessions/s in-process, on 1 and 2 Dask workers")
     cb.add_argument("--sessions", type=integer(1, 100_000), default=12, help="sessions to time, 1 … 1e5 (default 12)")
+    cb.add_argument("--orientation", action="store_true",
+                    help="time the orientation campaign's session (simulation, calibration, vqf/madgwick/mahony/fusion)")
     cb.set_defaults(func=cmd_campaign_bench)
 
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")

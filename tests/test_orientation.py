@@ -255,3 +255,23 @@ def test_broad_published_numbers_reproduced_and_vqf_beats_them():
         vqf = broad_rmse_deg(run_orientation(load_orientation_estimator("vqf_9d"), rec, "vqf_9d").quat_nb,
                              rec.truth.quat_nb, mv)
         assert vqf["total_rmse_deg"] < min(PUBLISHED_TAGP["madgwick_9d"][trial][0], PUBLISHED_TAGP["mahony_9d"][trial][0])
+
+
+def test_rerun_view_has_truth_estimators_and_error_series(tmp_path):
+    """The rerun file of one session holds the truth board, each estimator's board and its tilt and
+    heading error series, and the disturbance (read back with rerun's own ``rrd print``)."""
+    import subprocess
+    from pathlib import Path
+
+    rerun_cli = pytest.importorskip("rerun_cli", reason="rerun's CLI is not installed")
+    exe = Path(rerun_cli.__file__).parent / "rerun"
+    if not exe.is_file():
+        pytest.skip("rerun_cli has no binary on this platform")
+    from gyrosim.orientation_rerun import view_session
+
+    path = view_session(hand="ideal", seed=2, estimators=("vqf", "madgwick"), rrd=tmp_path / "view.rrd")
+    text = subprocess.run([str(exe), "rrd", "print", str(path)], capture_output=True, text=True, timeout=120).stdout
+    for entity in ("/world/truth", "/world/vqf", "/world/madgwick", "/errors/tilt/vqf", "/errors/heading/madgwick",
+                   "/events/disturbance"):
+        assert entity in text, entity
+    assert "/world/mahony" not in text  # only the estimators asked for
