@@ -14,8 +14,9 @@ Both variants get the same **disturbance** near the end: a rate pulse the truth 
 throws every filter's tilt off by up to disturbance_deg_s × disturbance_s; its recovery is the
 convergence time.  Scores (:mod:`gyrosim.attitude_errors`, BROAD's error decomposition) against
 ``/truth/quat``: tilt error RMS and heading (6-axis: drift rate °/min and RMS after removing the
-start's offset; 9-axis: absolute heading RMS) over [settle, disturbance), then the peak tilt and
-the convergence time after the disturbance.
+start's offset; 9-axis: absolute heading RMS, after turning magnetic into geographic north by the
+field's declination as a user would with the World Magnetic Model) over [settle, disturbance),
+then the peak tilt and the convergence time after the disturbance.
 
 Each estimator is run through :func:`gyrosim.orientation.run_orientation`: one that raises or
 returns NaN or non-unit quaternions is a ``failed`` row with its message; the campaign goes on.
@@ -146,6 +147,23 @@ def _disturb(rec, spec: OrientationSpec, q_true: np.ndarray) -> tuple[object, fl
     return rec.with_signals(gyro_rad_s=rec.gyro_rad_s + pulse), t_d, t_e
 
 
+def declination_rad(rec) -> float:
+    """The magnetic declination of the session's field (east of north positive): atan2(B_E, B_N) of
+    the true field (``/truth/mag_field``, body) turned into ENU by the true attitude, averaged.  A
+    9-axis filter can only find magnetic north; a user corrects it with their location's declination
+    (World Magnetic Model), and so does the scoring: q ← q_z(−D) ⊗ q."""
+    from .rotations import quat_rotate
+
+    b = quat_rotate(rec.truth.quat_nb, rec.truth.extra["mag_field"]).mean(axis=0)
+    return math.atan2(float(b[0]), float(b[1]))
+
+
+def to_geographic(q: np.ndarray, declination: float) -> np.ndarray:
+    from .rotations import quat_multiply
+
+    return quat_multiply(np.array([math.cos(-declination / 2), 0.0, 0.0, math.sin(-declination / 2)]), q)
+
+
 def run_task(task: OrientationTask) -> list[dict]:
     """Simulate once; calibrate once; every estimator on every variant; score.  Failures are rows."""
     from .attitude_errors import score_session
@@ -192,7 +210,8 @@ def run_task(task: OrientationTask) -> list[dict]:
         t1 = time.perf_counter()
         try:
             att = run_orientation(estimators[e], disturbed, e)
-            sc = score_session(src.t_s, att.quat_nb, rec.truth.quat_nb, magnetometer=att.magnetometer,
+            q_est = to_geographic(att.quat_nb, declination_rad(rec)) if att.magnetometer else att.quat_nb
+            sc = score_session(src.t_s, q_est, rec.truth.quat_nb, magnetometer=att.magnetometer,
                                settle_s=spec.settle_s, align_s=spec.align_s, disturbance_start_s=t_d,
                                disturbance_end_s=t_e)
             row.update({"status": "ok", "error": "", "axes": 9 if att.magnetometer else 6, **asdict(sc)})

@@ -275,3 +275,23 @@ def test_rerun_view_has_truth_estimators_and_error_series(tmp_path):
                    "/events/disturbance"):
         assert entity in text, entity
     assert "/world/mahony" not in text  # only the estimators asked for
+
+
+def test_declination_turns_magnetic_into_geographic_north():
+    """A 9-axis filter finds magnetic north; with the field (1.5, 20, −44) µT ENU the declination is
+    atan(1.5/20) = 4.289° east, and an estimate aligned to magnetic north, turned by it, is the truth."""
+    from gyrosim.orientation_campaign import declination_rad, to_geographic
+    from gyrosim.recording import Truth
+    from gyrosim.rotations import quat_conjugate, quat_rotate
+
+    rng = np.random.default_rng(1)
+    q_true = quat_from_rotvec(rng.normal(size=(40, 3)))
+    field = np.array([1.5, 20.0, -44.0])
+    rec = Recording(t_s=np.arange(40) / 100.0, gyro_rad_s=np.zeros((40, 3)), acc_m_s2=np.tile([0, 0, 9.81], (40, 1)),
+                    truth=Truth(quat_nb=q_true, extra={"mag_field": quat_rotate(quat_conjugate(q_true), field)}))
+    d = declination_rad(rec)
+    assert math.degrees(d) == pytest.approx(math.degrees(math.atan2(1.5, 20.0)), abs=1e-9)
+    # the magnetic-north estimate: its earth frame has the horizontal field along +y
+    q_mag = quat_multiply(np.array([math.cos(d / 2), 0, 0, math.sin(d / 2)]), q_true)
+    q_e = error_quat_earth(to_geographic(q_mag, d), q_true)
+    assert np.max(np.degrees(heading_error_rad(q_e))) < 1e-6
