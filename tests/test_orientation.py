@@ -28,7 +28,7 @@ FIELD_ENU_UT = (0.0, 20.0, -44.0)  # 48° N-like: 20 µT north, 44 µT down
 
 @pytest.fixture(scope="module")
 def independent():
-    """The independent generator's turns (no gyrosim code), started tilted 25° and turned 50° so that
+    """The independent generator's turns (no gyrosim code), started tilted 25° and turned 54° so that
     a frame or sign slip cannot hide behind a level start; datasheet-size noise, a magnetometer."""
     q0 = quat_from_rotvec(np.array([0.3, -0.35, 0.9]))
     kin = ig.kinematics(100.0, ig.STEPS, q0=q0)
@@ -194,9 +194,10 @@ def test_campaign_records_failures_and_goes_on(tmp_path):
     """One shared simulation, raw and calibrated, ours and three broken user estimators: the broken
     ones are failed rows with their messages, the others scored; the summary and plots are written.
     Calibrating with calib must cut Madgwick's heading drift: raw, the MPU-9250's bias (σ 1.67 °/s per
-    axis) turns the heading at up to tens of °/min; calibrated, the bias is known to ~0.02 °/s
-    (README's campaign: 0.020 °/s RMS), ≤ 1.2 °/min — so a factor 3 is asked only when the raw
-    vertical drift is above 5 °/min (the seed's device is drawn; the test reads which case it is)."""
+    axis) turns the heading at tens of °/min; calibrated, the residual bias (0.02 °/s RMS in the
+    README's campaign) leaves 1.3 °/min RMS over 50 sessions (docs/orientation.md), so one session
+    stays below 4 × 1.3 = 5.2 °/min (|N(0, σ)| > 4σ: 6e-5); and when the raw drift exceeds 16 °/min,
+    calibration must cut it at least 3× (the seed's device is drawn; the test reads which case it is)."""
     from gyrosim.orientation_campaign import OrientationSpec, run_orientation_campaign, summarise_orientation
 
     spec = OrientationSpec(hands=("steady",), seeds=1, first_seed=4,
@@ -213,12 +214,14 @@ def test_campaign_records_failures_and_goes_on(tmp_path):
         assert "non-unit" in by[(v, "test_orientation:nonunit_estimator")]["error"]
         for e in ("madgwick", "vqf"):
             assert by[(v, e)]["status"] == "ok"
-            # the 30° pulse must show as a tilt peak far above the session's tilt RMS
-            assert float(by[(v, e)]["tilt_peak_after_disturbance_deg"]) > 5 * float(by[(v, e)]["tilt_rms_deg"])
+            # the pulse turns 30° in 0.5 s about the body axis closest to horizontal (at worst 35° off
+            # it: ≥ 30° sin 54.7° = 24.5° of tilt), and no filter corrects much meanwhile (Madgwick at
+            # most 2β = 13.8 °/s → 6.9°; VQF's 3 s tilt time constant → ~5°): peak above 15°
+            assert float(by[(v, e)]["tilt_peak_after_disturbance_deg"]) > 15.0
     raw = abs(float(by[("raw", "madgwick")]["heading_drift_deg_min"]))
     cal = abs(float(by[("calibrated", "madgwick")]["heading_drift_deg_min"]))
-    assert cal < 1.2
-    if raw > 5.0:
+    assert cal < 5.2
+    if raw > 16.0:
         assert cal < raw / 3
     summary = summarise_orientation(path, tmp_path)
     failed = {(r["variant"], r["estimator"]): r["failed"] for r in summary}
