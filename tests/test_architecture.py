@@ -109,6 +109,18 @@ def test_every_estimator_calib_exports_is_registered_and_resolves():
     assert load_estimator("calib.estimators:kf") is est.kf  # the import-path form still works
 
 
+def test_orientation_estimators_and_the_magnetometer_calibrator_are_registered():
+    # gyrosim's orientation campaign reaches calib's filters and calib mag's fit by entry point only
+    import calib.orientation as orientation
+    from calib.mag import calibrate_magnetometer
+    from gyrosim.orientation import registered_orientation_estimators
+
+    assert set(registered_orientation_estimators()) >= set(orientation._BUILTINS)
+    for name in orientation._BUILTINS:
+        assert plugins.load("gyrosim.orientation_estimators", name).args == (name,)  # builtin(name), lazily
+    assert plugins.load("gyrosim.magnetometer_calibrators", "ellipsoid") is calibrate_magnetometer
+
+
 def test_registered_names_come_from_the_source_tree_when_metadata_lacks_them(monkeypatch):
     # a checkout on PYTHONPATH, or an editable install whose metadata predates the table
     import calib.estimators as est
