@@ -317,35 +317,56 @@ def cmd_allan(args: argparse.Namespace) -> int:
 
 
 def _noise_recording(args: argparse.Namespace):
-    """The static record for ``calib noise``: the whole file (a moving one is refused), or the span
-    ``--span A:B`` / the longest still stretch (``--longest-still``) of a file that also moves."""
-    from .inputs import NOISE, prepare_recording
+    """The static record for ``calib noise``: the whole file (a moving one is refused), the span
+    ``--span A:B``, the longest still stretch (``--longest-still``) or every still stretch
+    (``--still-segments``) of a file that also moves.  Returns (Loaded, segments or None)."""
+    from .inputs import NOISE, MotionError, TooShortError, prepare_recording
     from .inputs.motion import summarise_motion
 
     req = NOISE.with_(sensors=(args.triad,))  # the other triad may be absent or constant
-    if not (args.span or args.longest_still):
-        return _open(args, req)
+    if not (args.span or args.longest_still or args.still_segments):
+        return _open(args, req), None
     loaded = _open(args, req.with_(motion="any", min_samples=2))
     rec = loaded.recording
-    if args.longest_still:
-        still = summarise_motion(rec).longest_still()
-        if still is None:
-            from .inputs import MotionError
-            raise MotionError(f"{args.recording}: the board never rests for a whole 1-s window: no still stretch to analyse")
-        a, b = still[0] + 1.0, still[1] - 1.0   # 1 s margin: the window edges may hold the start of a turn
-    else:
+    t0 = float(rec.t_s[0])
+    if args.span:
         try:
             a, b = (float(v) for v in args.span.split(":"))
         except ValueError:
             raise SystemExit(f"calib noise: error: --span must be START:END in seconds, got {args.span!r}")
-        a, b = a + float(rec.t_s[0]), b + float(rec.t_s[0])
-    keep = (rec.t_s >= a) & (rec.t_s <= b)
-    sub = rec.with_signals(**{k: (None if getattr(rec, k) is None else getattr(rec, k)[keep])
-                              for k in ("t_s", "gyro_rad_s", "acc_m_s2", "temp_c", "mag_ut")})
-    out = prepare_recording(sub, req)
-    return type(out)(out.recording, type(out.report)(**{**out.report.__dict__,
-                     "warnings": tuple(loaded.report.warnings) + (f"span t = {a - rec.t_s[0]:.1f}–{b - rec.t_s[0]:.1f} s "
-                                                                    f"of the file analysed",) + tuple(out.report.warnings)}))
+        spans = [(a + t0, b + t0)]
+    else:
+        mot = summarise_motion(rec)
+        still = ~mot.moving
+        edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        # 1 s margins: a window's edges may hold the start or end of a turn
+        spans = sorted(((float(mot.window_t_s[s]) + 1.0, float(mot.window_t_s[e - 1] + mot.window_s) - 1.0)
+                        for s, e in zip(starts, ends)), key=lambda ab: ab[0] - ab[1])
+        spans = [ab for ab in spans if ab[1] - ab[0] >= 3.0]
+        if not spans:
+            longest = max(((e - s) * mot.window_s for s, e in zip(starts, ends)), default=0.0)
+            raise MotionError(f"{args.recording}: the board moves in {mot.moving_fraction:.0%} of its 1-s windows; its "
+                              f"longest still stretch is {longest:.0f} s, and calib noise needs at least 5 s still "
+                              "(3 s after 1-s margins at both ends) for white noise alone")
+        if args.longest_still:
+            spans = spans[:1]
+    segs, notes = [], []
+    for a, b in spans:
+        keep = (rec.t_s >= a) & (rec.t_s <= b)
+        if keep.sum() < 2:
+            raise TooShortError(f"{args.recording}: t = {a - t0:.1f}–{b - t0:.1f} s holds {int(keep.sum())} samples")
+        sub = rec.with_signals(**{k: (None if getattr(rec, k) is None else getattr(rec, k)[keep])
+                                  for k in ("t_s", "gyro_rad_s", "acc_m_s2", "temp_c", "mag_ut")}, truth=None)
+        segs.append(prepare_recording(sub, req if len(spans) == 1 else req.with_(min_samples=16)))
+        notes.append(f"{a - t0:.1f}–{b - t0:.1f} s")
+    first = segs[0]
+    warn = tuple(loaded.report.warnings) + (f"analysed {len(segs)} still span(s) of the file: t = {', '.join(notes)}",) \
+        + tuple(w for sg in segs for w in sg.report.warnings)
+    report = type(first.report)(**{**first.report.__dict__, "warnings": warn})
+    if len(segs) == 1:
+        return type(first)(first.recording, report), None
+    return type(first)(first.recording, report), [sg.recording for sg in segs]
 
 
 def cmd_noise(args: argparse.Namespace) -> int:
@@ -357,8 +378,9 @@ def cmd_noise(args: argparse.Namespace) -> int:
     from .noise.report import plot_noise, summary_lines, temperature_trend_c
 
     check_output_paths({"--json": args.json, "--png": args.png}, _files(args.recording))
-    loaded = _noise_recording(args)
+    loaded, segments = _noise_recording(args)
     rec = loaded.recording
+    n_total = rec.n if segments is None else sum(r.n for r in segments)
     models = None
     if args.model != "auto":
         try:
@@ -368,11 +390,12 @@ def cmd_noise(args: argparse.Namespace) -> int:
         models = [kinds]
         p = sum(len(NOISE_TERMS[k].noise_parameters) for k in kinds)
         need = minimum_samples(p)
-        if rec.n < need:
-            raise TooShortError(f"{args.recording}: {rec.n} samples ({rec.duration_s:.1f} s); the model {model_name(kinds)} "
+        if n_total < need:
+            raise TooShortError(f"{args.recording}: {n_total} samples ({n_total / rec.rate_hz:.1f} s); the model {model_name(kinds)} "
                                 f"({p} parameters) needs at least {need} samples = {need / rec.rate_hz:.1f} s at "
                                 f"{rec.rate_hz:g} Hz (J ≥ p + 2 octave scales with the largest Allan cluster ≤ T/8)")
-    x = rec.gyro_rad_s if args.triad == "gyro" else rec.acc_m_s2
+    sig = "gyro_rad_s" if args.triad == "gyro" else "acc_m_s2"
+    x = getattr(rec, sig) if segments is None else [getattr(r, sig) for r in segments]
     warnings = list(loaded.report.warnings)
     trend = temperature_trend_c(rec.t_s, rec.temp_c)
     trend_msg = None
@@ -391,7 +414,7 @@ def cmd_noise(args: argparse.Namespace) -> int:
         raise TemperatureTrendError(f"{args.recording}: axes {', '.join(chosen_slow)} chose a random walk or rate ramp, "
                                     f"but {trend_msg}; record at a stable temperature, compensate the temperature first "
                                     "(calib temperature), or pass --allow-temperature-trend")
-    print(f"{args.recording}: {rec.n} samples, static")
+    print(f"{args.recording}: {n_total} samples, static")
     _print_input_warnings(loaded.report)
     for line in summary_lines(res):
         print(line)
@@ -1080,6 +1103,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "white+flicker+rw, white+2gm, white+qn+gm+rw+drift")
     no.add_argument("--span", default=None, metavar="START:END", help="analyse only t = START…END s of the file")
     no.add_argument("--longest-still", action="store_true", help="analyse the file's longest still stretch")
+    no.add_argument("--still-segments", action="store_true",
+                    help="analyse every still stretch of ≥ 5 s, wavelet variances pooled (multi-position sessions)")
     no.add_argument("--max-temperature-trend", type=number(0.0, 1e3), default=0.2, metavar="DEG_C",
                     help="a temperature change over the record above this (°C, default 0.2) is named as a bias source")
     no.add_argument("--allow-temperature-trend", action="store_true",

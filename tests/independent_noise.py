@@ -15,7 +15,6 @@ gyro or the accelerometer carrying the noise.
 
 from __future__ import annotations
 
-import csv
 import math
 from pathlib import Path
 
@@ -81,10 +80,7 @@ def write_csv(path: str | Path, rate_hz: float, noise: np.ndarray, triad: str = 
     gyro = noise if triad == "gyro" else np.zeros((n, 3))
     acc = np.tile([0.0, 0.0, G], (n, 1)) + (noise if triad == "acc" else 0.0)
     path = Path(path)
-    with path.open("w", newline="") as fh:
-        wr = csv.writer(fh)
-        wr.writerow(["t", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"] + (["temp"] if temp_c is not None else []))
-        for i in range(n):
-            row = [f"{t[i]:.6f}"] + [f"{v:.9e}" for v in np.degrees(gyro[i])] + [f"{v:.9e}" for v in acc[i] / G]
-            wr.writerow(row + ([f"{temp_c[i]:.4f}"] if temp_c is not None else []))
+    cols = [t[:, None], np.degrees(gyro), acc / G] + ([np.asarray(temp_c)[:, None]] if temp_c is not None else [])
+    header = "t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z" + (",temp" if temp_c is not None else "")
+    np.savetxt(path, np.hstack(cols), delimiter=",", header=header, comments="", fmt="%.9e")
     return path

@@ -155,14 +155,19 @@ def _axis_result(axis: str, sel: AxisSelection) -> AxisNoise:
     return AxisNoise(axis, sel, tuple(params), pval > 1e-3, pval)
 
 
-def identify_noise(x: np.ndarray, rate_hz: float, triad: str = "gyro",
+def identify_noise(x: np.ndarray | list[np.ndarray], rate_hz: float, triad: str = "gyro",
                    models: list[tuple[str, ...]] | None = None, warnings: tuple[str, ...] = ()) -> NoiseIdentification:
-    """Identify the stochastic model of each axis of ``x`` (N, 3) sampled at ``rate_hz`` (static)."""
-    x = np.asarray(x, float)
+    """Identify the stochastic model of each axis of ``x`` (N, 3) sampled at ``rate_hz`` (static),
+    or of a list of separate still segments (K_i, 3) of one record (wavelet variances pooled)."""
+    from .wavelet import pooled_wavelet_variance
+
+    segments = [np.asarray(s, float) for s in x] if isinstance(x, list) else None
+    x = np.concatenate(segments) if segments is not None else np.asarray(x, float)
     dt = 1.0 / rate_hz
     axes = []
     for i in range(x.shape[1]):
-        sel = identify_axis(x[:, i], dt, models)
+        wv = pooled_wavelet_variance([s[:, i] for s in segments], dt) if segments is not None else None
+        sel = identify_axis(x[:, i], dt, models, wv=wv)
         res = _axis_result("xyz"[i], sel)
         tri = TRIAD_NAME[triad]
         res = AxisNoise(res.axis, sel, tuple(NoiseParameter(p.kind, p.field, p.index, p.value, p.ci95, p.rel_sigma,

@@ -21,7 +21,7 @@ import numpy as np
 
 from gyrosim.effects import haar_gain2
 
-__all__ = ["WaveletVariance", "wavelet_variance", "scales_for", "wv_covariance"]
+__all__ = ["WaveletVariance", "wavelet_variance", "pooled_wavelet_variance", "scales_for", "wv_covariance"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,24 @@ def wavelet_variance(x: np.ndarray, dt_s: float, m: np.ndarray | None = None) ->
         nu2[j] = float(np.dot(w, w)) / (w.size * 4.0 * mj * mj)
         count[j] = w.size
     return WaveletVariance(m.astype(float), nu2, count, n, float(dt_s))
+
+
+def pooled_wavelet_variance(segments: list[np.ndarray], dt_s: float) -> WaveletVariance:
+    """ν̂² from several separate still stretches of one record (e.g. the poses of a multi-position
+    session): at each scale the squared coefficients of every segment at least 8 m long are pooled,
+    ν̂² = Σ_s Σ_t W²/Σ_s M_s (segments are independent, so Σ uses the pooled count).  The scales
+    are those of the longest segment."""
+    segments = [np.asarray(x, float) for x in segments if np.asarray(x).size >= 16]
+    if not segments:
+        raise ValueError("no segment of at least 16 samples")
+    m = scales_for(max(x.size for x in segments))
+    num, count = np.zeros(m.size), np.zeros(m.size)
+    for x in segments:
+        keep = m <= x.size / 8
+        wv = wavelet_variance(x, dt_s, m[keep])
+        num[keep] += wv.nu2 * wv.coefficients
+        count[keep] += wv.coefficients
+    return WaveletVariance(m.astype(float), num / count, count, int(sum(x.size for x in segments)), float(dt_s))
 
 
 def wv_covariance(psd, m: np.ndarray, coefficients: np.ndarray, points_per_band: int = 1024,
