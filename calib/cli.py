@@ -451,7 +451,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
     print(f"sensor {sensor.name}, static record at {args.rate:g} Hz, target relative 1σ {args.target:g} "
           f"(95 % interval ≈ ±{196 * args.target:.0f} %) per parameter (axis x's values):")
     for r in rows:
-        length = "beyond 10⁶ s" if r.record_length_s is None else f"{r.record_length_s:,.0f} s ({r.record_length_s / 3600:.2f} h)"
+        length = ("beyond 10⁶ s" if r.record_length_s is None else
+                  "≤ 10 s" if r.record_length_s <= r.curve_t_s[0] else
+                  f"{r.record_length_s:,.0f} s ({r.record_length_s / 3600:.2f} h)")
         print(f"  {r.triad:<13} {r.term}.{r.parameter} = {r.value_si:.4g} SI: record {length}")
     out = {"sensor": sensor.name, "rate_hz": args.rate, "target_relative_sigma": args.target,
            "stochastic": [r.to_dict() for r in rows]}
