@@ -268,14 +268,17 @@ class AxisSelection:
     sigma: np.ndarray = field(repr=False)
 
 
-SE_RULE = 2.0  # standard errors of the WIC difference a larger model must win by (select's docstring)
+SE_RULE = 3.0  # standard errors of the WIC difference a larger model must win by (select's docstring)
 
 
 def select(fits: list[ModelFit], sigma: np.ndarray) -> ModelFit:
-    """The fewest-parameter model whose WIC is within one standard deviation of the best WIC's
-    difference (Breiman et al. 1984's one-standard-error rule, applied to the WIC estimate): the
-    WIC difference of two nested models fitted to the same data scatters, under the smaller model,
-    like a χ² with Δp degrees of freedom (sd √(2Δp)), so a smaller WIC by less than that is noise."""
+    """The fewest-parameter model whose WIC is within ``SE_RULE`` standard deviations of the best
+    WIC's difference (Breiman et al. 1984's one-standard-error rule, applied to the WIC estimate):
+    the WIC difference of two nested models fitted to the same data scatters, under the smaller
+    model, like a χ² with Δp degrees of freedom (sd √(2Δp)), so a smaller WIC by less than that is
+    noise.  3 rather than 1: with 32 candidates the best of ~20 supersets beats the true model by
+    chance often; on 45 records per true model (seeds 500–514) the true model was chosen in
+    87–96 % at 2 SE and 96–100 % at 3 SE (docs/noise.md)."""
     best = min(fits, key=lambda f: f.wic)
     ok = [f for f in fits if f.wic <= best.wic + SE_RULE * math.sqrt(2 * max(best.p - f.p, 1))]
     return min(ok, key=lambda f: (f.p, f.wic))
