@@ -4,12 +4,14 @@ selection by an estimate of out-of-sample fit.
 Model: a sum of independent terms of the effect vocabulary that declare ``noise_parameters``
 (white noise, quantization noise, flicker bias instability, random walk, Gauss–Markov, rate ramp);
 its Haar wavelet variance is the sum of theirs, ν(θ) = Σ_i ν_i(θ_i) (each effect's
-``haar_wavelet_variance``).  Parameters are fitted on a log scale (all are > 0):
+``haar_wavelet_variance``).  All parameters are > 0:
 
     θ̂ = argmin (ν̂ − ν(θ))ᵀ Ω (ν̂ − ν(θ)),  Ω = diag(Σ)⁻¹                    (Guerrier et al. 2013, eq. 3)
 
 with Σ the covariance of ν̂ (:func:`calib.noise.wavelet.wv_covariance`) evaluated at a fitted
-model (iterated: observed-value weights first, then model-based, as in :mod:`calib.allan`).
+model (iterated: observed-value weights first, then model-based, as in :mod:`calib.allan`).  Each
+term's ν is linear in its variance parameter, so for fixed Gauss–Markov τ's the fit is a
+non-negative least-squares problem (:func:`fit_model`); intervals are on log θ.
 
 Covariance of θ̂ (sandwich, delta method; D = ∂ν/∂log θ at θ̂, B = DᵀΩD):
 
@@ -238,10 +240,9 @@ def fit_model(kinds: tuple[str, ...], wv: WaveletVariance, sd: np.ndarray) -> Mo
         logp[sl.start] = 0.5 * math.log(c[j]) if c[j] > 0 else -np.inf
         if j in taus:
             logp[sl.start + 1] = math.log(taus[j])
-    fit = ModelFit(kinds, tuple(model.names), logp, obj)
     degenerate = bool(np.any(c <= 0))
     return ModelFit(kinds, tuple(model.names), logp, obj,
-                    nu2_model=None if degenerate else model.nu(logp), degenerate=degenerate) if True else fit
+                    nu2_model=None if degenerate else model.nu(logp), degenerate=degenerate)
 
 
 def _sandwich(kinds: tuple[str, ...], wv: WaveletVariance, logp: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, float]:
@@ -293,8 +294,10 @@ _SCOUTS = {("white_noise",), ("white_noise", "random_walk"), ("white_noise", "bi
 def identify_axis(x: np.ndarray, dt_s: float, models: list[tuple[str, ...]] | None = None,
                   wv: WaveletVariance | None = None) -> AxisSelection:
     """Fit every candidate to one axis' record ``x``, select by WIC, and give the chosen model's
-    covariance.  Iteration: observed-value weights → Σ at the best of those fits → refit all →
-    select → Σ at the chosen model → its final fit and sandwich covariance."""
+    covariance.  Iteration: a few scout models (``_SCOUTS``) with observed-value weights → Σ at the
+    best of them (objective + 2p) → every candidate refitted with that Σ, WIC → select → Σ at the
+    chosen model → its final fit and sandwich covariance.  ``models``: the candidates (default all
+    32); those with more parameters than the scales allow (p > J − 2) are left out."""
     from .wavelet import wavelet_variance
 
     wv = wv if wv is not None else wavelet_variance(x, dt_s)

@@ -16,9 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .gmwm import AxisSelection, identify_axis, model_name
+from .gmwm import AxisSelection, identify_axis
 from .units import CONVENTION, representations, si_unit
-from .wavelet import scales_for
 
 __all__ = ["NoiseParameter", "AxisNoise", "NoiseIdentification", "identify_noise", "minimum_samples", "TRIADS"]
 
@@ -179,5 +178,3 @@ def identify_noise(x: np.ndarray | list[np.ndarray], rate_hz: float, triad: str 
     infl = inflation_table(axes, rate_hz)
     return NoiseIdentification(triad, float(rate_hz), x.shape[0] / rate_hz, tuple(axes), tuple(warnings), infl)
 
-
-_ = scales_for, model_name

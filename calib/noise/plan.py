@@ -19,7 +19,7 @@ import numpy as np
 
 from gyrosim.effects import Effect, GaussMarkov
 
-from .gmwm import NOISE_TERMS, _canonical, _Model, _sandwich, model_name
+from .gmwm import NOISE_TERMS, _canonical, _Model, _sandwich
 from .wavelet import WaveletVariance, scales_for, wv_covariance
 
 __all__ = ["noise_terms_of", "predicted_relative_sigma", "record_length", "schedule_repetitions", "PlanRow"]
@@ -135,5 +135,3 @@ def schedule_repetitions(sensor, schedule: str, rate_hz: float, target_s: float,
             "crlb_after": {"S": s1 / math.sqrt(reps), "G": g1 / math.sqrt(reps)},
             "assumption": "ideal hand; repetitions add information (independent passes); gyro S and G only"}
 
-
-_ = model_name
