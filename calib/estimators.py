@@ -40,18 +40,19 @@ from gyrosim.calibration import Calibration
 from gyrosim.recording import Recording
 
 from .calibrate import Prepared, calibrate, prepare, rest_mask
-from .consistency import check_estimate, check_innovations, verdict
+from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
 from .fastkf import run_filter
+from .handkf import kf_hand  # noqa: F401  (registered: the hand-aware method, issue 13)
 from .kalman import PAPER, initial_covariance, theta_slice
 
 __all__ = ["kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
-           "kf_joint", "iterated_joint"]
+           "kf_joint", "iterated_joint", "kf_hand"]
 
 GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
 
 def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gate: float = 0.0,
-         passes: int = 1, prep: Prepared | None = None, name: str = "kf") -> Calibration:
+         passes: int = 1, prep: Prepared | None = None, name: str = "kf", check_hand: bool = True) -> Calibration:
     """The paper's filter on ``rec``; ``prep`` (from :func:`prepare` with the matching allowance) when
     the caller already has it."""
     prep = prep or prepare(rec, accelerometer="calibrated", external_acc_allowance_m_s2=None if session_r else 0.0)
@@ -74,16 +75,32 @@ def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gat
                          prep.config, fs, r_var_per_sample=r_var, gate_nis=gate, update_mask=mask,
                          rest_mask=rest_mask(prep, rec.n - a), x0=x0[None])
         theta = out.theta[0].copy()
+    infl = innovation_inflation(out.whitened[0], rec.t_s[a + 1:])
     cov = np.zeros((9, 9))
     cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)
-    cov[3:, 3:] = out.p[0, 3:9, 3:9]
+    cov[3:, 3:] = out.p[0, 3:9, 3:9] * infl.factor
     values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
     status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2))
+    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+    diag: dict = {"consistency": {"sigma_inflation": infl.to_dict()}}
+    if check_hand and status == "ok" and not prep.noise.at_floor:   # noise-free: methods differ by discretisation
+        status, diag["consistency"]["hand_cross_check"] = _hand_check(rec, theta[0:6], cov[3:, 3:], notes, status)
     gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
     return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
-                                   method=name)
+                                   method=name, diagnostics=diag)
+
+
+def _hand_check(rec: Recording, sg: np.ndarray, cov_sg: np.ndarray, notes: list[str], status: str,
+                acc_m_s2: np.ndarray | None = None) -> tuple[str, dict]:
+    """:func:`calib.handkf.hand_cross_check`: a hand-blind "ok" whose S, G disagree with the hand-aware
+    estimate beyond both σ becomes "inconsistent", with the factor σ is understated by."""
+    from .handkf import hand_cross_check
+
+    warn, diag = hand_cross_check(rec, sg, cov_sg, acc_m_s2)
+    notes.extend(warn)
+    return ("inconsistent" if warn else status), diag
 
 
 def kf(rec: Recording) -> Calibration:
@@ -142,7 +159,7 @@ def kf_lever_arm(rec: Recording) -> Calibration:
     from gyrosim.strapdown import integrate_gyro
 
     prep = prepare(rec, accelerometer="calibrated")  # the session-R preparation of pass 1, used again for the rest attitude
-    first = _run(rec, session_r=True, prep=prep, name="kf_lever_arm")
+    first = _run(rec, session_r=True, prep=prep, name="kf_lever_arm", check_hand=False)
     a, fs = prep.start, rec.rate_hz
     m = np.eye(3) + np.diag(first.scale_factor) + _nonortho_matrix(first.nonorthogonality)
     w = (rec.gyro_rad_s - first.bias_rad_s) @ np.linalg.inv(m).T
@@ -159,8 +176,17 @@ def kf_lever_arm(rec: Recording) -> Calibration:
     r, *_ = np.linalg.lstsq(k[moving].reshape(-1, 3), (f_s - g_b)[moving].reshape(-1), rcond=None)
     kk = skew(dw) + skew(w_s) @ skew(w_s)
     corrected = rec.acc_m_s2 - np.einsum("nij,j->ni", kk, r)
-    second = _run(rec.with_signals(acc_m_s2=corrected), session_r=True, name="kf_lever_arm")
+    second = _run(rec.with_signals(acc_m_s2=corrected), session_r=True, name="kf_lever_arm", check_hand=False)
+    if second.status == "ok" and not prep.noise.at_floor:   # the check on the recording as given
+        notes: list[str] = []
+        items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
+        status, chk = _hand_check(rec, np.concatenate([second.value(t, k) for t, k in items]),
+                                  second.block_covariance(items), notes, second.status)
+        second = Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=second.covariance,
+                             status=status, method="kf_lever_arm", warnings=second.warnings + tuple(notes),
+                             diagnostics={**second.diagnostics, "consistency": {
+                                 **second.diagnostics.get("consistency", {}), "hand_cross_check": chk}})
     return Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=second.covariance,
                        status=second.status, method="kf_lever_arm",
                        warnings=second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",),
-                       diagnostics={"hand": {"lever_arm_m": r.tolist()}})
+                       diagnostics={**second.diagnostics, "hand": {"lever_arm_m": r.tolist()}})

@@ -1,0 +1,70 @@
+"""Issue 13's campaign: method × hand → RMS error, efficiency (ideal and hand-aware bound), NEES.
+
+    python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 --out docs/hand_zhou2020_sim_consumer.json
+    python benchmarks/hand_campaign.py --table docs/hand_*.json        # the markdown table of docs/hand.md
+
+Every cell is :func:`calib.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz, the sensor with its
+accelerometer calibrated — only its white noise kept — and ``accelerometer="calibrated"``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+from tqdm import tqdm
+
+from calib.montecarlo import monte_carlo
+from calib.outputs import write_json_atomic
+
+HANDS = ("ideal", "steady", "typical", "shaky")
+
+
+def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str) -> None:
+    cells = {}
+    for hand in HANDS:
+        t0 = time.time()
+        with tqdm(total=seeds, desc=f"{sensor} {hand}", unit="seed") as bar:
+            r = monte_carlo("zhou2020", hand, sensor, seeds, 100.0, methods, progress=bar.update,
+                            calibrated_accelerometer=True, accelerometer="calibrated")
+        cells[hand] = {**r.to_dict(), "seconds": time.time() - t0}
+        print(r.summary(), flush=True)
+        write_json_atomic(out, {"sensor": sensor, "seeds": seeds, "methods": list(methods), "cells": cells})
+
+
+def table(paths: list[str]) -> str:
+    rows = ["| sensor | method | hand | S, G RMSE max | ÷ ideal-hand RMSE | eff. vs ideal bound (max S, G) | "
+            "eff. vs hand bound (max S, G) | NEES (6) | 95 % band | statuses |", "|" + "---|" * 10]
+    for p in paths:
+        d = json.load(open(p))
+        for m in d["methods"]:
+            base = max(d["cells"]["ideal"]["methods"][m]["rmse"][3:9]) if "ideal" in d["cells"] else float("nan")
+            for hand, c in d["cells"].items():
+                st = c["methods"][m]
+                rm = max(st["rmse"][3:9])
+                eh = max(st["efficiency_hand"][3:9]) if st["efficiency_hand"] else float("nan")
+                rows.append(f"| {d['sensor']} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
+                            f"{eh:.2f} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
+                            + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
+    return "\n".join(rows)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sensor", default="zhou2020_sim_consumer")
+    ap.add_argument("--seeds", type=int, default=50)
+    ap.add_argument("--methods", default="kf,kf_lever_arm,kf_hand")
+    ap.add_argument("--out")
+    ap.add_argument("--table", nargs="*")
+    a = ap.parse_args()
+    if a.table:
+        print(table(a.table))
+        return
+    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out)
+
+
+if __name__ == "__main__":
+    np.seterr(all="ignore")
+    main()
