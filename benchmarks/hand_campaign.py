@@ -1,7 +1,10 @@
 """Issue 13's campaign: method × hand → RMS error, efficiency (ideal and hand-aware bound), NEES.
 
     python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 --out docs/hand_zhou2020_sim_consumer.json
+    python benchmarks/hand_campaign.py --sensor mpu9250 --hands typical,shaky --seeds 10 --out docs/hand_mpu9250.json
     python benchmarks/hand_campaign.py --table docs/hand_*.json        # the markdown table of docs/hand.md
+
+(cells already in --out are kept: a campaign can be run hand by hand)
 
 Every cell is :func:`calib.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz, the sensor with its
 accelerometer calibrated — only its white noise kept — and ``accelerometer="calibrated"``).
@@ -12,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -22,9 +26,14 @@ from calib.outputs import write_json_atomic
 HANDS = ("ideal", "steady", "typical", "shaky")
 
 
-def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str) -> None:
+def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tuple[str, ...] = HANDS) -> None:
+    """Run the cells of ``hands``; cells already in ``out`` (same sensor and methods) are kept."""
     cells = {}
-    for hand in HANDS:
+    if Path(out).exists():
+        old = json.loads(Path(out).read_text())
+        if old.get("sensor") == sensor and old.get("methods") == list(methods):
+            cells = old["cells"]
+    for hand in hands:
         t0 = time.time()
         with tqdm(total=seeds, desc=f"{sensor} {hand}", unit="seed") as bar:
             r = monte_carlo("zhou2020", hand, sensor, seeds, 100.0, methods, progress=bar.update,
@@ -56,13 +65,14 @@ def main() -> None:
     ap.add_argument("--sensor", default="zhou2020_sim_consumer")
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--methods", default="kf,kf_lever_arm,kf_hand")
+    ap.add_argument("--hands", default=",".join(HANDS), help="comma-separated hand presets (default all four)")
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="*")
     a = ap.parse_args()
     if a.table:
         print(table(a.table))
         return
-    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out)
+    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out, tuple(a.hands.split(",")))
 
 
 if __name__ == "__main__":
