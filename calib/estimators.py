@@ -22,6 +22,13 @@ of a_e uniform on the sphere E[(a_e·ĝ)²] = |a_e|²/3, so 3(|f| − g)² estim
 each horizontal component's variance.  Low-passed over 0.2 s because (|f| − g) crosses zero
 whenever a_e is horizontal, while a_e itself does not.
 
+``kf_hand`` (:mod:`calib.handkf`) puts the hand in the model instead: the lever arm and a coloured
+external acceleration as filter states after a tremor low-pass (issue 13, docs/hand.md).  Every method
+here reports an honest σ or says it cannot: P is inflated from the innovations' long-run variance, a
+result whose σ had to grow more than ×1.5 is ``inconsistent``, and an ``ok`` result that disagrees with
+``kf_hand`` beyond both σ becomes ``inconsistent`` with the factor its σ is understated by
+(:func:`calib.consistency.innovation_inflation`, :func:`calib.handkf.hand_cross_check`).
+
 ``smoother``: the parameters are constants, so a Rauch–Tung–Striebel pass leaves their final
 filtered estimate unchanged (the smoothed estimate of a constant state equals the filtered one at
 the last sample); what a smoother can still improve is the linearisation, which these passes do
@@ -153,7 +160,9 @@ def kf_lever_arm(rec: Recording) -> Calibration:
     Pass 1 (``kf_session_r``) calibrates the gyro; its compensated rate, integrated from the
     rest attitude, gives g_b(t); least squares over the motion gives r̂; pass 2 runs on
     f − K r̂.  ω̇ from the compensated rate, zero-phase low-passed at 5 Hz (above the schedule,
-    below the tremor)."""
+    below the tremor).  σ includes r̂'s own error carried into S, G (J C_r Jᵀ; without it NEES was 7.6
+    against [5.1, 7.0] with the ideal hand, G_y's error 1.9 σ RMS).  ``kf_hand`` estimates r inside the
+    filter instead and supersedes this method (docs/hand.md)."""
     from gyrosim.effects import _nonortho_matrix
     from gyrosim.rotations import quat_conjugate, quat_rotate, skew
     from gyrosim.strapdown import integrate_gyro
@@ -173,10 +182,32 @@ def kf_lever_arm(rec: Recording) -> Calibration:
     moving = np.linalg.norm(w_s[a:], axis=1) > 0.2
     if moving.sum() < 10:
         return first
-    r, *_ = np.linalg.lstsq(k[moving].reshape(-1, 3), (f_s - g_b)[moving].reshape(-1), rcond=None)
+    y = f_s - g_b
+    r, *_ = np.linalg.lstsq(k[moving].reshape(-1, 3), y[moving].reshape(-1), rcond=None)
     kk = skew(dw) + skew(w_s) @ skew(w_s)
-    corrected = rec.acc_m_s2 - np.einsum("nij,j->ni", kk, r)
-    second = _run(rec.with_signals(acc_m_s2=corrected), session_r=True, name="kf_lever_arm", check_hand=False)
+
+    def pass2(r_m: np.ndarray) -> Calibration:
+        corrected = rec.acc_m_s2 - np.einsum("nij,j->ni", kk, r_m)
+        return _run(rec.with_signals(acc_m_s2=corrected), session_r=True, name="kf_lever_arm", check_hand=False)
+
+    second = pass2(r)
+    # r̂'s own error goes into S, G through pass 2: Cov += J C_r Jᵀ, J = ∂(S, G)/∂r by finite differences
+    # (1 mm), C_r the least squares' sandwich with block sums over 4 s (the residual — sway, the pass-1
+    # attitude error — is correlated in time; Newey & West 1987)
+    e = (y - np.einsum("nij,j->ni", k, r)) * moving[:, None]
+    g_k = np.einsum("nji,nj->ni", k, e)                                      # Kᵀ e per sample
+    blk = np.floor((rec.t_s[a:] - rec.t_s[a]) / 4.0).astype(int)
+    sums = np.stack([np.bincount(blk, g_k[:, i]) for i in range(3)], axis=1)
+    a_inv = np.linalg.inv(np.einsum("nji,njk->ik", k[moving], k[moving]))
+    c_r = a_inv @ (sums.T @ sums) @ a_inv
+    items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
+    base = np.concatenate([second.value(t, kd) for t, kd in items])
+    jac = np.stack([(np.concatenate([pass2(r + 1e-3 * np.eye(3)[i]).value(t, kd) for t, kd in items]) - base) / 1e-3
+                    for i in range(3)], axis=1)
+    cov2 = np.array(second.covariance, float)
+    cov2[3:9, 3:9] += jac @ c_r @ jac.T
+    second = Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=cov2, status=second.status,
+                         method="kf_lever_arm", warnings=second.warnings, diagnostics=second.diagnostics)
     if second.status == "ok" and not prep.noise.at_floor:   # the check on the recording as given
         notes: list[str] = []
         items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]

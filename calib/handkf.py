@@ -59,7 +59,7 @@ from scipy import signal as sp_signal
 from gyrosim.calibration import Calibration
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
-from gyrosim.rotations import quat_rotate, quat_conjugate, skew
+from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import prepare, rest_mask
