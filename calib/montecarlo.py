@@ -20,7 +20,8 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
 * Methods: every registered estimator (:data:`gyrosim.estimator.BUILTIN_ESTIMATORS`: ``kf`` is the
   paper's filter, ``kf_hand`` the hand-aware one, …, or ``package.module:attribute``) and
   ``iterated`` (``calib run --method iterated``: :func:`calib.calibrate.calibrate`, with the
-  ``accelerometer`` mode asked).  Each sees only the recording, as a user's file would be.
+  ``accelerometer`` mode asked).  Each sees only the recording, as a user's file would be
+  (:func:`as_user_file`: samples and rate; no truth, no sensor model, no hand).
 * The hand-aware bound (issue 13), with the accelerometer calibrated: the same Riccati recursion with
   the :data:`calib.kalman.HAND` layout — the lever arm as three nuisance parameters with a vague
   prior, the slow external acceleration a Gauss–Markov process with the PSD ``kf_hand`` estimated on
@@ -40,21 +41,21 @@ import numpy as np
 from scipy import stats
 
 from gyrosim.calibration import truth_calibration
+from gyrosim.estimator import load_estimator
 from gyrosim.hand import load_hand
+from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.schedule import load_schedule
 from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
 from gyrosim.strapdown import integrate_gyro
 
-from gyrosim.estimator import load_estimator
-
 from .calibrate import calibrate, prepare
 from .fastkf import crlb_joint, run_filter
 from .handkf import white_density
 from .kalman import HAND, JOINT, PAPER, FilterConfig, initial_covariance
 
-__all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS"]
+__all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
 GYRO_PARAMS = ("bias_x", "bias_y", "bias_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_z")
 ACC_PARAMS = ("acc_b_x", "acc_b_y", "acc_b_z", "acc_S_x", "acc_S_y", "acc_S_z", "acc_G_x", "acc_G_y", "acc_G_z")
@@ -144,6 +145,12 @@ class MonteCarloResult:
                                 "nees_mean": st.nees_mean, "nees_band": list(st.nees_band),
                                 "nees_all_mean": st.nees_all_mean, "nees_all_band": list(st.nees_all_band),
                                 "statuses": st.statuses} for m, st in self.methods.items()}}
+
+
+def as_user_file(rec: Recording) -> Recording:
+    """What a user's file carries: times, gyro, accelerometer (and temperature, field) with the rate —
+    no truth, no sensor model, no hand, no seed (issue 13: the estimators under test see nothing else)."""
+    return Recording(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, None, {"rate_hz": rec.rate_hz})
 
 
 def _estimator(method: str, accelerometer: str) -> Callable:
@@ -236,8 +243,9 @@ def monte_carlo(
         rec = apply_sensor(truth, model, np.random.default_rng(10_000 + seed))
         tc = truth_calibration(rec)
         truths.append(np.concatenate([tc.vector("gyro")] + ([tc.vector("accelerometer")] if estimate else [])))
+        user = as_user_file(rec)
         for m in methods:
-            c = runners[m](rec)
+            c = runners[m](user)
             if "hand" in c.diagnostics and "external_acc_psd" in c.diagnostics["hand"]:
                 psd.append(c.diagnostics["hand"]["external_acc_psd"])
             items = [("gyro", "bias"), ("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
