@@ -2,7 +2,7 @@
 
     python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 --out docs/hand_zhou2020_sim_consumer.json
     python benchmarks/hand_campaign.py --sensor mpu9250 --hands typical,shaky --seeds 10 --out docs/hand_mpu9250.json
-    python benchmarks/hand_campaign.py --table docs/hand_*.json        # the markdown table of docs/hand.md
+    python benchmarks/hand_campaign.py --table docs/hand_*.json --plot docs/hand_rmse.png   # docs/hand.md's table
 
 (cells already in --out are kept: a campaign can be run hand by hand)
 
@@ -60,6 +60,28 @@ def table(paths: list[str]) -> str:
     return "\n".join(rows)
 
 
+def plot(paths: list[str], out: str) -> None:
+    """RMS error of S, G (max over the six) per hand, one line per sensor × method (log scale)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for p in paths:
+        d = json.load(open(p))
+        hands = [h for h in HANDS if h in d["cells"]]
+        for m in d["methods"]:
+            ax.plot(hands, [max(d["cells"][h]["methods"][m]["rmse"][3:9]) for h in hands], marker="o",
+                    label=f"{d['sensor']}: {m}")
+    ax.set_yscale("log")
+    ax.set_ylabel("RMS error, max over S and G")
+    ax.set_title("zhou2020 schedule, accelerometer calibrated")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sensor", default="zhou2020_sim_consumer")
@@ -68,9 +90,12 @@ def main() -> None:
     ap.add_argument("--hands", default=",".join(HANDS), help="comma-separated hand presets (default all four)")
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="*")
+    ap.add_argument("--plot", help="with --table: also write this PNG")
     a = ap.parse_args()
     if a.table:
         print(table(a.table))
+        if a.plot:
+            plot(a.table, a.plot)
         return
     run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out, tuple(a.hands.split(",")))
 
