@@ -253,7 +253,6 @@ def run_campaign(spec: CampaignSpec, out: str | Path, *, scheduler: str | None =
             tasks.append(replace(t, estimators=missing))
     _write_provenance(out, spec, scheduler, workers)
     rows_all = [r for v in done.values() for r in v]
-    total = len(tasks)
 
     def flush() -> None:
         order = {t.task_id: i for i, t in enumerate(make_tasks(spec))}
@@ -267,9 +266,21 @@ def run_campaign(spec: CampaignSpec, out: str | Path, *, scheduler: str | None =
                 w.writerow({k: r.get(k, "") for k in RESULT_COLUMNS})
         tmp.replace(path)
 
+    run_tasks(tasks, run_task, rows_all, flush, scheduler=scheduler, workers=workers,
+              connect_timeout_s=connect_timeout_s, progress=progress, key_prefix="task")
+    return path
+
+
+def run_tasks(tasks: list, run: Callable[[object], list[dict]], rows: list[dict], flush: Callable[[], None], *,
+              scheduler: str | None, workers: int | None, connect_timeout_s: float,
+              progress: Callable[[int, int], None] | None, key_prefix: str) -> None:
+    """Run ``run(task)`` for every task, in-process (``scheduler`` None/"none") or on Dask, appending
+    each task's rows to ``rows`` as they complete and calling ``flush`` every 20 tasks and at the end
+    (the campaigns' results files are rewritten then, so an interrupted run keeps what finished)."""
+    total = len(tasks)
     if scheduler in (None, "none"):
         for i, t in enumerate(tasks):
-            rows_all.extend(run_task(t))
+            rows.extend(run(t))
             if progress:
                 progress(i + 1, total)
             if (i + 1) % 20 == 0:
@@ -279,9 +290,9 @@ def run_campaign(spec: CampaignSpec, out: str | Path, *, scheduler: str | None =
 
         client, cluster = _client(scheduler, workers, connect_timeout_s)
         try:
-            futures = [client.submit(run_task, t, pure=False, key=f"task-{t.task_id}") for t in tasks]
+            futures = [client.submit(run, t, pure=False, key=f"{key_prefix}-{t.task_id}") for t in tasks]
             for i, fut in enumerate(as_completed(futures)):
-                rows_all.extend(fut.result())
+                rows.extend(fut.result())
                 if progress:
                     progress(i + 1, total)
                 if (i + 1) % 20 == 0:
@@ -291,7 +302,6 @@ def run_campaign(spec: CampaignSpec, out: str | Path, *, scheduler: str | None =
             if cluster is not None:
                 cluster.close()
     flush()
-    return path
 
 
 def _write_provenance(out: Path, spec: CampaignSpec, scheduler, workers) -> None:

@@ -239,7 +239,7 @@ def run_orientation_campaign(spec: OrientationSpec, out: str | Path, *, schedule
                              workers: int | None = None, connect_timeout_s: float = 10.0,
                              progress: Callable[[int, int], None] | None = None) -> Path:
     """Run every task not yet in ``out/orientation_results.csv``; returns its path."""
-    from .campaign import _client
+    from .campaign import run_tasks
 
     spec.validate()
     out = Path(out)
@@ -262,31 +262,8 @@ def run_orientation_campaign(spec: OrientationSpec, out: str | Path, *, schedule
                 w.writerow({k: r.get(k, "") for k in ORIENTATION_COLUMNS})
         tmp.replace(path)
 
-    total = len(tasks)
-    if scheduler in (None, "none"):
-        for i, t in enumerate(tasks):
-            rows_all.extend(run_task(t))
-            if progress:
-                progress(i + 1, total)
-            if (i + 1) % 20 == 0:
-                flush()
-    else:
-        from dask.distributed import as_completed
-
-        client, cluster = _client(scheduler, workers, connect_timeout_s)
-        try:
-            futures = [client.submit(run_task, t, pure=False, key=f"orientation-{t.task_id}") for t in tasks]
-            for i, fut in enumerate(as_completed(futures)):
-                rows_all.extend(fut.result())
-                if progress:
-                    progress(i + 1, total)
-                if (i + 1) % 20 == 0:
-                    flush()
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-    flush()
+    run_tasks(tasks, run_task, rows_all, flush, scheduler=scheduler, workers=workers,
+              connect_timeout_s=connect_timeout_s, progress=progress, key_prefix="orientation")
     return path
 
 
