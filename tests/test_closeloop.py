@@ -75,7 +75,7 @@ def test_a_50_hz_disturbance_is_unexplained_structure_not_an_effect():
         assert "Found nothing" in read_texts(path)["story"]
         marked = [c for c in rr.chunk.RrdReader(str(path)).stream().to_chunks()
                   if c.entity_path == "/closeloop/spectrum/y/unexplained"]
-        f_hz = np.asarray(marked[0].to_record_batch().column("BarChart:abscissa").to_pylist()[0]["buffer"], float)
+        f_hz = np.asarray(marked[0].to_record_batch().column("BarChart:abscissa").to_pylist()[0][0]["buffer"], float)
         assert np.min(np.abs(f_hz - 50.0)) < 0.5  # one Welch bin (fs/nperseg ≈ 0.2 Hz here) and then some
     assert lines, res.unexplained["summary"]
     top = lines[0]
