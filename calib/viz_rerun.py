@@ -50,9 +50,11 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
     if "external_acc" in truth.extra:
         _series(stream, "truth/external_acc", t, truth.extra["external_acc"])
     step = max(1, int(round(rec.rate_hz / pose_rate_hz)))
-    sel = slice(None, None, step)
+    sel = np.arange(0, rec.n, step)
     q = truth.quat_nb[sel]
     pos = truth.position_nav_m[sel] if truth.position_nav_m is not None else np.zeros((q.shape[0], 3))
+    ok = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(pos), axis=1)  # optical references have gaps
+    sel, q, pos = sel[ok], q[ok], pos[ok]
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     stream.log("world/board/pcb", rr.Boxes3D(half_sizes=[0.02, 0.015, 0.0008], colors=[20, 120, 40]), static=True)
     stream.log("world/board/axes", rr.Arrows3D(vectors=np.eye(3) * 0.05, colors=[[255, 0, 0], [0, 255, 0], [0, 0, 255]]), static=True)
@@ -100,10 +102,21 @@ SHOULDER_M = np.array([0.18, 0.0, 1.42])  # the hand model's shoulder (nav ENU, 
 
 
 def _board_positions(rec: Recording) -> np.ndarray | None:
+    """The board's positions (nav, m) where its pose is known (finite), or None without a pose."""
     truth = rec.truth
     if truth is None or truth.quat_nb is None:
         return None
-    return truth.position_nav_m if truth.position_nav_m is not None else np.zeros((rec.n, 3))
+    pos = truth.position_nav_m if truth.position_nav_m is not None else np.zeros((rec.n, 3))
+    ok = np.all(np.isfinite(truth.quat_nb), axis=1) & np.all(np.isfinite(pos), axis=1)
+    return pos[ok] if ok.any() else None
+
+
+def _eye(rec: Recording, pos: np.ndarray | None) -> rrb.EyeControls3D | None:
+    """The camera on the board; from the side of the arm when the recording has the hand model's arm."""
+    if pos is None:
+        return None
+    arm = rec.truth is not None and "wrist_position" in rec.truth.extra
+    return board_eye(pos[:: max(1, pos.shape[0] // 2000)], SHOULDER_M[None, :] if arm else None)
 
 
 def _rest_segments(result) -> list[tuple[float, float]]:
@@ -186,9 +199,9 @@ def calibration_blueprint(span: Span | None = None, *, has_pose: bool = True, ha
     ]
     right = [board_view("world", "hand and board (ENU, m)", eye)] if has_pose else []
     right += [series_view("imu/gyro", "gyro (rad/s), rest ●", span, y_range=r.get("gyro"),
-                          contents=["$origin/**", "marks/rest/gyro"]),
+                          contents=["$origin/**", "marks/rest/gyro"], legend_corner="LeftBottom"),
               series_view("imu/acc", "accelerometer (m/s²), rest ●", span, y_range=r.get("acc"),
-                          contents=["$origin/**", "marks/rest/acc"])]
+                          contents=["$origin/**", "marks/rest/acc"], legend_corner="LeftBottom")]
     cols.append(rrb.Vertical(*right))
     if acc_estimated:
         cols.append(rrb.Vertical(*[series_view(f"calib/log10_sqrtP/{b}", f"log10 √P {label}", span)
@@ -229,7 +242,7 @@ def save_calibration_rrd(path: str | Path, rec: Recording, result, truth: dict |
             level = lo_hi[1] - 0.04 * (lo_hi[1] - lo_hi[0]) if at_top else lo_hi[0] + 0.03 * (lo_hi[1] - lo_hi[0])
             log_marks(stream, f"marks/rest/{view}", span, level, intervals=rest, name="rest")
     pos = _board_positions(rec)
-    eye = board_eye(pos[:: max(1, rec.n // 2000)], SHOULDER_M[None, :]) if pos is not None else None
+    eye = _eye(rec, pos)
     stream.send_blueprint(calibration_blueprint(span, has_pose=pos is not None, has_truth=truth is not None,
                                                 acc_estimated="ba_x" in names, ranges=ranges, eye=eye))
     log_story(stream, calibration_story(rec, result, truth))
@@ -259,7 +272,7 @@ def save_session_rrd(path: str | Path, rec: Recording, application_id: str = "gy
     stream = rr.RecordingStream(application_id)
     stream.save(str(path))
     pos = _board_positions(rec)
-    eye = board_eye(pos[:: max(1, rec.n // 2000)], SHOULDER_M[None, :]) if pos is not None else None
+    eye = _eye(rec, pos)
     stream.send_blueprint(blueprint(Span.of(rec.t_s), eye))
     log_story(stream, f"**Recorded session, {rec.t_s[-1] - rec.t_s[0]:.0f} s at {rec.rate_hz:.0f} Hz:** the raw gyro and "
                       "accelerometer (body frame), the external acceleration the hand adds (truth) and the hand and board "
@@ -353,7 +366,7 @@ def save_magnetometer_rrd(path: str | Path, rec: Recording, result, application_
     log_marks(stream, "marks/disturbed", span, rng[1] - 0.04 * (rng[1] - rng[0]), name="disturbed",
               intervals=[(d.t_start_s, d.t_end_s) for d in result.disturbances], colour=(230, 40, 40))
     pos = _board_positions(rec)
-    eye = board_eye(pos[:: max(1, rec.n // 2000)], SHOULDER_M[None, :]) if pos is not None else None
+    eye = _eye(rec, pos)
     stream.send_blueprint(magnetometer_blueprint(span, has_pose=pos is not None, mag_range=rng, eye=eye))
     log_story(stream, magnetometer_story(rec, result))
     log_recording(stream, rec)

@@ -57,8 +57,11 @@ def _blocks(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def temperature_story(rows: list[Metrics], held_out: list[tuple[float, float]], train_desc: str) -> str:
     """The comparison in one paragraph: the best model, how much better than none, per method BS."""
+    def when(a: float, b: float) -> str:
+        return f"{a / 3600:.1f}–{b / 3600:.1f} h" if b - a > 3 * 3600 else f"{a:.0f}–{b:.0f} s"
+
     lines = [f"**Temperature models compared on held-out data** — trained on {train_desc}; "
-             f"held out: {', '.join(f'{a:.0f}–{b:.0f} s' for a, b in held_out) or 'the whole recording'}.", ""]
+             f"held out: {', '.join(when(a, b) for a, b in held_out) or 'the whole recording'}.", ""]
     if not rows:
         return "\n".join(lines + ["No model was fitted."])
     base = next((r for r in rows if r.method == "none"), rows[0])

@@ -88,15 +88,17 @@ class Span:
 
 
 def series_view(origin: str, name: str, span: Span, *, contents: Sequence[str] | str | None = None,
-                y_range: tuple[float, float] | None = None, legend: bool = True) -> rrb.TimeSeriesView:
+                y_range: tuple[float, float] | None = None, legend: bool = True,
+                legend_corner: str = "RightTop") -> rrb.TimeSeriesView:
     """A time-series view of ``origin`` (or of ``contents``) showing all of ``span`` on the x axis and,
-    when given, ``y_range`` on the y axis (the same range for every view a person compares)."""
+    when given, ``y_range`` on the y axis (the same range for every view a person compares).  The
+    legend sits top right by default: converging curves (√P, estimates) leave that corner free."""
     kw = span.view_kwargs()
     if y_range is not None:
         kw["axis_y"] = rrb.ScalarAxis(range=(float(y_range[0]), float(y_range[1])))
     if contents is not None:
         kw["contents"] = list(contents) if not isinstance(contents, str) else contents
-    return rrb.TimeSeriesView(origin=origin, name=name, plot_legend=rrb.PlotLegend(visible=legend),
+    return rrb.TimeSeriesView(origin=origin, name=name, plot_legend=rrb.PlotLegend(legend_corner, visible=legend),
                               **kw)
 
 
