@@ -116,7 +116,8 @@ def _eye(rec: Recording, pos: np.ndarray | None) -> rrb.EyeControls3D | None:
     if pos is None:
         return None
     arm = rec.truth is not None and "wrist_position" in rec.truth.extra
-    return board_eye(pos[:: max(1, pos.shape[0] // 2000)], SHOULDER_M[None, :] if arm else None)
+    return board_eye(pos[:: max(1, pos.shape[0] // 2000)], SHOULDER_M[None, :] if arm else None,
+                     tracking_entity="world/board")
 
 
 def _rest_segments(result) -> list[tuple[float, float]]:
@@ -134,7 +135,7 @@ def calibration_story(rec: Recording, result, truth: dict | None) -> str:
     h = result.history.arrays() if result.history is not None else None
     dur = float(rec.t_s[-1] - rec.t_s[0]) if rec.n else 0.0
     lines = [f"**{'Simulated' if truth is not None else 'Recorded'} session, {dur:.0f} s at {rec.rate_hz:.0f} Hz — "
-             f"Zhou 2020 filter (`{result.method}`), status **{result.status}**.**", ""]
+             f"Zhou 2020 filter (`{result.method}`), status {result.status}.**", ""]
     if h is not None and h["t_s"].size > 1:
         names = list(result.history.state_names)
         sd, t = h["sd"], h["t_s"]
@@ -337,14 +338,18 @@ def magnetometer_story(rec: Recording, result) -> str:
 
 
 def magnetometer_blueprint(span: Span, *, has_pose: bool, mag_range: tuple[float, float] | None = None,
-                           eye: rrb.EyeControls3D | None = None) -> rrb.Blueprint:
+                           eye: rrb.EyeControls3D | None = None, field_ut: float = 50.0) -> rrb.Blueprint:
     """Story; the field cloud in 3-D; |B| raw and calibrated on one scale with disturbances marked; the
     calibrated field; the board in 3-D when the recording has its pose."""
     right = [series_view("mag/calibrated", "calibrated field (µT, body)", span)]
     if has_pose:
         right.append(board_view("world", "hand and board (ENU, m)", eye))
     return story_blueprint(rrb.Horizontal(
-        rrb.Spatial3DView(origin="mag/cloud", name="field samples (µT): raw ellipsoid → calibrated sphere"),
+        rrb.Spatial3DView(origin="mag/cloud", name="field samples (µT): raw ellipsoid → calibrated sphere",
+                          # outside the sphere of radius |B|, looking at the origin (the calibrated centre)
+                          eye_controls=rrb.EyeControls3D(kind="Orbital", position=[2.2 * field_ut, -2.2 * field_ut,
+                                                                                   1.4 * field_ut],
+                                                         look_target=[0.0, 0.0, 0.0], eye_up=[0.0, 0.0, 1.0])),
         rrb.Vertical(
             series_view("mag/magnitude", "|B| raw and calibrated (µT), disturbances ●", span, y_range=mag_range,
                         contents=["$origin/**", "marks/disturbed"]),
@@ -362,12 +367,13 @@ def save_magnetometer_rrd(path: str | Path, rec: Recording, result, application_
     span = Span.of(rec.t_s)
     m = np.asarray(rec.mag_ut, float)
     mags = np.linalg.norm(m, axis=1), np.linalg.norm(result.compensate(m), axis=1)
-    rng = shared_range(*mags, quantile=0.001)
+    rng = shared_range(*mags, quantile=0.0)  # the whole range: the disturbances' excursions are the point
     log_marks(stream, "marks/disturbed", span, rng[1] - 0.04 * (rng[1] - rng[0]), name="disturbed",
               intervals=[(d.t_start_s, d.t_end_s) for d in result.disturbances], colour=(230, 40, 40))
     pos = _board_positions(rec)
     eye = _eye(rec, pos)
-    stream.send_blueprint(magnetometer_blueprint(span, has_pose=pos is not None, mag_range=rng, eye=eye))
+    stream.send_blueprint(magnetometer_blueprint(span, has_pose=pos is not None, mag_range=rng, eye=eye,
+                                                 field_ut=float(np.median(mags[1]))))
     log_story(stream, magnetometer_story(rec, result))
     log_recording(stream, rec)
     log_magnetometer(stream, rec, result)

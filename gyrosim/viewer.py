@@ -182,15 +182,19 @@ def log_marks(stream: rr.RecordingStream, path: str, span: Span, level: float, *
 
 
 def board_eye(board_m: np.ndarray, context_m: np.ndarray | None = None, *, elevation_deg: float = 25.0,
-              fill: float = 2.0, min_radius_m: float = 0.12) -> rrb.EyeControls3D:
+              fill: float = 2.0, min_radius_m: float = 0.12, max_radius_m: float = 0.15,
+              tracking_entity: str | None = None) -> rrb.EyeControls3D:
     """A camera on the board: it looks at the board's median position from the side of the arm
     (perpendicular to the horizontal line from the context point — the shoulder — to the board, so the
     arm runs across the view toward the board) and ``elevation_deg`` above, at ``fill`` × the radius of
-    the board's path (at least ``min_radius_m``): the board is large in the view and the arm is seen
-    near it.  Frame: nav ENU (z up), metres."""
+    the board's path (95 % quantile, clipped to [``min_radius_m``, ``max_radius_m``]): the board is
+    large in the view and the arm is seen near it.  With ``tracking_entity`` (the board's entity) the
+    camera follows the board, for paths longer than the clipped radius.  Frame: nav ENU (z up), metres."""
     board_m = np.atleast_2d(np.asarray(board_m, float))
-    centre = np.median(board_m, axis=0)
-    radius = max(min_radius_m, float(np.quantile(np.linalg.norm(board_m - centre, axis=1), 0.95)))
+    board_m = board_m[np.all(np.isfinite(board_m), axis=1)]
+    centre = np.median(board_m, axis=0) if board_m.size else np.zeros(3)
+    spread = float(np.quantile(np.linalg.norm(board_m - centre, axis=1), 0.95)) if board_m.size else 0.0
+    radius = min(max_radius_m, max(min_radius_m, spread))
     side = np.array([-1.0, -1.0, 0.0])
     if context_m is not None:
         d = centre - np.atleast_2d(np.asarray(context_m, float))[0]
@@ -199,8 +203,9 @@ def board_eye(board_m: np.ndarray, context_m: np.ndarray | None = None, *, eleva
     side /= np.linalg.norm(side)
     el = math.radians(elevation_deg)
     direction = side * math.cos(el) + np.array([0.0, 0.0, math.sin(el)])
+    kw = {"tracking_entity": tracking_entity} if tracking_entity else {}
     return rrb.EyeControls3D(kind="Orbital", position=centre + fill * radius * direction, look_target=centre,
-                             eye_up=[0.0, 0.0, 1.0])
+                             eye_up=[0.0, 0.0, 1.0], **kw)
 
 
 def board_view(origin: str, name: str, eye: rrb.EyeControls3D | None = None, *, span: Span | None = None,
@@ -242,7 +247,7 @@ class ViewInfo:
     "Spatial3D", "TextDocument", ...); ``time_ranges`` maps a timeline to its absolute (start, end)
     (seconds for a duration timeline, raw integers for a sequence: see ``sequence``); ``x_range`` the
     x-axis view range in the same units; ``y_range`` the fixed y range or None; ``eye`` the 3-D
-    camera's (position, look_target) or None."""
+    camera's (position, look_target, tracked entity or None) or None."""
 
     kind: str
     name: str
@@ -305,6 +310,8 @@ def read_blueprint(path: str | Path, sequence_timelines: Iterable[str] = ()) -> 
                 v["eye_position"] = tuple(val[0])
             elif k == "EyeControls3D:look_target":
                 v["eye_target"] = tuple(val[0])
+            elif k == "EyeControls3D:tracking_entity":
+                v["eye_tracking"] = val[0]
     out = []
     for v in views.values():
         if "kind" not in v:
@@ -317,7 +324,8 @@ def read_blueprint(path: str | Path, sequence_timelines: Iterable[str] = ()) -> 
         time_ranges = {tl: conv(tl, p) for tl, p in tr.items()}
         x = v.get("x_range")
         tl0 = next(iter(tr), TIMELINE)
-        eye = (v["eye_position"], v["eye_target"]) if "eye_position" in v and "eye_target" in v else None
+        eye = (v["eye_position"], v["eye_target"], v.get("eye_tracking")) if "eye_position" in v and "eye_target" in v \
+            else None
         out.append(ViewInfo(v["kind"], v.get("name", ""), v.get("origin", ""), v.get("contents", ()), time_ranges,
                             conv(tl0, x) if x is not None else None, v.get("y_range"), eye))
     return out
