@@ -377,6 +377,14 @@ def cmd_closeloop(args: argparse.Namespace) -> int:
         print("  found nothing beyond the declared model")
     print(f"  unexplained: {res.unexplained.get('summary', '')}")
     print(f"  error before: {res.error_before}\n  error after:  {res.error_after}")
+    mag = res.magnetometer
+    if mag is not None:
+        print(f"magnetometer: {mag.reference}")
+        for f in mag.found:
+            print(f"  found: {f.trace}")
+        if not mag.found:
+            print("  found nothing beyond the declared magnetometer model")
+        print(f"  unexplained: {mag.unexplained.get('summary', '')}")
     print("wrote " + ", ".join(str(p) for p in paths.values()))
     return 0
 
@@ -412,10 +420,10 @@ def cmd_closeloop_suite(args: argparse.Namespace) -> int:
     """The undeclared-effect suites over seeds (README table): a thin wrapper over ``run_suite``."""
     from tqdm import tqdm
 
-    from .closeloop.suite import HARD_SUITE, SUITE, format_suite, run_suite
+    from .closeloop.suite import HARD_SUITE, MAG_SUITE, SUITE, format_suite, run_suite
 
-    cases = (list(SUITE) + list(HARD_SUITE) + ["negative"]) if args.cases == "all" else \
-        [c.strip() for c in args.cases.split(",") if c.strip()]
+    named = {"all": list(SUITE) + list(HARD_SUITE) + ["negative"] + list(MAG_SUITE), "mag": list(MAG_SUITE)}
+    cases = named.get(args.cases) or [c.strip() for c in args.cases.split(",") if c.strip()]
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     with tqdm(total=len(cases) * len(seeds), unit="run", desc="closeloop suite", leave=False) as bar:
         def progress(msg: str) -> None:
@@ -957,7 +965,8 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--out", required=True,
                     help="output folder: report.json, report.md, plots, closeloop.rrd (written all-or-nothing)")
     cl.add_argument("--declared", default="bias,scale_factor,nonorthogonality",
-                    help="effects of the declared model (vocabulary names, comma-separated)")
+                    help="effects of the declared model (vocabulary names, comma-separated; magnetometer kinds "
+                    "hard_iron, soft_iron, frame_rotation go to the magnetometer's model, which is empty by default)")
     cl.add_argument("--reference", default=None, choices=("truth", "optical", "static", "gravity"),
                     help="force a reference (default: the best the recording has)")
     cl.add_argument("--holdout", type=number(0.01, 3600, unit="s"), default=4.0,
@@ -984,11 +993,11 @@ def build_parser() -> argparse.ArgumentParser:
     cb = sub.add_parser("closeloop-bench", help="closeloop wall time vs the Zhou filter on the same ~3-min recordings")
     cb.set_defaults(func=cmd_closeloop_bench)
     cs = sub.add_parser("closeloop-suite", help="undeclared-effect suites over seeds: single effects, pairs, a static "
-                        "chamber with accelerometer drift, slow motion, negative control")
+                        "chamber with accelerometer drift, slow motion, magnetometer effects, negative controls")
     cs.add_argument("--seeds", type=integer(1, 100_000), default=10, help="sensor-noise seeds per case, 1 … 1e5 (default 10)")
     cs.add_argument("--first-seed", type=seed, default=100, help="first seed, 0 … 2³²−1 (seeds are consecutive; default 100)")
     cs.add_argument("--cases", default="all", help="comma-separated case names (calib.closeloop.suite SUITE, HARD_SUITE, "
-                    "'negative'), or 'all'")
+                    "'negative', MAG_SUITE), 'mag' (the magnetometer cases) or 'all'")
     cs.add_argument("--truth-seed", type=seed, default=1,
                     help="seed of the simulated truth sessions (motion, hand), 0 … 2³²−1 (default 1)")
     cs.add_argument("--hand", default="typical", help="hand of the 'typical' session (the slow session uses 'steady')")

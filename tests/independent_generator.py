@@ -150,3 +150,25 @@ def generate(path: Path, **kwargs) -> dict:
     data = generate_arrays(**kwargs)
     write_csv(path, data)
     return {k: v for k, v in data.items() if k not in ("t_s", "gyro_rad_s", "acc_m_s2", "omega_rad_s", "quat_nb")}
+
+
+def _rotation(rotvec) -> np.ndarray:
+    """exp([θ]×) by Rodrigues' formula (written here, not imported)."""
+    th = np.asarray(rotvec, float)
+    a = float(np.linalg.norm(th))
+    if a == 0.0:
+        return np.eye(3)
+    k = np.array([[0.0, -th[2], th[1]], [th[2], 0.0, -th[0]], [-th[1], th[0], 0.0]]) / a
+    return np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
+
+
+def magnetometer_arrays(quat_nb: np.ndarray, *, field_enu_ut=(1.5, 20.0, -44.0), hard_iron_ut=(0.0, 0.0, 0.0),
+                        soft_iron=None, rotation_rad=(0.0, 0.0, 0.0), noise_ut: float = 0.6, seed: int = 0) -> np.ndarray:
+    """Magnetometer samples (N, 3) µT of a board with attitude ``quat_nb`` (body→ENU) in a uniform
+    field: m = A R(θ)ᵀ Cᵀ B + h + noise (A soft iron 3×3, R(θ) the axes' rotation against the body
+    frame, h hard iron; AN4246's m = A B + h with the axes rotated first)."""
+    rng = np.random.default_rng(seed)
+    a = np.eye(3) if soft_iron is None else np.asarray(soft_iron, float)
+    body = np.einsum("nji,j->ni", np.stack([_dcm(q) for q in quat_nb]), np.asarray(field_enu_ut, float))
+    m = body @ (a @ _rotation(rotation_rad).T).T + np.asarray(hard_iron_ut, float)
+    return m + rng.normal(size=m.shape) * noise_ut

@@ -40,6 +40,8 @@ from .confounding import ConfoundedGroup, overlap_summary
 from .fit import FitResult, cluster_robust, design_rows, fit_model
 from .identify import Excitation
 from .jsonview import JsonView
+from .mag_loop import MagLoopResult, reference_frame_note, run_mag_loop
+from .mag_terms import is_mag_kind
 from .metrics import MetricChange, compare_metrics, explain_disagreement
 from .reference import GravityReference, NoReferenceError, RateReference, Reference, build_reference
 from .select import Rejection, RoundOutcome, run_round
@@ -132,6 +134,7 @@ class CloseloopResult:
     residual_after: np.ndarray | None = field(repr=False, default=None)
     follows_series: dict = field(repr=False, default_factory=dict)
     rows_of: Callable | None = field(repr=False, default=None)   # per-sample (N, 3) → residual rows
+    magnetometer: MagLoopResult | None = None    # the loop on the magnetometer channel (None: no channel)
 
     def to_json_dict(self) -> dict:
         return {
@@ -144,7 +147,20 @@ class CloseloopResult:
             "metrics": [m.to_json() for m in self.metrics], "rejected": [r.to_json() for r in self.rejected],
             "disagreements": self.disagreements, "tested": self.tested,
             "identifiability": [e.to_json() for r in self.rounds for e in r.excitations],
+            **({"magnetometer": self.magnetometer.to_json()} if self.magnetometer is not None else {}),
         }
+
+
+def _gyro_axes(res: "CloseloopResult") -> np.ndarray | None:
+    """The gyro's fitted off-diagonal axis matrix: declared non-orthogonality plus a misalignment found."""
+    total = np.zeros((3, 3))
+    vals = [res.declared_params.get(f"nonorthogonality.value[{i}]", {}).get("value") for i in range(3)]
+    if all(v is not None for v in vals):
+        total += EFFECTS["nonorthogonality"](value=vals).affine()[0]
+    mis = next((f.model for f in res.found if f.effect == "misalignment"), None)
+    if mis is not None:
+        total += EFFECTS["misalignment"](value=mis["value"]).affine()[0]
+    return total if np.any(total) else None
 
 
 # ================================================================ steps
@@ -209,9 +225,26 @@ def run_closeloop(
     BLAS runs single-threaded inside (the project's rule for many small factorizations, as in
     ``calib.mag``): a QR of 20 000 × 130 rows took 0.15 s on one thread and 7.5 s with OpenBLAS's
     threads contending on the loaded 2-core machine (measured, same run)."""
+    declared = list(declared)
+    mag_declared = [k for k in declared if is_mag_kind(k)]
+    gyro_declared = [k for k in declared if not is_mag_kind(k)]
+    gyro_cands = None if candidates is None else [k for k in candidates if not is_mag_kind(k)]
+    mag_cands = None if candidates is None else [k for k in candidates if is_mag_kind(k)]
+    if mag_declared and rec.mag_ut is None:
+        raise RecordingError(f"--declared names magnetometer effects {mag_declared}, but the recording has no "
+                             "magnetometer channel (/mag, or mag_x,mag_y,mag_z columns)")
     with threadpool_limits(limits=1, user_api="blas"):
-        return _run(rec, declared, reference=reference, holdout_s=holdout_s, candidates=candidates,
-                    max_rounds=max_rounds, drift_knot_s=drift_knot_s, progress=progress)
+        res = _run(rec, gyro_declared, reference=reference, holdout_s=holdout_s, candidates=gyro_cands,
+                   max_rounds=max_rounds, drift_knot_s=drift_knot_s, progress=progress)
+        if rec.mag_ut is None:
+            return res
+        if progress:
+            progress("magnetometer")
+        mag = run_mag_loop(rec, mag_declared, holdout_s=holdout_s, candidates=mag_cands, max_rounds=max_rounds)
+    note = reference_frame_note(mag, _gyro_axes(res)) if res.reference in ("optical", "truth") else None
+    if note:
+        mag.notes.append(note)
+    return replace(res, magnetometer=mag)
 
 
 def _run(rec: Recording, declared, *, reference, holdout_s, candidates, max_rounds, drift_knot_s,

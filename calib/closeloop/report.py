@@ -9,7 +9,9 @@ identifiable, or refused by the acceptance), ``not_distinguished`` (confounded g
 metric, declared → after the loop, with its noise z), ``rejected`` (additions refused by the
 acceptance, with their metrics), ``disagreements``, ``tested`` (candidates that passed the
 identifiability gate), ``identifiability`` (the gate's verdict per candidate and round) and
-``recording``.
+``recording``; with a magnetometer channel also ``magnetometer`` (the same keys for the
+magnetometer's own loop, :mod:`calib.closeloop.mag_loop`; ``unexplained.disturbances`` lists local
+anomalies).
 """
 
 from __future__ import annotations
@@ -138,6 +140,23 @@ def write_closeloop_report(out: str | Path, rec: Recording, res: CloseloopResult
     return paths
 
 
+def mag_markdown(m) -> list[str]:
+    """The magnetometer section of report.md (:class:`calib.closeloop.mag_loop.MagLoopResult`)."""
+    lines = ["", "## Magnetometer", "", f"Reference: **{m.reference}** — {m.reference_description}.",
+             f"Declared magnetometer model: {', '.join(m.declared) or 'none (the output taken as calibrated)'}.", ""]
+    lines += [f"{i + 1}. {f.trace}" for i, f in enumerate(m.found)] or [
+        f"Nothing added (tested: {', '.join(m.tested) or 'none'})."]
+    if m.error_before:
+        lines += ["", "| held-out metric | declared | after the loop |", "|---|---|---|"]
+        lines += [f"| {k} | {v:.4g} | {m.error_after.get(k, float('nan')):.4g} |" for k, v in m.error_before.items()]
+    lines += ["", f"Unexplained structure: {m.unexplained.get('summary', '—')}"]
+    lines += [f"- not tested: {k}: {v}" for k, v in m.not_tested.items()]
+    lines += [f"- refused: round {r.round}: {r.effect} — {r.why}" for r in m.rejected]
+    lines += [f"- confounded: round {g.round}: {g.chosen} vs {', '.join(g.rivals)} — {g.why}" for g in m.not_distinguished]
+    lines += [f"- note: {n}" for n in m.notes]
+    return lines
+
+
 def _fmt_err(e: dict) -> str:
     return ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in e.items()) or "—"
 
@@ -196,6 +215,8 @@ def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
     lines += ["", "## Notes", ""] + [f"- {n}" for n in res.notes]
     q = res.checks.get("quantization_lsb", {})
     lines.append(f"- quantization step per axis (rad/s): {q}; saturated samples: {res.checks.get('saturated_samples', 0)}")
+    if res.magnetometer is not None:
+        lines += mag_markdown(res.magnetometer)
     if plots:
         lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
     return "\n".join(lines) + "\n"

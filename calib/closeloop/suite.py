@@ -18,12 +18,25 @@ noise — then the size is the schedule's detection limit, which is itself a fin
 | magnetic_sensitivity | 6e-4 °/s/µT (diagonal) | a gyro beside a magnetised part |
 | accelerometer thermal drift | 0.8–1.5 mg/°C | MPU-9250 ±1.5 mg/°C |
 
+Magnetometer cases (:data:`MAG_SUITE`, issue 17): the same gyro device, plus the MPU-9250's AK8963
+magnetometer (``mpu9250_9axis``) reduced to its noise, quantisation and range (a calibrated
+compass), plus one undeclared magnetometer effect; the declared magnetometer model is empty:
+
+| effect | size | datasheet order |
+|---|---|---|
+| hard_iron | (40, −25, 60) µT | AK8963 zero-field offset ±300 µT (3σ) |
+| soft_iron | symmetric, 1–3 % diagonal, 0.6–1 % off | AK8963 sensitivity 1.5 %, cross-axis 0.5 % (1σ, engineering) |
+| frame_rotation | (1.0, −0.7, 1.5)° | die-to-die 0.5° (1σ, engineering) |
+| room anomaly | a 3 cm steel sphere 8 cm from the board during a walk past | a chair leg, a desk frame |
+
 Sessions (one deterministic truth each, reused with many sensor seeds):
 
 * ``typical`` — the zhou2020 schedule, hand ``typical``, 100 Hz, with the simulation's truth rate;
 * ``slow`` — the same rotations four times slower with the ``steady`` hand (peak angular
   acceleration 0.03 rad/s² from the schedule, 0.13 rad/s² RMS from tremor, vs 0.9 rad/s² for
   ``typical``), 100 Hz: a time offset or a nonlinearity has little to show itself with;
+* ``walk_past`` — turns about z, x, y in place, a 15 cm step east past a 3 cm steel sphere, a turn
+  there, the step back and more turns (51 s, hand ``typical``): the room anomaly case;
 * ``chamber`` — a board fixed in a thermal chamber, −20 → 70 °C twice at 60 °C/h with 30 min soaks
   (7 h at 1 Hz), the ``consumer_thermal`` gyro, given as a measured record would be: t, gyro, acc,
   temperature, no truth (the static reference).
@@ -45,6 +58,7 @@ import numpy as np
 
 from gyrosim import effects as E
 from gyrosim.chamber import profile_from_dict, simulate_chamber
+from gyrosim.magnetic import environment_from_text
 from gyrosim.recording import Recording
 from gyrosim.schedule import load_schedule, schedule_from_dict
 from gyrosim.sensor_model import SensorModel, load_sensor
@@ -53,8 +67,9 @@ from gyrosim.units import G0
 
 from .candidates import Untestable, family_for
 from .loop import DEFAULT_DECLARED, CloseloopResult, run_closeloop
+from .mag_terms import MAG_TERMS, mag_term
 
-__all__ = ["SUITE", "HARD_SUITE", "BASE_SENSOR", "WARM_UP", "SuiteCase", "CaseResult", "SuiteRow", "sensor_with",
+__all__ = ["SUITE", "HARD_SUITE", "MAG_SUITE", "BASE_SENSOR", "WARM_UP", "SuiteCase", "CaseResult", "SuiteRow", "sensor_with",
            "run_case", "run_suite", "suite_truth", "format_suite"]
 
 D = math.pi / 180.0
@@ -80,6 +95,9 @@ class SuiteCase:
     forbidden: tuple[str, ...] = ()            # kinds that must never be added
     expected_quantity: str | None = None       # a family quantity of which one kind must be named
     description: str = ""
+    magnetometer: tuple[E.Effect, ...] = ()    # undeclared magnetometer effects (on the calibrated AK8963)
+    mag: bool = False                          # a magnetometer case (the 9-axis device)
+    expect_disturbance: bool = False           # a local anomaly must be reported as unexplained structure
 
     @property
     def effect(self) -> E.Effect:
@@ -88,7 +106,7 @@ class SuiteCase:
 
     @property
     def expected(self) -> tuple[str, ...]:
-        return () if self.expected_quantity else tuple(e.kind for e in self.effects)
+        return () if self.expected_quantity else tuple(e.kind for e in self.effects + self.magnetometer)
 
 
 def _single(effect: E.Effect, thermal: ThermalModel | None = None) -> SuiteCase:
@@ -128,6 +146,32 @@ HARD_SUITE: dict[str, SuiteCase] = {
 
 NEGATIVE = SuiteCase((), description="nothing undeclared (negative control)")
 
+MAG_BASE = "mpu9250_9axis"
+ROOM_ANOMALY = ("0.41,0.30,1.15,0.03",)   # a 3 cm steel sphere next to the walk-past spot (x, y, z, radius m)
+MAG_SUITE: dict[str, SuiteCase] = {
+    "hard_iron": SuiteCase(magnetometer=(E.HardIron(value=[40.0, -25.0, 60.0]),), mag=True,
+                           forbidden=("soft_iron", "frame_rotation"), description="magnetometer: hard iron"),
+    "soft_iron": SuiteCase(magnetometer=(E.SoftIron(matrix=[[1.03, 0.01, -0.008], [0.01, 0.975, 0.006],
+                                                           [-0.008, 0.006, 1.01]]),), mag=True,
+                           forbidden=("hard_iron", "frame_rotation"), description="magnetometer: soft iron"),
+    "frame_rotation": SuiteCase(magnetometer=(E.FrameRotation(angles=np.radians([1.0, -0.7, 1.5])),), mag=True,
+                                forbidden=("hard_iron", "soft_iron"),
+                                description="magnetometer: misalignment to the IMU frame"),
+    "room_anomaly": SuiteCase(session="walk_past", mag=True, expect_disturbance=True,
+                              forbidden=tuple(MAG_TERMS),
+                              description="magnetometer: a steel sphere in the room (walk past), nothing else"),
+    "mag_negative": SuiteCase(mag=True, description="magnetometer: nothing undeclared (negative control)"),
+}
+
+WALK_PAST = {"name": "walk_past", "description": "turns in place, a step east past a steel object, back, more turns",
+             "segments": [{"kind": "rest", "duration_s": 3.0}] + [
+                 {"kind": "rotate", "axis": a, "angle_deg": 360.0, "duration_s": 7.0} for a in "zxy"] + [
+                 {"kind": "translate", "displacement_m": [0.15, 0.0, 0.0], "duration_s": 2.0},
+                 {"kind": "rotate", "axis": "z", "angle_deg": 360.0, "duration_s": 6.0},
+                 {"kind": "translate", "displacement_m": [-0.15, 0.0, 0.0], "duration_s": 2.0}] + [
+                 {"kind": "rotate", "axis": a, "angle_deg": -360.0, "duration_s": 7.0} for a in "xy"] + [
+                 {"kind": "rest", "duration_s": 3.0}]}
+
 
 def _slow_schedule():
     """zhou2020's rotations four times slower (each 2π turn in 36 s, switches in 18 s)."""
@@ -153,6 +197,9 @@ def suite_truth(session: str, truth_seed: int = 1, hand: str | None = None) -> R
         return simulate_truth("zhou2020", hand or "typical", 100.0, rng=rng)
     if session == "slow":
         return simulate_truth(_slow_schedule(), hand or "steady", 100.0, rng=rng)
+    if session == "walk_past":
+        return simulate_truth(schedule_from_dict(WALK_PAST, "walk_past"), hand or "typical", 100.0, rng=rng,
+                              magnetic=environment_from_text(anomalies=ROOM_ANOMALY))
     raise KeyError(f"unknown suite session {session!r}: typical, slow or chamber")
 
 
@@ -161,8 +208,12 @@ def sensor_with(case: SuiteCase | None, base: str = BASE_SENSOR) -> SensorModel:
     s = load_sensor(case.base if case is not None else base)
     if case is None:
         return s
+    mag = s.magnetometer
+    if case.mag:   # the AK8963 as a calibrated compass: noise, quantisation and range only, plus the case's effects
+        mag = tuple(e for e in load_sensor(MAG_BASE).magnetometer
+                    if e.kind in ("white_noise", "quantization", "saturation")) + tuple(case.magnetometer)
     return replace(s, gyro=s.gyro + tuple(case.effects), accelerometer=s.accelerometer + tuple(case.accelerometer),
-                   thermal=case.thermal or s.thermal)
+                   thermal=case.thermal or s.thermal, magnetometer=mag)
 
 
 def _recording(case: SuiteCase, truth: Recording | None, seed: int) -> Recording:
@@ -207,9 +258,11 @@ def _case(name: str) -> SuiteCase:
         return SUITE[name]
     if name in HARD_SUITE:
         return HARD_SUITE[name]
+    if name in MAG_SUITE:
+        return MAG_SUITE[name]
     if name == "negative":
         return NEGATIVE
-    raise KeyError(f"unknown suite case {name!r}; known: {', '.join([*SUITE, *HARD_SUITE, 'negative'])}")
+    raise KeyError(f"unknown suite case {name!r}; known: {', '.join([*SUITE, *HARD_SUITE, *MAG_SUITE, 'negative'])}")
 
 
 def run_case(name: str, truth: Recording | None, seed: int, declared: tuple[str, ...] = DEFAULT_DECLARED, *,
@@ -221,6 +274,8 @@ def run_case(name: str, truth: Recording | None, seed: int, declared: tuple[str,
         truth = suite_truth(case.session, truth_seed, hand if case.session == "typical" else None)
     rec = _recording(case, truth, seed)
     res = run_closeloop(rec, declared)
+    if case.mag:
+        return _mag_case(name, case, rec, res)
     found = [f.effect for f in res.found]
     if case.expected_quantity:
         hits = [k for k in found if _quantity(k) == case.expected_quantity]
@@ -251,6 +306,42 @@ def run_case(name: str, truth: Recording | None, seed: int, declared: tuple[str,
     return CaseResult(name, found, case.expected, bool(named_first), bool(named_all), forbidden, z,
                       res.error_before["held_out_residual_rms"], res.error_after["held_out_residual_rms"], err_correct,
                       res, est_a, tru_a, sig_a)
+
+
+def _mag_case(name: str, case: SuiteCase, rec: Recording, res: CloseloopResult) -> CaseResult:
+    """A magnetometer case: named = the magnetometer loop's first (every) addition is the injected
+    kind; the room anomaly is named when a disturbance is reported and no magnetometer term added;
+    errors are the magnetometer's held-out field residual (µT)."""
+    from .mag_loop import run_mag_loop
+
+    mag = res.magnetometer
+    mfound = mag.found_kinds
+    found = [f.effect for f in res.found] + mfound
+    if case.expect_disturbance:
+        named_all = named_first = bool(mag.disturbances) and not mfound
+    else:
+        named_all = all(k in mfound for k in case.expected)
+        named_first = (bool(mfound) and mfound[0] in case.expected) if case.expected else not found
+    est, tru, sig = [], [], []
+    for eff in case.magnetometer:
+        f = next((x for x in mag.found if x.effect == eff.kind), None)
+        if f is None:
+            continue
+        est.append([v["value"] for v in f.params.values()]), sig.append([v["sigma"] for v in f.params.values()])
+        tru.append(mag_term(eff.kind).truth_params(eff))
+    if est:
+        est_a, tru_a, sig_a = (np.concatenate([np.asarray(x, float) for x in a]) for a in (est, tru, sig))
+        z = float(np.max(np.abs(est_a - tru_a) / sig_a)) if named_all else math.inf
+    else:
+        est_a = tru_a = sig_a = np.zeros(0)
+        z = math.inf if case.expected else math.nan
+    err_correct = math.nan
+    if case.expected:
+        err_correct = run_mag_loop(rec, case.expected, candidates=[]).error_before["held_out_field_residual_rms"]
+    key = "held_out_field_residual_rms"
+    return CaseResult(name, found, case.expected, bool(named_first), bool(named_all),
+                      [k for k in found if k in case.forbidden], z, mag.error_before.get(key, math.nan),
+                      mag.error_after.get(key, mag.error_before.get(key, math.nan)), err_correct, res, est_a, tru_a, sig_a)
 
 
 def _quantity(kind: str) -> str:
@@ -303,6 +394,9 @@ def format_suite(rows: Sequence[SuiteRow]) -> str:
            "held-out °/s: declared → loop | loop / correct |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         case = _case(r.case)
+        if case.mag:
+            out.append(_mag_row(r, case))
+            continue
         if not (case.expected or case.expected_quantity):   # the negative control: nothing to name
             out.append(f"| {r.case} | — | — | — | {r.added_anything}/{r.seeds} | — | {r.error_declared:.4f} → "
                        f"{r.error_loop:.4f} | — |")
@@ -311,3 +405,16 @@ def format_suite(rows: Sequence[SuiteRow]) -> str:
                    f"{r.added_anything}/{r.seeds} | {r.z_max:.2f} | {r.error_declared:.4f} → {r.error_loop:.4f} | "
                    f"{r.ratio_to_correct:.3f} |")
     return "\n".join(out)
+
+
+def _mag_row(r: SuiteRow, case: SuiteCase) -> str:
+    """A magnetometer case's row (errors: held-out field residual, µT; the anomaly is "named" when
+    reported as a disturbance with no magnetometer term added)."""
+    err = f"{r.error_declared:.3f} → {r.error_loop:.3f} µT"
+    if not (case.expected or case.expect_disturbance):
+        return f"| {r.case} | — | — | — | {r.added_anything}/{r.seeds} | — | {err} | — |"
+    named = f"{r.named_all}/{r.seeds}" + (" (as a disturbance)" if case.expect_disturbance else "")
+    z = f"{r.z_max:.2f}" if math.isfinite(r.z_max) else "—"
+    ratio = f"{r.ratio_to_correct:.3f}" if math.isfinite(r.ratio_to_correct) else "—"
+    return (f"| {r.case} | {named} | {r.named_first}/{r.seeds} | {r.forbidden_added}/{r.seeds} | "
+            f"{r.added_anything}/{r.seeds} | {z} | {err} | {ratio} |")

@@ -1,0 +1,47 @@
+"""The closeloop's magnetometer part on BROAD trials 30 and 34 (issue 17 item 4), as in docs/magnetometer.md.
+
+    OMP_NUM_THREADS=1 python benchmarks/closeloop_mag_broad.py > docs/magnetometer_closeloop_broad.json
+
+Runs the whole loop (gyro + magnetometer) on both trials as ``calib closeloop`` does, and the
+magnetometer loop alone on trial 34's stretch with the magnet on the board (44–101 s, found by
+``calib mag``); prints one JSON object.  Needs the BROAD files in ../shared/data (GYROSIM_DATA).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from calib.closeloop import run_closeloop
+from calib.closeloop.mag_loop import run_mag_loop
+from gyrosim.loaders import data_root, load_broad
+from gyrosim.recording import Recording, Truth
+
+KEYS = ("reference", "found", "unexplained", "not_tested", "not_distinguished", "error_before", "error_after", "metrics",
+        "rejected", "notes")
+
+
+def main() -> int:
+    out = {}
+    for name in ("30_disturbed_stationary_magnet_C", "34_disturbed_attached_magnet_3cm"):
+        rec = load_broad(data_root() / "broad" / f"{name}.hdf5")
+        t0 = time.perf_counter()
+        res = run_closeloop(rec)
+        m = res.magnetometer.to_json()
+        out[name] = {"seconds": time.perf_counter() - t0, "gyro_found": [f.effect for f in res.found],
+                     "magnetometer": {k: m[k] for k in KEYS}}
+        if name.startswith("34"):
+            s = (rec.t_s >= 44.0) & (rec.t_s <= 101.0)
+            tr = rec.truth
+            cut = Recording(t_s=rec.t_s[s], gyro_rad_s=rec.gyro_rad_s[s], acc_m_s2=rec.acc_m_s2[s], mag_ut=rec.mag_ut[s],
+                            truth=Truth(quat_nb=tr.quat_nb[s], position_nav_m=None if tr.position_nav_m is None
+                                        else tr.position_nav_m[s]))
+            m = run_mag_loop(cut).to_json()
+            out[name + " (44-101 s, magnet on)"] = {"magnetometer": {k: m[k] for k in KEYS}}
+    json.dump(out, sys.stdout, indent=1, default=float)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
