@@ -114,6 +114,12 @@ def closeloop_story(res: CloseloopResult) -> str:
         lines.append(f"Held-out residual RMS {b:.4g} → {a:.4g} {res.error_before.get('unit', '')} "
                      "(grey: declared model, blue: after the loop; dots on top: held-out rows).")
     lines.append("Unexplained: " + (res.unexplained.get("summary", "") or "nothing significant") + ".")
+    mag = getattr(res, "magnetometer", None)
+    if mag is not None:  # the magnetometer's own loop (report.json "magnetometer"): its findings in words
+        lines.append("Magnetometer: " + (" ".join(f"({i + 1}) {f.trace.rstrip('.')}." for i, f in enumerate(mag.found))
+                                         or "found nothing beyond the declared model.") +
+                     (f" {len(mag.disturbances)} local disturbance(s) left as unexplained structure." if mag.disturbances
+                      else ""))
     if _is_time_series(res):
         n = len(res.unexplained.spectral_lines)
         lines.append(f"Right: per found effect, the held-out residual ({unit}) binned against what it follows (grey "
