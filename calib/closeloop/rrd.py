@@ -92,6 +92,12 @@ def _spectrum(blocks: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]
     return f[1:], np.sqrt(pxx[1:])
 
 
+def _short(trace: str) -> str:
+    """A finding's trace up to what it cut ("the residual follows X → effect; adding it cut ... from a to b"),
+    so that several fit the story pane; the rest (confounding, metrics) stays in report.md."""
+    return "; ".join(trace.split("; ")[:2]).split(" (G = ")[0].rstrip(".")
+
+
 def closeloop_story(res: CloseloopResult) -> str:
     """The findings in one paragraph (markdown), or why there are none."""
     _, unit = _scale(res)
@@ -102,7 +108,8 @@ def closeloop_story(res: CloseloopResult) -> str:
                      "there is no before/after to show. " + (res.unexplained.get("summary", "") or ""))
         return "\n".join(lines)
     if res.found:
-        lines.append("**Found:** " + " ".join(f"({i + 1}) {f.trace.rstrip('.')}." for i, f in enumerate(res.found)))
+        lines.append("**Found:** " + " ".join(f"({i + 1}) {_short(f.trace)}." for i, f in enumerate(res.found)) +
+                     " (each finding's full evidence: report.md)")
     elif not res.tested:
         lines.append("**Found nothing — nothing could be tested here:** " +
                      "; ".join(f"{k}: {v}" for k, v in list(res.not_tested.items())[:4]))
@@ -116,7 +123,7 @@ def closeloop_story(res: CloseloopResult) -> str:
     lines.append("Unexplained: " + (res.unexplained.get("summary", "") or "nothing significant") + ".")
     mag = getattr(res, "magnetometer", None)
     if mag is not None:  # the magnetometer's own loop (report.json "magnetometer"): its findings in words
-        lines.append("Magnetometer: " + (" ".join(f"({i + 1}) {f.trace.rstrip('.')}." for i, f in enumerate(mag.found))
+        lines.append("Magnetometer: " + (" ".join(f"({i + 1}) {_short(f.trace)}." for i, f in enumerate(mag.found))
                                          or "found nothing beyond the declared model.") +
                      (f" {len(mag.disturbances)} local disturbance(s) left as unexplained structure." if mag.disturbances
                       else ""))
