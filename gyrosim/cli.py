@@ -204,9 +204,82 @@ def _csv_list(v: str | None) -> tuple[str, ...] | None:
     return tuple(x.strip() for x in v.split(",") if x.strip()) if v else None
 
 
+def cmd_orientation_campaign(args: argparse.Namespace) -> int:
+    """Orientation estimators × hands × raw/calibrated, scored against the truth (gyrosim.orientation_campaign)."""
+    from tqdm import tqdm
+
+    from .orientation_campaign import OrientationSpec, replace_spec, run_orientation_campaign, summarise_orientation
+
+    if args.campaign:
+        raise GyrosimError("a campaign TOML describes a calibration campaign; an orientation campaign (--orientation) "
+                           "takes its settings as flags")
+    check_output_paths({"--out": args.out}, [], folders=["--out"],
+                       folder_files={"--out": ("orientation_results.csv", "orientation_summary.csv",
+                                               "orientation_provenance.json", "orientation_vs_severity.png",
+                                               "orientation_raw_vs_calibrated.png")})
+    spec = replace_spec(OrientationSpec(), hands=_csv_list(args.hand), seeds=args.seeds, first_seed=args.first_seed,
+                        sensor=args.sensor, estimators=_csv_list(args.orientation), schedule=args.schedule,
+                        rate_hz=args.rate, severity=args.severity, variants=_csv_list(args.variants),
+                        calibration=args.calibration)
+    with tqdm(total=1, unit="session", desc="orientation campaign") as bar:
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        path = run_orientation_campaign(spec, args.out, scheduler=args.scheduler, workers=args.workers,
+                                        connect_timeout_s=args.timeout, progress=progress)
+    summary = summarise_orientation(path, args.out)
+    print(f"{'hand':<9} {'sev':>4} {'variant':<10} {'estimator':<14} {'n':>4} {'fail':>4} {'tilt RMS ° [95%]':>22} "
+          f"{'heading RMS °':>13} {'drift RMS °/min [95%]':>24} {'conv. s [95%]':>20} {'never':>5}")
+    for r in summary:
+        if "tilt_rms_deg" not in r:
+            print(f"{r['hand']:<9} {r['severity']:4g} {r['variant']:<10} {r['estimator']:<14} {r['n']:4d} {r['failed']:4d}"
+                  f"  (all failed: {r['first_error'][:80]})")
+            continue
+        print(f"{r['hand']:<9} {r['severity']:4g} {r['variant']:<10} {r['estimator']:<14} {r['n']:4d} {r['failed']:4d} "
+              f"{r['tilt_rms_deg']:7.3f} [{r['tilt_rms_deg_lo']:.3f}, {r['tilt_rms_deg_hi']:.3f}] "
+              f"{r['heading_rms_deg']:13.3f} {r['drift_rms_deg_min']:8.3f} [{r['drift_rms_deg_min_lo']:.3f}, "
+              f"{r['drift_rms_deg_min_hi']:.3f}] {r['convergence_s']:6.2f} [{r['convergence_s_lo']:.2f}, "
+              f"{r['convergence_s_hi']:.2f}] {r['not_converged']:5d}")
+    print(f"wrote {path}, {Path(args.out) / 'orientation_summary.csv'} and the plots")
+    return 1 if any(r["failed"] for r in summary) else 0
+
+
+def cmd_orientation_broad(args: argparse.Namespace) -> int:
+    """BROAD trials scored with BROAD's error definitions, beside the published numbers."""
+    from .orientation_broad import format_table, score_broad
+
+    if args.json:
+        check_output_paths({"--json": args.json}, [])
+    result = score_broad(estimators=_csv_list(args.estimators))
+    print(format_table(result))
+    if args.json:
+        from .outputs import write_json_atomic
+
+        write_json_atomic(args.json, result)
+        print(f"wrote {args.json}")
+    return 0 if result["within_tolerance"] else 1
+
+
+def cmd_orientation_view(args: argparse.Namespace) -> int:
+    """One simulated session in rerun: truth vs each estimator's attitude and the error series."""
+    from .orientation_rerun import view_session
+
+    check_output_paths({"--rrd": args.rrd}, [])
+    path = view_session(hand=args.hand, sensor=args.sensor, seed=args.seed, schedule=args.schedule,
+                        estimators=_csv_list(args.estimators) or ("vqf", "madgwick", "mahony", "fusion"),
+                        variant=args.variant, rrd=args.rrd)
+    print(f"wrote {path} (open with: rerun {path})")
+    return 0
+
+
 def cmd_campaign(args: argparse.Namespace) -> int:
     """Simulate × calibrate × score many sessions on Dask (gyrosim.campaign)."""
     from tqdm import tqdm
+
+    if args.orientation:
+        return cmd_orientation_campaign(args)
 
     from .campaign import CampaignSpec, load_campaign, run_campaign, summarise
 
@@ -243,6 +316,16 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign_bench(args: argparse.Namespace) -> int:
+    if args.orientation:
+        from .orientation_campaign import bench_throughput
+
+        r = bench_throughput(args.sessions)
+        print(json.dumps(r, indent=2))
+        for label in ("raw_and_calibrated", "raw_only"):
+            cpu = r[label]["cpu_s_per_session"]
+            print(f"{label}: {cpu:.2f} CPU s/session in-process; 1000 sessions on 2 cores ≈ {1000 * cpu / 2 / 60:.1f} min "
+                  f"(× 1.3 for Dask workers, README: {1000 * cpu / 2 / 60 * 1.3:.1f} min)")
+        return 0
     from .campaign import bench_scaling
 
     rows = bench_scaling(args.sessions)
@@ -366,11 +449,34 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--workers", type=integer(1, 1024), help="LocalCluster workers, 1 … 1024 (default: cores)")
     cp.add_argument("--timeout", type=number(0, 3600, lo_open=True, unit="s"), default=10.0,
                     help="seconds to wait for a remote scheduler, in (0, 3600] (default 10)")
+    cp.add_argument("--orientation", help="comma-separated orientation estimators (vqf, madgwick, mahony, fusion, "
+                    "*_9d, or package.module:attribute): score attitude instead of calibration (issue 18)")
+    cp.add_argument("--variants", help="with --orientation: raw,calibrated (default both)")
+    cp.add_argument("--calibration", help="with --orientation: the calib estimator of the calibrated variant "
+                    "(default kf_joint, calib run's)")
     cp.add_argument("--out", required=True, help="results folder (results.csv, summary.csv, plots, provenance.json)")
     cp.set_defaults(func=cmd_campaign)
 
+    ob = sub.add_parser("orientation-broad", help="orientation estimators on the BROAD trials, BROAD's error "
+                        "definitions, beside the published numbers")
+    ob.add_argument("--estimators", help="comma-separated (default vqf_9d,vqf,madgwick_9d,mahony_9d,fusion_9d)")
+    ob.add_argument("--json", help="write the table as JSON (atomically)")
+    ob.set_defaults(func=cmd_orientation_broad)
+
+    ov = sub.add_parser("orientation-view", help="rerun view of one session: truth vs each estimator's attitude")
+    ov.add_argument("--hand", default="typical")
+    ov.add_argument("--sensor", default="mpu9250")
+    ov.add_argument("--schedule", default="zhou2020")
+    ov.add_argument("--seed", type=seed, default=0)
+    ov.add_argument("--estimators", help="comma-separated (default vqf,madgwick,mahony,fusion)")
+    ov.add_argument("--variant", choices=("raw", "calibrated"), default="raw")
+    ov.add_argument("--rrd", required=True, help="output .rrd file")
+    ov.set_defaults(func=cmd_orientation_view)
+
     cb = sub.add_parser("campaign-bench", help="campaign scaling: sessions/s in-process, on 1 and 2 Dask workers")
     cb.add_argument("--sessions", type=integer(1, 100_000), default=12, help="sessions to time, 1 … 1e5 (default 12)")
+    cb.add_argument("--orientation", action="store_true",
+                    help="time the orientation campaign's session (simulation, calibration, vqf/madgwick/mahony/fusion)")
     cb.set_defaults(func=cmd_campaign_bench)
 
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")

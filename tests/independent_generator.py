@@ -81,10 +81,11 @@ def _m(scale, nonortho):
     return np.eye(3) + np.diag(scale) + np.array([[0, gz, gy], [gz, 0, gx], [gy, gx, 0]])
 
 
-def kinematics(rate_hz: float = 100.0, steps=STEPS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t (N,), body rate (N, 3) rad/s, quaternion body→nav (N, 4)) of a schedule, closed form."""
+def kinematics(rate_hz: float = 100.0, steps=STEPS, q0=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t (N,), body rate (N, 3) rad/s, quaternion body→nav (N, 4)) of a schedule, closed form;
+    ``q0`` the starting attitude (default level, heading east)."""
     w_list, q_list = [], []
-    q_start = np.array([1.0, 0.0, 0.0, 0.0])
+    q_start = np.array([1.0, 0.0, 0.0, 0.0]) if q0 is None else np.asarray(q0, float) / np.linalg.norm(q0)
     for kind, axis, angle, dur in steps:
         t = np.arange(int(round(dur * rate_hz))) / rate_hz
         w = np.zeros((t.size, 3))
@@ -108,12 +109,15 @@ def kinematics(rate_hz: float = 100.0, steps=STEPS) -> tuple[np.ndarray, np.ndar
 def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_deg_s=(1.5, -1.0, 0.8),
                     scale=(0.03, -0.02, 0.04), nonortho=(0.015, -0.01, 0.02), gyro_noise_deg_s=0.05,
                     acc_noise_g=0.001, acc_bias_g=(0.0, 0.0, 0.0), acc_scale=(0.0, 0.0, 0.0),
-                    acc_nonortho=(0.0, 0.0, 0.0), kin=None, g_sensitivity=None, delay_s: float = 0.0) -> dict:
+                    acc_nonortho=(0.0, 0.0, 0.0), kin=None, g_sensitivity=None, delay_s: float = 0.0,
+                    field_enu_ut=None, mag_noise_ut: float = 0.0) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
     ``delay_s``: the gyro output at t is its noise-free value at t − d (linear interpolation; the
-    first samples hold the first value)."""
+    first samples hold the first value);
+    ``field_enu_ut``: a constant field (µT, ENU) seen by an ideal magnetometer, m = Cᵀ B + noise
+    (``mag_ut`` in the result)."""
     rng = np.random.default_rng(seed)
     t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
     n = omega.shape[0]
@@ -127,7 +131,11 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     gyro = clean + rng.normal(size=(n, 3)) * math.radians(gyro_noise_deg_s)
     acc_bias = np.asarray(acc_bias_g, float) * G
     acc = gravity_body @ _m(acc_scale, acc_nonortho).T + acc_bias + rng.normal(size=(n, 3)) * acc_noise_g * G
-    return {"t_s": t, "gyro_rad_s": gyro, "acc_m_s2": acc, "omega_rad_s": omega, "quat_nb": quat,
+    mag = None
+    if field_enu_ut is not None:
+        mag = np.einsum("nji,j->ni", np.stack([_dcm(q) for q in quat]), np.asarray(field_enu_ut, float))
+        mag = mag + rng.normal(size=(n, 3)) * mag_noise_ut
+    return {"t_s": t, "gyro_rad_s": gyro, "acc_m_s2": acc, "mag_ut": mag, "omega_rad_s": omega, "quat_nb": quat,
             "bias_rad_s": bias, "scale_factor": np.asarray(scale, float), "nonorthogonality": np.asarray(nonortho, float),
             "acc_bias_m_s2": acc_bias, "acc_scale_factor": np.asarray(acc_scale, float),
             "acc_nonorthogonality": np.asarray(acc_nonortho, float),
@@ -149,7 +157,7 @@ def generate(path: Path, **kwargs) -> dict:
     """Write a CSV (see :func:`generate_arrays` for the keywords) and return the true parameters."""
     data = generate_arrays(**kwargs)
     write_csv(path, data)
-    return {k: v for k, v in data.items() if k not in ("t_s", "gyro_rad_s", "acc_m_s2", "omega_rad_s", "quat_nb")}
+    return {k: v for k, v in data.items() if k not in ("t_s", "gyro_rad_s", "acc_m_s2", "mag_ut", "omega_rad_s", "quat_nb")}
 
 
 def _rotation(rotvec) -> np.ndarray:
