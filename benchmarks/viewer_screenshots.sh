@@ -16,6 +16,7 @@ calib closeloop dataset:broad/07_undisturbed_fast_rotation_B --out "$W/closeloop
 gyrosim chamber --profile tde_cycles_003 --sensor consumer_thermal --seed 1 --out "$W/chamber.h5"
 calib temperature "$W/chamber.h5" --rrd "$W/temperature.rrd"
 calib mag dataset:broad/30_disturbed_stationary_magnet_C --rrd "$W/mag.rrd"
+gyrosim orientation-view --hand typical --seed 1 --estimators vqf,madgwick,mahony,fusion --rrd "$W/orientation.rrd"
 gyrosim campaign --hand ideal,steady,typical,shaky --severity 1,2 --seeds 3 --method kf,kf_adaptive,smoother \
     --scheduler none --out "$W/campaign"
 python benchmarks/render_rrd.py --wait "$WAIT" \
@@ -24,4 +25,5 @@ python benchmarks/render_rrd.py --wait "$WAIT" \
     "$W/closeloop/closeloop.rrd" "$P/closeloop.png" \
     "$W/temperature.rrd" "$P/temperature.png" \
     "$W/mag.rrd" "$P/mag.png" \
+    "$W/orientation.rrd" "$P/orientation.png" \
     "$W/campaign/summary.rrd" "$P/campaign.png"
