@@ -303,8 +303,28 @@ def load_sensor(name_or_path: str | Path) -> SensorModel:
         from .exchange import sensor_from_kalibr
 
         return sensor_from_kalibr(name_or_path)
+    if str(name_or_path).lower().endswith(".json"):
+        return sensor_from_json(name_or_path)
     name, data = load_named_toml(("presets", "sensors"), name_or_path, "sensor preset", PresetError)
     return sensor_from_toml_dict(data, name)
+
+
+def sensor_from_json(path: str | Path) -> SensorModel:
+    """A sensor model in SI JSON: :meth:`SensorModel.to_dict` itself, or a result file that carries
+    one under ``sensor_model`` (``calib noise --json``: the identified stochastic model)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise PresetError(f"sensor file {path}: not readable JSON ({exc})") from exc
+    if isinstance(data, dict) and isinstance(data.get("sensor_model"), dict):
+        data = data["sensor_model"]
+    if not isinstance(data, dict) or not (data.get("gyro") or data.get("accelerometer") or data.get("magnetometer")):
+        raise PresetError(f"sensor file {path}: no sensor model (a JSON with 'gyro'/'accelerometer' effect lists, "
+                          "or a calib noise result with 'sensor_model')")
+    try:
+        return SensorModel.from_dict(data)
+    except (TypeError, KeyError, GyrosimError) as exc:
+        raise PresetError(f"sensor file {path}: {exc}") from exc
 
 
 def stored_sensor_model(meta: dict[str, Any]) -> SensorModel | None:

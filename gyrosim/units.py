@@ -47,6 +47,11 @@ QUANTITIES: dict[str, dict[str, float]] = {
         "m/s^2/sqrt(s)": 1.0, "m/s^3/sqrt(hz)": 1.0, "m/s/h/sqrt(h)": 1 / HOUR / 60.0,
         "ug/sqrt(s)": 1e-6 * G0, "mg/sqrt(h)": 1e-3 * G0 / 60.0, "ug/sqrt(h)": 1e-6 * G0 / 60.0,
     },
+    # IEEE 952 quantization noise Q: the integrated signal's (angle, velocity) white quantization error
+    "velocity": {"m/s": 1.0, "mm/s": 1e-3, "ug*s": 1e-6 * G0},
+    # a rate ramp (IEEE 952 R, σ_A = Rτ/√2): the rate's deterministic drift per second
+    "rate_ramp": {"rad/s^2": 1.0, "deg/s^2": DEG, "deg/h^2": DEG / HOUR**2, "deg/h/h": DEG / HOUR**2},
+    "acceleration_ramp": {"m/s^3": 1.0, "mg/s": 1e-3 * G0, "ug/s": 1e-6 * G0, "ug/h": 1e-6 * G0 / HOUR},
     "fraction": {"1": 1.0, "%": 1e-2, "ppm": 1e-6},
     "fraction_per_degc": {"1/degc": 1.0, "%/degc": 1e-2, "ppm/degc": 1e-6},
     "rate_per_degc": {"rad/s/degc": 1.0, "deg/s/degc": DEG, "deg/h/degc": DEG / HOUR},

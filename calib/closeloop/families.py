@@ -627,3 +627,22 @@ class NotAResidualTerm(CandidateFamily):
     def build(self, kind, ctx, ref, options):
         return Untestable(kind, self.REASONS[kind])
 
+
+
+@register_family
+class RateRampFamily(CandidateFamily):
+    """``rate_ramp`` (IEEE 952 R, a straight-line bias drift) is never a separate loop candidate: the
+    drift term (``random_walk``, a piecewise-linear bias) contains every straight line, and a ramp
+    proposed beside it would take the random walk's place on the one recording the loop sees (a
+    drift does not repeat between recordings, so a line fitted to one is one path of the walk).
+    ``calib noise`` identifies R from the wavelet variance of a long static record instead."""
+
+    kinds = ("rate_ramp",)
+    driver = "time (a straight-line bias drift)"
+    quantity = "time"
+    channel = Channel.TIME
+    separated_by = "a long static record (calib noise): a ramp's Allan deviation grows as τ, a walk's as √τ"
+
+    def build(self, kind, ctx, ref, options):
+        return Untestable(kind, "a straight-line drift is contained in the drift term (random_walk); identify a rate "
+                                "ramp from a long static record with calib noise")

@@ -34,14 +34,14 @@ from .boundary import (MAX_INSERTED_FRACTION, ReadInfo, check_recording, load_re
                        prepare_recording, read_recording, repaired_mask)
 from .csvfile import CSV_COLUMNS, KNOWN_COLUMNS, resample_temperature
 from .errors import (DegenerateError, FieldError, FormatError, GapError, InputError, MotionError, RateError, SpikeError,
-                     TimeBaseError, TooShortError, UnitError)
+                     TemperatureTrendError, TimeBaseError, TooShortError, UnitError)
 from .plausibility import MAX_PLAUSIBLE_RATE_RAD_S
 from .report import InputCheck, InputReport, Loaded
-from .requirements import ALLAN, CLOSELOOP, GENERIC, INSPECT, KF, MAG, NORTHFIND, RATETABLE, TEMPERATURE, TILT, Requirements
+from .requirements import ALLAN, CLOSELOOP, GENERIC, INSPECT, KF, MAG, NOISE, NORTHFIND, RATETABLE, TEMPERATURE, TILT, Requirements
 from .saturation import saturated_samples
 
 __all__ = ["open_recording", "load_recording", "prepare_recording", "read_recording", "check_recording", "repaired_mask",
-           "Loaded", "InputReport", "InputCheck", "ReadInfo", "Requirements", "KF", "CLOSELOOP", "ALLAN", "INSPECT", "MAG", "NORTHFIND", "TILT",
+           "Loaded", "InputReport", "InputCheck", "ReadInfo", "Requirements", "KF", "CLOSELOOP", "ALLAN", "NOISE", "INSPECT", "MAG", "NORTHFIND", "TILT",
            "TEMPERATURE", "RATETABLE", "GENERIC", "CSV_COLUMNS", "KNOWN_COLUMNS", "MAX_PLAUSIBLE_RATE_RAD_S",
            "MAX_INSERTED_FRACTION", "resample_temperature", "saturated_samples", "InputError", "FormatError", "FieldError",
            "TimeBaseError", "GapError", "RateError", "UnitError", "SpikeError", "DegenerateError", "MotionError",

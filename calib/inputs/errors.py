@@ -76,3 +76,10 @@ class TooShortError(InputError):
     """Too few samples or too short a record for the method."""
 
     kind = "short"
+
+
+class TemperatureTrendError(InputError):
+    """A temperature trend over a static record that a random-walk (or rate-ramp) estimate would
+    absorb: the bias follows the temperature, and the drift looks like a random walk."""
+
+    kind = "temperature"

@@ -16,6 +16,9 @@ Limits and where they come from:
 * ``CLOSELOOP``: any rate up to 1 kHz (the truth reference keeps one row per sample; 10 kHz would
   need gigabytes of regressors), gaps allowed (it integrates over the actual Δt; they are listed).
 * ``ALLAN``: a static record, ≥ 200 samples (fewer leave no τ range to fit).
+* ``NOISE`` (``calib noise``): a static record of at least 64 samples (white noise alone needs
+  J ≥ 3 octave scales with the largest Allan cluster ≤ T/8); each model asked needs more
+  (:func:`calib.noise.minimum_samples`: 8·2^{p+1} for p parameters), checked by the command.
 * ``MAG``: a hand session with a magnetometer; gaps listed, not refused (the field fits use samples,
   not their spacing); the magnetometer's own unit, range and coverage checks are
   :mod:`calib.mag.checks`'.
@@ -28,7 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-__all__ = ["Requirements", "KF", "CLOSELOOP", "ALLAN", "INSPECT", "TEMPERATURE", "RATETABLE", "MAG", "NORTHFIND", "TILT",
+__all__ = ["Requirements", "KF", "CLOSELOOP", "ALLAN", "NOISE", "INSPECT", "TEMPERATURE", "RATETABLE", "MAG", "NORTHFIND", "TILT",
            "GENERIC"]
 
 HANDHELD_PLAUSIBLE_HZ = (0.5, 1e5)   # rates at which the seconds reading of a time column is believed
@@ -85,6 +88,8 @@ CLOSELOOP = Requirements("calib closeloop", rate_hz=(0.0, 1000.0), plausible_rat
                          why_max_rate="its truth and static references keep one residual row per sample: memory and "
                                       "time grow with the rate, the information does not")
 ALLAN = Requirements("calib allan", plausible_rate_hz=STATIC_PLAUSIBLE_HZ, min_samples=200, motion="static")
+NOISE = Requirements("calib noise", plausible_rate_hz=STATIC_PLAUSIBLE_HZ, min_samples=64, motion="static",
+                     sensors=("gyro", "acc"))
 INSPECT = Requirements("calib inspect", strict=False)
 TEMPERATURE = Requirements("calib temperature", plausible_rate_hz=STATIC_PLAUSIBLE_HZ, min_samples=10, gaps="allow")
 MAG = Requirements("calib mag", min_samples=50, gaps="allow")  # field fits do not integrate; the aided fit uses Δt
