@@ -61,7 +61,7 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_from_two_vectors
 from gyrosim.units import G0
 
-from .consistency import check_estimate, check_innovations, rest_gravity, verdict
+from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity, verdict
 from .fastkf import FilterRun, regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows
 from .inputs import KF, check_recording
@@ -211,7 +211,7 @@ def _run_reference(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.nd
                   w_reg=greg[k], still=bool(still[k]))
     h = filt.history
     return FilterRun(prep.layout, filt.theta[None].copy(), np.asarray(filt.kf.P)[None].copy(), filt.quat[None],
-                     h.nis[None], h.innovation[None], h.sd[None], h.theta[None])
+                     h.nis[None], h.innovation[None], h.sd[None], h.theta[None], whitened=filt.whitened[None])
 
 
 def prior_offset(prep: Prepared, theta: np.ndarray) -> np.ndarray:
@@ -273,12 +273,17 @@ def calibrate(
     iterations: int = 3,
     keep_history: bool = True,
     engine: str = "compiled",
+    hand_check: bool = True,
 ) -> Calibration:
     """Calibrate ``rec`` (module docstring); ``rec`` is not modified.
 
     Raises :class:`~gyrosim.errors.RecordingError` for input the method cannot use (no rest, gaps,
     wrong units, an accelerometer the motion cannot separate from the gyro errors).  A run that fails
     its own consistency check is returned with ``status`` "diverged" or "inconsistent".
+    ``hand_check``: an "ok" result is compared with the hand-aware estimate (``kf_hand``, on the
+    accelerometer compensated by this calibration's own estimate) and becomes "inconsistent" when they
+    differ beyond both σ (:func:`calib.handkf.hand_cross_check`: a lever arm's error hides from the
+    innovations).
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
@@ -304,7 +309,7 @@ def calibrate(
                 q0, f0, mi_a = _initial_attitude(rec, theta0, a, b)
                 p0 = initial_covariance(prep.layout, prep.config, q0, f0, mi_a, prep.gravity_fit.covariance,
                                         _tilt_sigma(rec, a, b, prep.config.gravity_m_s2))
-    return _result(prep, rec, run, obs, warnings, method, passes)
+    return _result(prep, rec, run, obs, warnings, method, passes, hand_check)
 
 
 def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list[str]) -> None:
@@ -330,7 +335,7 @@ def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list
 
 
 def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservability | None, warnings: list[str],
-            method: str, passes: int) -> Calibration:
+            method: str, passes: int, hand_check: bool = False) -> Calibration:
     lay, cfg = prep.layout, prep.config
     estimate = lay.estimates_accelerometer
     blocks = ["gyro_bias", "gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
@@ -342,6 +347,9 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
             oi, oj = lay.offset(bi), lay.offset(bj)
             if oi >= 0 and oj >= 0:
                 cov[3 * i:3 * i + 3, 3 * j:3 * j + 3] = p[oi:oi + 3, oj:oj + 3]
+    infl = innovation_inflation(run.whitened[0], rec.t_s[prep.start + 1:]) if run.whitened is not None else None
+    if infl is not None:
+        cov = cov * infl.factor  # coloured residuals (consistency module docstring); the filter's states only
     if not lay.has("gyro_bias"):  # the static average: its own variance, uncorrelated with the filter's states
         cov[0:3, 0:3] = np.diag(prep.bias_std_rad_s**2)
     th = run.theta[0]
@@ -360,6 +368,17 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
     rest_g = rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg.gravity_m_s2, math.sqrt(cfg.r_var(rec.rate_hz)),
                           fitted_g=not estimate)
     status, notes = verdict(cons, sanity, rest_g, "estimate" if estimate else "calibrated")
+    if infl is not None:
+        status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+    cross = None
+    if hand_check and status == "ok" and not prep.noise.at_floor:   # noise-free: methods differ by discretisation
+        from .handkf import hand_cross_check
+
+        sg = np.concatenate([th[theta_slice("gyro_scale")], th[theta_slice("gyro_nonorth")]])
+        warn, cross = hand_cross_check(rec, sg, cov[3:9, 3:9], f_hat if estimate else None)
+        if warn:
+            notes.extend(warn)
+            status = "inconsistent"
     warnings = warnings + notes
     diagnostics = {
         "accelerometer_mode": "estimate" if estimate else "calibrated",
@@ -367,7 +386,8 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
         "noise": {"arw_rad_s_sqrt_hz": cfg.arw_rad_s_sqrt_hz, "vrw_m_s2_sqrt_hz": cfg.vrw_m_s2_sqrt_hz,
                   "external_acc_allowance_m_s2": cfg.external_acc_allowance_m_s2, "gravity_m_s2": cfg.gravity_m_s2,
                   **prep.noise.to_dict()},
-        "consistency": cons.to_dict(),
+        "consistency": {**cons.to_dict(), **({"sigma_inflation": infl.to_dict()} if infl is not None else {}),
+                        **({"hand_cross_check": cross} if cross is not None else {})},
         "rest_gravity": rest_g.to_dict(),
         "filter": {"states": list(lay.names), "passes": passes, "samples": int(rec.n - prep.start),
                    "rate_hz": rec.rate_hz, "start_s": float(rec.t_s[prep.start])},

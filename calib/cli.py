@@ -134,9 +134,23 @@ def cmd_run(args: argparse.Namespace) -> int:
     check_output_paths({"--json": args.json, "--rrd": args.rrd}, _files(args.recording))
     loaded = _open(args, KF)
     rec = loaded.recording
-    result = calibrate(rec, args.method, accelerometer=args.accelerometer, external_acc_allowance_m_s2=args.external_acc,
-                       gravity_m_s2=args.gravity)
+    if args.method == "hand":
+        if args.accelerometer != "calibrated":
+            raise GyrosimError("--method hand (kf_hand: lever arm and coloured external acceleration in the model) "
+                               "assumes a calibrated accelerometer: add --accelerometer calibrated, or calibrate the "
+                               "accelerometer first (calib run, then calib apply) and run it on the compensated file")
+        from .handkf import kf_hand
+
+        result = kf_hand(rec)
+    else:
+        result = calibrate(rec, args.method, accelerometer=args.accelerometer,
+                           external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity)
     d = result.to_dict()
+    from .calibrate import prepare
+    from .coach import coach
+
+    coaching = coach(rec, result, prepare(rec, accelerometer=args.accelerometer, gravity_m_s2=args.gravity))
+    d["coaching"] = coaching.to_dict()
     d["warnings"] = list(loaded.report.warnings) + list(d.get("warnings", []))
     d["input"] = loaded.report.to_dict()
     print(f"{args.recording}: method {result.method}, accelerometer {args.accelerometer}, rest "
@@ -151,6 +165,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                                         "scale_factor": truth.value("accelerometer", "scale_factor").tolist(),
                                         "nonorthogonality": truth.value("accelerometer", "nonorthogonality").tolist()}}
     _print_input_warnings(loaded.report)
+    for line in coaching.lines():
+        print(f"  {line}")
     for w in result.warnings:
         print(f"  warning: {w}")
     print(f"  status: {result.status}")
@@ -233,6 +249,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
                         progress=bar.update, calibrated_accelerometer=args.calibrated_accelerometer,
                         accelerometer=args.accelerometer, first_seed=args.first_seed)
     print(r.table())
+    print(r.summary())
     if args.json:
         write_json_atomic(args.json, r.to_dict())
     return 0
@@ -1051,8 +1068,10 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="calibrate a recording (HDF5 or CSV): gyro and accelerometer bias, scale factor, "
                                    "non-orthogonality; exit 1 when the result fails its own check (status inconsistent/diverged)")
     r.add_argument("recording", help=RECORDING_HELP)
-    r.add_argument("--method", default="kf", choices=("kf", "iterated"),
-                   help="kf: one filter pass; iterated: re-linearised passes (Gauss–Newton on the batch posterior)")
+    r.add_argument("--method", default="kf", choices=("kf", "iterated", "hand"),
+                   help="kf: one filter pass; iterated: re-linearised passes (Gauss–Newton on the batch posterior); "
+                        "hand: kf_hand, the hand's lever arm and coloured external acceleration in the model "
+                        "(with --accelerometer calibrated; docs/hand.md)")
     r.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
                    help="estimate: the accelerometer's bias, scale factor and non-orthogonality with the gyro's (default); "
                         "calibrated: assume it calibrated (Zhou 2020 §3.3.2, the paper's 9-state filter)")
@@ -1093,7 +1112,9 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("--sensor", default="zhou2020_sim")
     mc.add_argument("--seeds", type=integer(2, 100_000), default=50, help="sessions, 2 … 1e5 (default 50)")
     mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] (default 100)")
-    mc.add_argument("--methods", default="kf,iterated")
+    mc.add_argument("--methods", default="kf,iterated",
+                    help="comma-separated: any registered estimator (kf = the paper's filter, kf_hand, kf_lever_arm, "
+                         "kf_session_r, …, or package.module:attribute) and iterated (calib run --method iterated)")
     mc.add_argument("--calibrated-accelerometer", action="store_true",
                     help="simulate a calibrated accelerometer: keep only its white noise (Zhou §3.3.2's assumption)")
     mc.add_argument("--accelerometer", default="calibrated", choices=("estimate", "calibrated"),

@@ -27,6 +27,19 @@ its χ² 99.9 % quantile: the accelerometer does not fit its model — with ``--
 calibrated`` the accelerometer is not calibrated; with ``estimate``, an accelerometer error the
 model lacks (nonlinearity, temperature drift) — ``inconsistent``.
 
+**Coloured residuals: σ inflated from the innovations.**  The windowed test above looks at the
+innovations' *level*; a filter whose model treats a coloured disturbance (a hand's sway, an unmodelled
+lever arm: slow, correlated with the rotation) as white can pass it and still understate σ many times,
+because what sets the parameters' error is the innovations' power at the *low* frequencies of the
+regressors (the rotations, < 0.5 Hz), which a white model puts at its average.  For a constant
+parameter estimated as θ̂ − θ = Σ_k L_k u_k from whitened innovations u_k (unit white under the model),
+Var θ̂ = Σ_k Σ_l L_k E[u_k u_l] L_lᵀ ≈ 2π S_u(0) Σ_k L_k L_kᵀ when L_k varies slowly against the
+correlation time of u (the sandwich / long-run-variance argument of Newey & West 1987): the filter's
+P is multiplied by κ = 2π S_u(0), the long-run variance of u.  κ is estimated by batch means
+(sums of u over blocks of ``INFLATION_BLOCK_S`` seconds, both levelling rows pooled): under the model
+κ̂ ~ χ²(d)/d; it is applied when above its 95 % quantile (:func:`innovation_inflation`), with a warning
+saying by how much the filter's own σ was understated.
+
 **Sanity of the result.** Non-finite estimates or covariance, a covariance that is not positive
 semi-definite, or parameters no sensor has (|S|, |G| > 0.3; |b_a| > 0.5 g; |b_g| > 1 rad/s) are
 ``diverged`` whatever the innovations say.
@@ -39,13 +52,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-__all__ = ["Consistency", "check_innovations", "check_estimate", "verdict", "RestGravity", "rest_gravity"]
+__all__ = ["Consistency", "check_innovations", "check_estimate", "verdict", "RestGravity", "rest_gravity",
+           "Inflation", "innovation_inflation", "apply_inflation", "INFLATION_BLOCK_S"]
 
 WINDOW_S = 1.0
 TAIL = 0.001
 INCONSISTENT_FRACTION = 0.05
 DIVERGED_FRACTION = 0.5
 DIVERGED_MEAN_FACTOR = 10.0
+INFLATION_BLOCK_S = 4.0
+INFLATION_QUANTILE = 0.95
 
 
 @dataclass(frozen=True)
@@ -128,6 +144,81 @@ def rest_gravity(f_hat: np.ndarray, t_s: np.ndarray, ranges: tuple[tuple[int, in
     chi2 = float(np.sum((r / s) ** 2))
     return RestGravity(tuple(x[0] for x in rows), r, s, np.array([x[3] for x in rows]), chi2,
                        len(rows) - (1 if fitted_g else 0))
+
+
+@dataclass(frozen=True)
+class Inflation:
+    """κ̂ (the whitened innovations' long-run variance, 1 under the model), its degrees of freedom, the
+    threshold it was compared with, and the factor applied to the covariance (κ̂ or 1)."""
+
+    kappa: float
+    dof: int
+    threshold: float
+    factor: float
+
+    @property
+    def sigma_factor(self) -> float:
+        return float(np.sqrt(self.factor))
+
+    def to_dict(self) -> dict:
+        return {"long_run_variance": self.kappa, "dof": self.dof, "threshold_95": self.threshold,
+                "covariance_factor": self.factor, "sigma_factor": self.sigma_factor, "block_s": INFLATION_BLOCK_S}
+
+    def warning(self) -> str | None:
+        if self.factor <= 1.0:
+            return None
+        return (f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
+                "low-frequency power the filter's white-noise model expects (a hand's slow external acceleration or "
+                f"an unmodelled lever arm), so the filter's own σ understated the error ~{self.sigma_factor:.1f}×; "
+                "a steadier hand or the hand-aware method (kf_hand) gets a smaller honest σ")
+
+
+INFLATION_INCONSISTENT_SIGMA = 1.5
+
+
+def apply_inflation(status: str, notes: list[str], infl: Inflation, can_fail: bool = True) -> str:
+    """Add the inflation's warning to ``notes``; an ``ok`` whose σ had to grow by more than
+    ``INFLATION_INCONSISTENT_SIGMA`` becomes ``inconsistent``: the residuals show only the part of an
+    unmodelled disturbance the fit did not absorb — what it aliased into the parameters (a lever arm
+    correlated with the rotation) stays invisible there, so the inflated σ is a lower bound, not a
+    calibration to trust (measured: the paper's filter with a typical hand, σ ×2.4 from the innovations,
+    error still 5–8 σ).  ``can_fail`` False: the noise levels sit at their floors (noise-free input), where
+    the residual is the integration's own deterministic error — correlated, but no disturbance."""
+    w = infl.warning()
+    if w is None:
+        return status
+    notes.append(w)
+    if can_fail and status == "ok" and infl.sigma_factor > INFLATION_INCONSISTENT_SIGMA:
+        notes.append(f"inconsistent: σ had to grow ×{infl.sigma_factor:.1f} from the innovations, more than "
+                     f"×{INFLATION_INCONSISTENT_SIGMA}: the model misses a disturbance of this session, and what it "
+                     "aliased into the parameters does not show in the residuals — the error can exceed even the "
+                     "inflated σ. Use the hand-aware method (kf_hand) or a steadier hand")
+        return "inconsistent"
+    return status
+
+
+def innovation_inflation(whitened: np.ndarray, t_s: np.ndarray, block_s: float = INFLATION_BLOCK_S) -> Inflation:
+    """κ̂ of the module docstring from whitened innovations (N, ≥2; NaN where no update) at times ``t_s``
+    (N,): the pooled mean of (Σ_block u)² / n_block over full blocks of ``block_s`` of both levelling rows."""
+    u = np.asarray(whitened, float)[:, :2]
+    t = np.asarray(t_s, float)
+    if u.shape[0] != t.size or t.size < 2:
+        raise ValueError("whitened innovations and times must have the same length (≥ 2)")
+    k = np.floor((t - t[0]) / block_s).astype(np.int64)
+    nblk = int(k[-1])                                     # the last, partial block is dropped
+    keep = k < nblk
+    if nblk < 2:
+        return Inflation(1.0, 0, float("inf"), 1.0)
+    ok = np.isfinite(u) & keep[:, None]
+    sums = np.stack([np.bincount(k[ok[:, r]], u[ok[:, r], r], minlength=nblk)[:nblk] for r in range(2)])
+    counts = np.stack([np.bincount(k[ok[:, r]], minlength=nblk)[:nblk] for r in range(2)]).astype(float)
+    full = counts > 0.5 * counts.max(initial=0.0)
+    if full.sum() < 4:
+        return Inflation(1.0, 0, float("inf"), 1.0)
+    kappa = float(np.sum(sums[full] ** 2) / np.sum(counts[full]))
+    dof = int(full.sum())
+    thr = float(stats.chi2.ppf(INFLATION_QUANTILE, dof) / dof)
+    return Inflation(kappa, dof, thr, kappa if kappa > thr else 1.0)
 
 
 def check_estimate(values: dict[str, np.ndarray], covariance: np.ndarray, gravity_m_s2: float) -> list[str]:

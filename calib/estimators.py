@@ -22,6 +22,13 @@ of a_e uniform on the sphere E[(a_e·ĝ)²] = |a_e|²/3, so 3(|f| − g)² estim
 each horizontal component's variance.  Low-passed over 0.2 s because (|f| − g) crosses zero
 whenever a_e is horizontal, while a_e itself does not.
 
+``kf_hand`` (:mod:`calib.handkf`) puts the hand in the model instead: the lever arm and a coloured
+external acceleration as filter states after a tremor low-pass (issue 13, docs/hand.md).  Every method
+here reports an honest σ or says it cannot: P is inflated from the innovations' long-run variance, a
+result whose σ had to grow more than ×1.5 is ``inconsistent``, and an ``ok`` result that disagrees with
+``kf_hand`` beyond both σ becomes ``inconsistent`` with the factor its σ is understated by
+(:func:`calib.consistency.innovation_inflation`, :func:`calib.handkf.hand_cross_check`).
+
 ``smoother``: the parameters are constants, so a Rauch–Tung–Striebel pass leaves their final
 filtered estimate unchanged (the smoothed estimate of a constant state equals the filtered one at
 the last sample); what a smoother can still improve is the linearisation, which these passes do
@@ -40,18 +47,19 @@ from gyrosim.calibration import Calibration
 from gyrosim.recording import Recording
 
 from .calibrate import Prepared, calibrate, prepare, rest_mask
-from .consistency import check_estimate, check_innovations, verdict
+from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
 from .fastkf import run_filter
+from .handkf import kf_hand  # noqa: F401  (registered: the hand-aware method, issue 13)
 from .kalman import PAPER, initial_covariance, theta_slice
 
 __all__ = ["kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
-           "kf_joint", "iterated_joint"]
+           "kf_joint", "iterated_joint", "kf_hand"]
 
 GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
 
 def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gate: float = 0.0,
-         passes: int = 1, prep: Prepared | None = None, name: str = "kf") -> Calibration:
+         passes: int = 1, prep: Prepared | None = None, name: str = "kf", check_hand: bool = True) -> Calibration:
     """The paper's filter on ``rec``; ``prep`` (from :func:`prepare` with the matching allowance) when
     the caller already has it."""
     prep = prep or prepare(rec, accelerometer="calibrated", external_acc_allowance_m_s2=None if session_r else 0.0)
@@ -74,16 +82,32 @@ def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gat
                          prep.config, fs, r_var_per_sample=r_var, gate_nis=gate, update_mask=mask,
                          rest_mask=rest_mask(prep, rec.n - a), x0=x0[None])
         theta = out.theta[0].copy()
+    infl = innovation_inflation(out.whitened[0], rec.t_s[a + 1:])
     cov = np.zeros((9, 9))
     cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)
-    cov[3:, 3:] = out.p[0, 3:9, 3:9]
+    cov[3:, 3:] = out.p[0, 3:9, 3:9] * infl.factor
     values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
     status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2))
+    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+    diag: dict = {"consistency": {"sigma_inflation": infl.to_dict()}}
+    if check_hand and status == "ok" and not prep.noise.at_floor:   # noise-free: methods differ by discretisation
+        status, diag["consistency"]["hand_cross_check"] = _hand_check(rec, theta[0:6], cov[3:, 3:], notes, status)
     gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
     return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
-                                   method=name)
+                                   method=name, diagnostics=diag)
+
+
+def _hand_check(rec: Recording, sg: np.ndarray, cov_sg: np.ndarray, notes: list[str], status: str,
+                acc_m_s2: np.ndarray | None = None) -> tuple[str, dict]:
+    """:func:`calib.handkf.hand_cross_check`: a hand-blind "ok" whose S, G disagree with the hand-aware
+    estimate beyond both σ becomes "inconsistent", with the factor σ is understated by."""
+    from .handkf import hand_cross_check
+
+    warn, diag = hand_cross_check(rec, sg, cov_sg, acc_m_s2)
+    notes.extend(warn)
+    return ("inconsistent" if warn else status), diag
 
 
 def kf(rec: Recording) -> Calibration:
@@ -136,13 +160,15 @@ def kf_lever_arm(rec: Recording) -> Calibration:
     Pass 1 (``kf_session_r``) calibrates the gyro; its compensated rate, integrated from the
     rest attitude, gives g_b(t); least squares over the motion gives r̂; pass 2 runs on
     f − K r̂.  ω̇ from the compensated rate, zero-phase low-passed at 5 Hz (above the schedule,
-    below the tremor)."""
+    below the tremor).  σ includes r̂'s own error carried into S, G (J C_r Jᵀ; without it NEES was 7.6
+    against [5.1, 7.0] with the ideal hand, G_y's error 1.9 σ RMS).  ``kf_hand`` estimates r inside the
+    filter instead and supersedes this method (docs/hand.md)."""
     from gyrosim.effects import _nonortho_matrix
     from gyrosim.rotations import quat_conjugate, quat_rotate, skew
     from gyrosim.strapdown import integrate_gyro
 
     prep = prepare(rec, accelerometer="calibrated")  # the session-R preparation of pass 1, used again for the rest attitude
-    first = _run(rec, session_r=True, prep=prep, name="kf_lever_arm")
+    first = _run(rec, session_r=True, prep=prep, name="kf_lever_arm", check_hand=False)
     a, fs = prep.start, rec.rate_hz
     m = np.eye(3) + np.diag(first.scale_factor) + _nonortho_matrix(first.nonorthogonality)
     w = (rec.gyro_rad_s - first.bias_rad_s) @ np.linalg.inv(m).T
@@ -156,11 +182,42 @@ def kf_lever_arm(rec: Recording) -> Calibration:
     moving = np.linalg.norm(w_s[a:], axis=1) > 0.2
     if moving.sum() < 10:
         return first
-    r, *_ = np.linalg.lstsq(k[moving].reshape(-1, 3), (f_s - g_b)[moving].reshape(-1), rcond=None)
+    y = f_s - g_b
+    r, *_ = np.linalg.lstsq(k[moving].reshape(-1, 3), y[moving].reshape(-1), rcond=None)
     kk = skew(dw) + skew(w_s) @ skew(w_s)
-    corrected = rec.acc_m_s2 - np.einsum("nij,j->ni", kk, r)
-    second = _run(rec.with_signals(acc_m_s2=corrected), session_r=True, name="kf_lever_arm")
+
+    def pass2(r_m: np.ndarray) -> Calibration:
+        corrected = rec.acc_m_s2 - np.einsum("nij,j->ni", kk, r_m)
+        return _run(rec.with_signals(acc_m_s2=corrected), session_r=True, name="kf_lever_arm", check_hand=False)
+
+    second = pass2(r)
+    # r̂'s own error goes into S, G through pass 2: Cov += J C_r Jᵀ, J = ∂(S, G)/∂r by finite differences
+    # (1 mm), C_r the least squares' sandwich with block sums over 4 s (the residual — sway, the pass-1
+    # attitude error — is correlated in time; Newey & West 1987)
+    e = (y - np.einsum("nij,j->ni", k, r)) * moving[:, None]
+    g_k = np.einsum("nji,nj->ni", k, e)                                      # Kᵀ e per sample
+    blk = np.floor((rec.t_s[a:] - rec.t_s[a]) / 4.0).astype(int)
+    sums = np.stack([np.bincount(blk, g_k[:, i]) for i in range(3)], axis=1)
+    a_inv = np.linalg.inv(np.einsum("nji,njk->ik", k[moving], k[moving]))
+    c_r = a_inv @ (sums.T @ sums) @ a_inv
+    items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
+    base = np.concatenate([second.value(t, kd) for t, kd in items])
+    jac = np.stack([(np.concatenate([pass2(r + 1e-3 * np.eye(3)[i]).value(t, kd) for t, kd in items]) - base) / 1e-3
+                    for i in range(3)], axis=1)
+    cov2 = np.array(second.covariance, float)
+    cov2[3:9, 3:9] += jac @ c_r @ jac.T
+    second = Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=cov2, status=second.status,
+                         method="kf_lever_arm", warnings=second.warnings, diagnostics=second.diagnostics)
+    if second.status == "ok" and not prep.noise.at_floor:   # the check on the recording as given
+        notes: list[str] = []
+        items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
+        status, chk = _hand_check(rec, np.concatenate([second.value(t, k) for t, k in items]),
+                                  second.block_covariance(items), notes, second.status)
+        second = Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=second.covariance,
+                             status=status, method="kf_lever_arm", warnings=second.warnings + tuple(notes),
+                             diagnostics={**second.diagnostics, "consistency": {
+                                 **second.diagnostics.get("consistency", {}), "hand_cross_check": chk}})
     return Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=second.covariance,
                        status=second.status, method="kf_lever_arm",
                        warnings=second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",),
-                       diagnostics={"hand": {"lever_arm_m": r.tolist()}})
+                       diagnostics={**second.diagnostics, "hand": {"lever_arm_m": r.tolist()}})

@@ -131,25 +131,29 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True, fastmath=False)
-def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate):  # pragma: no cover
+def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
+            kreg, hand0, gm_tau, gm_var):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
+    hand = hand0.copy()                                        # nominal lever arm (0:3) and external acceleration (3:6)
     P = P0.copy()
     qout = np.zeros((B, 4))
     nis_out = np.full((B, N - 1), np.nan)
     inn_out = np.full((B, N - 1, 3), np.nan)
+    wht_out = np.full((B, N - 1, 3), np.nan)                   # whitened innovations L⁻¹ν, S = L Lᵀ
     nk = N - 1 if keep else 0
     hsd = np.zeros((B, nk, n))
     hth = np.zeros((B, nk, 18))
     o_sg, o_gg, o_bg, o_ba, o_sa, o_ga = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6]
+    o_lv, o_ea = offs[7], offs[8]
     acc_states = o_ba >= 0
     E = np.zeros((3, 9))
     ecols = np.zeros(9, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, 11))
-    hcols = np.zeros(11, dtype=np.int64)
+    Hc = np.zeros((3, 17))
+    hcols = np.zeros(17, dtype=np.int64)
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -162,6 +166,7 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     for b in range(B):
         Pb = P[b]
         th = theta[b]
+        hd = hand[b]
         for i in range(n):                                     # the error state's mean: x0, zero after a reset
             xs[i] = x0[b, i]
         q = q0[b].copy()
@@ -187,6 +192,16 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
             ne = _nb_put(E, ecols, ne, CM @ _nb_jg(wr), o_gg)  # non-orthogonality: J_G(ω)
             if o_bg >= 0:
                 ne = _nb_put(E, ecols, ne, CM, o_bg)           # bias
+            if o_ea >= 0:                                      # Gauss–Markov a_e: Φ = diag(e^{−Δt/τ}), Q = σ²(1 − Φ²)
+                al = math.exp(-dt / gm_tau)
+                for j in range(3):
+                    c = o_ea + j
+                    hd[3 + j] *= al
+                    xs[c] *= al
+                    for r in range(n):
+                        Pb[r, c] *= al
+                        Pb[c, r] *= al
+                    Pb[c, c] += gm_var * (1.0 - al * al)
             # x ← (I + E) x (non-zero only before the first update: the prior mean x0)
             for i in range(3):
                 s = 0.0
@@ -231,9 +246,16 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 fr = np.empty(3)                               # regressor: gravity predicted in the body frame
                 for i in range(3):
                     fr[i] = C[2, i] * gz                       # Ĉᵀ g_up
+                if o_lv >= 0:                                  # minus the lever arm's K r̂ (body)
+                    kr = kreg[b, k] @ hd[0:3]
+                    for i in range(3):
+                        fh[i] -= kr[i]
                 for i in range(3):
                     z[i] = C[i, 0] * fh[0] + C[i, 1] * fh[1] + C[i, 2] * fh[2]
                 z[2] -= gz
+                if o_ea >= 0:                                  # minus the external acceleration's nominal (nav)
+                    for i in range(3):
+                        z[i] -= hd[3 + i]
                 m = m_rows
                 for i in range(3):
                     for e in range(11):
@@ -248,6 +270,10 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     nh = _nb_put(Hc, hcols, nh, CMa, o_ba)             # Ĉ M̂_a⁻¹
                     nh = _nb_put(Hc, hcols, nh, CMa * fr, o_sa)        # Ĉ M̂_a⁻¹ diag(f)
                     nh = _nb_put(Hc, hcols, nh, CMa @ _nb_jg(fr), o_ga)  # Ĉ M̂_a⁻¹ J_G(f)
+                if o_lv >= 0:
+                    nh = _nb_put(Hc, hcols, nh, C @ kreg[b, k], o_lv)   # Ĉ K(ω, ω̇)
+                if o_ea >= 0:
+                    nh = _nb_put(Hc, hcols, nh, np.eye(3), o_ea)       # I (nav)
                 r_var = r_vars[b, k]
                 _nb_times_ht(Pb, Hc, hcols, nh, m, PHt)        # P Hᵀ
                 for i in range(m):                             # S = H P Hᵀ + R
@@ -284,6 +310,11 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 for i in range(m):
                     inn_out[b, k - 1, i] = z[i]
                 nis_out[b, k - 1] = nis
+                l00 = math.sqrt(S[0, 0])                       # Cholesky S = L Lᵀ of the levelling rows: L⁻¹ν
+                l10 = S[1, 0] / l00
+                l11 = math.sqrt(max(S[1, 1] - l10 * l10, 1e-300))
+                wht_out[b, k - 1, 0] = z[0] / l00
+                wht_out[b, k - 1, 1] = (z[1] - l10 * z[0] / l00) / l11
                 if not (gate > 0.0 and nis > gate):            # gating: skip an update whose NIS exceeds it
                     for r in range(n):                         # K = P Hᵀ S⁻¹
                         for i in range(m):
@@ -324,6 +355,10 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             th[9 + j] += x[o_ba + j]
                             th[12 + j] += x[o_sa + j]
                             th[15 + j] += x[o_ga + j]
+                        if o_lv >= 0:
+                            hd[j] += x[o_lv + j]
+                        if o_ea >= 0:
+                            hd[3 + j] += x[o_ea + j]
                     q = _nb_qmul(_nb_qexp(x[0:3]), q)
                     q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
             if keep:
@@ -332,14 +367,16 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 for i in range(18):
                     hth[b, k - 1, i] = th[i]
         qout[b] = q
-    return theta, P, qout, nis_out, inn_out, hsd, hth
+    return theta, P, qout, nis_out, inn_out, hsd, hth, hand, wht_out
 
 
 @dataclass(frozen=True)
 class FilterRun:
     """B filter runs: final nominal parameters θ̂ (B, 18, ``THETA`` order) and covariance (B, n, n),
     final attitude (B, 4), per-step NIS and innovations (B, N−1[, 3]; NaN where no update), and when
-    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18)."""
+    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, 6: lever arm r
+    (m, body), last external acceleration (m/s², nav)) and the whitened innovations L⁻¹ν of the two
+    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model)."""
 
     layout: StateLayout
     theta: np.ndarray
@@ -349,6 +386,8 @@ class FilterRun:
     innovation: np.ndarray
     sd_history: np.ndarray | None = None
     theta_history: np.ndarray | None = None
+    hand: np.ndarray | None = None
+    whitened: np.ndarray | None = None
 
     def block(self, name: str) -> np.ndarray:
         """Nominal of a parameter block (B, 3)."""
@@ -363,7 +402,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
                p0: np.ndarray, layout: StateLayout, config: FilterConfig, rate_hz: float, *,
                r_var_per_sample: np.ndarray | None = None, update_mask: np.ndarray | None = None,
                keep_history: bool = False, gate_nis: float = 0.0, half_window: int | None = None,
-               rest_mask: np.ndarray | None = None, x0: np.ndarray | None = None, rows: int = 2) -> FilterRun:
+               rest_mask: np.ndarray | None = None, x0: np.ndarray | None = None, rows: int = 2,
+               lever_regressor: np.ndarray | None = None, hand0: np.ndarray | None = None) -> FilterRun:
     """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
 
     ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even
@@ -375,6 +415,9 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     (B, n): the prior mean as an error state, θ_prior − θ̂₀ (zero: the prior is centred on the nominal);
     ``rows`` = 3 adds the vertical row (the |f| = g information) — for bounds computed at the truth
     (:func:`crlb_joint`), not for estimation, where the gravity fit carries it.
+    ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] + [ω×]² per sample (body), needed by a
+    layout with ``lever_arm``; ``hand0`` (6,) or (B, 6): the nominal lever arm and external acceleration
+    (a layout with ``ext_acc`` takes the Gauss–Markov σ and τ from ``config``).
     """
     if rows not in (2, 3):
         raise ValueError(f"rows must be 2 or 3, got {rows}")
@@ -404,12 +447,19 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
                                                                                           (B, layout.n)))
     q0 = np.ascontiguousarray(np.broadcast_to(np.asarray(quat0, float), (B, 4)))
     m_rows = int(rows)  # 2: the levelling rows (the vertical row's |f| = g is the gravity fit's); 3 for a bound
-    theta, p, q, nis, inn, hsd, hth = _kernel(g, a, arr(greg), arr(still, np.bool_), arr(t_s), arr(q0), arr(theta0),
-                                              arr(x0), arr(p0),
-                                              layout.offsets(), config.arw_rad_s_sqrt_hz**2, arr(r_vars),
-                                              config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
-                                              float(gate_nis))
-    return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None)
+    if layout.has("lever_arm"):
+        if lever_regressor is None:
+            raise ValueError("a layout with the lever arm needs lever_regressor (N, 3, 3)")
+        kreg = arr(np.broadcast_to(np.asarray(lever_regressor, float), (B, N, 3, 3)))
+    else:
+        kreg = np.zeros((B, 1, 3, 3))
+    hand0 = np.zeros((B, 6)) if hand0 is None else arr(np.broadcast_to(np.asarray(hand0, float), (B, 6)))
+    theta, p, q, nis, inn, hsd, hth, hand, wht = _kernel(
+        g, a, arr(greg), arr(still, np.bool_), arr(t_s), arr(q0), arr(theta0), arr(x0), arr(p0), layout.offsets(),
+        config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
+        float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2))
+    return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
+                     hand if layout.models_hand else None, wht)
 
 
 @dataclass(frozen=True)

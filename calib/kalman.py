@@ -77,7 +77,8 @@ from filterpy.kalman import KalmanFilter
 from gyrosim.effects import _nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
-__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT",
+__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND",
+           "HAND_BLOCKS",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
 
@@ -85,13 +86,19 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 
 # error-state blocks (3 states each) in their fixed order; θ (the nominal parameters) has one
 # 3-vector per block after "phi"
-BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth")
-THETA = BLOCKS[1:]
+# after them the hand's blocks (issue 13, compiled filter only, :mod:`calib.handkf`): the lever arm r
+# (body, m; a constant) and the external acceleration a_e (nav, m/s²; a first-order Gauss–Markov
+# process); their nominals live beside θ, not in it (θ keeps its 18 sensor parameters)
+BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
+          "lever_arm", "ext_acc")
+THETA = BLOCKS[1:7]
+HAND_BLOCKS = BLOCKS[7:]
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
-          "acc_scale": "Sa", "acc_nonorth": "Ga"}
+          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
-                "acc_nonorth": "accelerometer non-orthogonality"}
+                "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
+                "ext_acc": "external acceleration"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -134,9 +141,14 @@ class StateLayout:
     def estimates_accelerometer(self) -> bool:
         return self.has("acc_bias")
 
+    @property
+    def models_hand(self) -> bool:
+        return self.has("lever_arm") or self.has("ext_acc")
+
 
 PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated accelerometer, static bias)
-JOINT = StateLayout(BLOCKS)              # + gyro bias and the accelerometer's 9 parameters: 21 states
+JOINT = StateLayout(BLOCKS[:7])          # + gyro bias and the accelerometer's 9 parameters: 21 states
+HAND = StateLayout(BLOCKS[:3] + HAND_BLOCKS)  # the paper's 9 + lever arm + external acceleration: 15 states
 
 
 def theta_slice(block: str) -> slice:
@@ -213,7 +225,10 @@ class FilterConfig:
 
     The accelerometer and gyro-bias priors apply when the layout has those blocks:
     ``prior_gyro_bias_rad_s`` is the static bias's standard error (per axis), the accelerometer
-    priors span consumer parts (±100 mg bias, ±5 % scale and axis errors at 1σ).
+    priors span consumer parts (±100 mg bias, ±5 % scale and axis errors at 1σ).  The hand's blocks
+    (:data:`HAND`): the lever arm's prior σ ``prior_lever_arm_m`` (a wrist 30 cm away covers any hand-held
+    grip), and the external acceleration a first-order Gauss–Markov process per nav axis with
+    stationary RMS ``ext_acc_rms_m_s2`` and time constant ``ext_acc_tau_s`` (:mod:`calib.handkf`).
     """
 
     arw_rad_s_sqrt_hz: float
@@ -229,6 +244,9 @@ class FilterConfig:
     prior_acc_bias_m_s2: float = 1.0
     prior_acc_scale: float = 0.05
     prior_acc_nonorthogonality: float = 0.05
+    prior_lever_arm_m: float = 0.3
+    ext_acc_rms_m_s2: float = 0.0
+    ext_acc_tau_s: float = 1.0
 
     def r_var(self, rate_hz: float) -> float:
         """R per axis, (m/s²)²: σ_f² + a_ext²."""
@@ -239,7 +257,9 @@ class FilterConfig:
                 "gyro_nonorth": np.full(3, self.prior_nonorthogonality),
                 "gyro_bias": np.asarray(self.prior_gyro_bias_rad_s, float),
                 "acc_bias": np.full(3, self.prior_acc_bias_m_s2), "acc_scale": np.full(3, self.prior_acc_scale),
-                "acc_nonorth": np.full(3, self.prior_acc_nonorthogonality)}[block]
+                "acc_nonorth": np.full(3, self.prior_acc_nonorthogonality),
+                "lever_arm": np.full(3, self.prior_lever_arm_m),
+                "ext_acc": np.full(3, self.ext_acc_rms_m_s2)}[block]
 
 
 def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,
@@ -323,6 +343,9 @@ class ZhouFilter:
 
     def __init__(self, config: FilterConfig, quat0_nb: np.ndarray, rate_hz: float, layout: StateLayout = PAPER,
                  theta0: np.ndarray | None = None, p0: np.ndarray | None = None, x0: np.ndarray | None = None) -> None:
+        if layout.models_hand:
+            raise ValueError("the hand's blocks (lever arm, external acceleration) run in the compiled filter only "
+                             "(calib.fastkf.run_filter)")
         self.config = config
         self.layout = layout
         n = layout.n
@@ -339,7 +362,7 @@ class ZhouFilter:
         self.theta = np.array(theta0, dtype=float)
         self.quat = quat_normalize(np.asarray(quat0_nb, dtype=float))
         self._rows = 2  # the levelling rows; the vertical row's |f| = g information is the gravity fit's
-        self._hist: dict[str, list] = {"t_s": [], "sd": [], "theta": [], "innovation": [], "nis": []}
+        self._hist: dict[str, list] = {"t_s": [], "sd": [], "theta": [], "innovation": [], "nis": [], "whitened": []}
 
     # ------------------------------------------------------------------ nominal parameters
     def _block(self, block: str) -> np.ndarray:
@@ -359,6 +382,11 @@ class ZhouFilter:
 
     def m_hat_acc(self) -> np.ndarray:
         return m_matrix(self._block("acc_scale"), self._block("acc_nonorth"))
+
+    @property
+    def whitened(self) -> np.ndarray:
+        """(steps, 3) whitened innovations L⁻¹ν of every step so far (NaN where no update)."""
+        return np.asarray(self._hist["whitened"]).reshape(-1, 3)
 
     @property
     def history(self) -> FilterHistory:
@@ -398,7 +426,7 @@ class ZhouFilter:
         kf.F = F                                                         # Φ = I + F Δt (exact, F² = 0)
         kf.Q[0, 0] = kf.Q[1, 1] = kf.Q[2, 2] = self.config.arw_rad_s_sqrt_hz**2 * dt
         kf.predict()                                                     # P = Φ P Φᵀ + Q
-        innov, nis = np.full(3, np.nan), float("nan")
+        innov, nis, white = np.full(3, np.nan), float("nan"), np.full(3, np.nan)
         if update:
             c = _qmat(self.quat)
             mi_a = np.linalg.inv(self.m_hat_acc())
@@ -418,6 +446,7 @@ class ZhouFilter:
             innov = np.full(3, np.nan)
             innov[:m] = kf.y.ravel()
             nis = float(kf.y.ravel() @ np.linalg.solve(kf.S, kf.y.ravel()))
+            white[:m] = np.linalg.solve(np.linalg.cholesky(kf.S), kf.y.ravel())   # L⁻¹ν, S = L Lᵀ
             self._inject()
         h = self._hist
         h["t_s"].append(t_s)
@@ -425,6 +454,7 @@ class ZhouFilter:
         h["theta"].append(self.theta.copy())
         h["innovation"].append(innov)
         h["nis"].append(nis)
+        h["whitened"].append(white)
 
     def _inject(self) -> None:
         x = self.kf.x.ravel()

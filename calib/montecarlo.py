@@ -1,8 +1,7 @@
 """Monte Carlo of the calibration against the Cramér–Rao bound (the accuracy tables of the docs).
 
 For one schedule, hand and sensor preset: R sessions (seeds), each a device drawn from the preset
-with its own noise, calibrated exactly as ``calib run`` does (:func:`calib.calibrate.calibrate`,
-methods ``kf`` / ``iterated``, ``--accelerometer estimate`` or ``calibrated``); per parameter the
+with its own noise, calibrated by each method asked (below); per parameter the
 mean error, RMSE, √CRLB, the efficiency RMSE/√CRLB and the RMS of err/σ (1 when σ is honest);
 the paper's Table 8–9 absolute errors beside the gyro's; and the normalised estimation error
 squared (NEES) against its χ² band, over the 6 gyro filter parameters (S, G) and over all
@@ -18,6 +17,18 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
   device, with the noise levels the calibration estimated (all three measurement rows: the bound
   of the full model); for the static bias σ²/n of the rest average.  With the accelerometer
   calibrated the layout is the paper's and the bias is the static average.
+* Methods: every registered estimator (:data:`gyrosim.estimator.BUILTIN_ESTIMATORS`: ``kf`` is the
+  paper's filter, ``kf_hand`` the hand-aware one, …, or ``package.module:attribute``) and
+  ``iterated`` (``calib run --method iterated``: :func:`calib.calibrate.calibrate`, with the
+  ``accelerometer`` mode asked).  Each sees only the recording, as a user's file would be
+  (:func:`as_user_file`: samples and rate; no truth, no sensor model, no hand).
+* The hand-aware bound (issue 13), with the accelerometer calibrated: the same Riccati recursion with
+  the :data:`calib.kalman.HAND` layout — the lever arm as three nuisance parameters with a vague
+  prior, the slow external acceleration a Gauss–Markov process with the PSD ``kf_hand`` estimated on
+  the first seed (median σ_s, τ over the seeds), the measurement the tremor-free, decimated one
+  ``kf_hand`` uses (:func:`hand_crlb`).  Efficiency is reported against both bounds: the ideal one
+  (the sensor's white noise only, no hand: what a perfect hand would allow) and the hand-aware one
+  (what this hand allows any unbiased estimator).
 """
 
 from __future__ import annotations
@@ -30,17 +41,21 @@ import numpy as np
 from scipy import stats
 
 from gyrosim.calibration import truth_calibration
+from gyrosim.estimator import load_estimator
 from gyrosim.hand import load_hand
+from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.schedule import load_schedule
 from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
+from gyrosim.strapdown import integrate_gyro
 
-from .calibrate import calibrate
-from .fastkf import crlb_joint
-from .kalman import JOINT, PAPER, FilterConfig
+from .calibrate import calibrate, prepare
+from .fastkf import crlb_joint, run_filter
+from .handkf import white_density
+from .kalman import HAND, JOINT, PAPER, FilterConfig, initial_covariance
 
-__all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS"]
+__all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
 GYRO_PARAMS = ("bias_x", "bias_y", "bias_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_z")
 ACC_PARAMS = ("acc_b_x", "acc_b_y", "acc_b_z", "acc_S_x", "acc_S_y", "acc_S_z", "acc_G_x", "acc_G_y", "acc_G_z")
@@ -63,6 +78,7 @@ class MethodStats:
     nees_all_mean: float = float("nan")
     nees_all_band: tuple[float, float] = (float("nan"), float("nan"))
     statuses: dict[str, int] = field(default_factory=dict)
+    efficiency_hand: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass(frozen=True)
@@ -76,20 +92,35 @@ class MonteCarloResult:
     methods: dict[str, MethodStats] = field(default_factory=dict)
     accelerometer: str = "calibrated"
     names: tuple[str, ...] = GYRO_PARAMS
+    sqrt_crlb_hand: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    hand_psd: dict = field(default_factory=dict)
+
+    def summary(self) -> str:
+        """One line per method: max RMSE of S and G, max efficiency (ideal / hand bound) over S, G, NEES."""
+        rows = [f"{'method':<18} {'S,G RMSE max':>12} {'eff. ideal':>10} {'eff. hand':>10} {'NEES(6)':>8} "
+                f"{'95 % band':>13} {'statuses':<}"]
+        for m, st in self.methods.items():
+            eh = float(np.max(st.efficiency_hand[3:9])) if st.efficiency_hand.size else float("nan")
+            rows.append(f"{m:<18} {float(np.max(st.rmse[3:9])):>12.2e} {float(np.max(st.efficiency[3:9])):>10.2f} "
+                        f"{eh:>10.2f} {st.nees_mean:>8.2f} [{st.nees_band[0]:.2f}, {st.nees_band[1]:.2f}] "
+                        + ", ".join(f"{k} {v}" for k, v in sorted(st.statuses.items())))
+        return "\n".join(rows)
 
     def table(self) -> str:
         """A plain-text table (gyro bias in °/s, accelerometer bias in mg)."""
         scale = np.array([180 / math.pi] * 3 + [1.0] * 6 + ([1000 / 9.80665] * 3 + [1.0] * 6 if len(self.names) > 9 else []))
-        head = f"{'param':<9} {'true':>9} {'√CRLB':>9} " + " ".join(
-            f"{m + ' mean err':>13} {m + ' RMSE':>10} {m + ' eff.':>8} {m + ' z RMS':>9}" for m in self.methods) + \
-            f" {'paper |err|':>11}"
+        hand = self.sqrt_crlb_hand.size > 0
+        head = f"{'param':<9} {'true':>9} {'√CRLB':>9} " + (f"{'√CRLB hand':>10} " if hand else "") + " ".join(
+            f"{m + ' mean err':>13} {m + ' RMSE':>10} {m + ' eff.':>8} " + (f"{m + ' eff.h':>9} " if hand else "")
+            + f"{m + ' z RMS':>9}" for m in self.methods) + f" {'paper |err|':>11}"
         rows = [f"Monte Carlo: {self.schedule}, hand {self.hand}, sensor {self.sensor}, accelerometer {self.accelerometer}, "
                 f"{self.seeds} seeds (gyro bias °/s, accelerometer bias mg; efficiency = RMSE/√CRLB; z = err/σ)", head]
         for i, name in enumerate(self.names):
-            cells = [f"{name:<9} {self.truth_mean[i] * scale[i]:>9.5f} {self.sqrt_crlb[i] * scale[i]:>9.5f}"]
+            cells = [f"{name:<9} {self.truth_mean[i] * scale[i]:>9.5f} {self.sqrt_crlb[i] * scale[i]:>9.5f}"
+                     + (f" {self.sqrt_crlb_hand[i] * scale[i]:>10.5f}" if hand else "")]
             for st in self.methods.values():
                 cells.append(f"{st.mean_error[i] * scale[i]:>13.5f} {st.rmse[i] * scale[i]:>10.5f} {st.efficiency[i]:>8.2f} "
-                             f"{st.z_rms[i]:>9.2f}")
+                             + (f"{st.efficiency_hand[i]:>9.2f} " if hand else "") + f"{st.z_rms[i]:>9.2f}")
             cells.append(f"{PAPER_ABS_ERROR[i] * scale[i]:>11.5f}" if i < 9 else f"{'':>11}")
             rows.append(" ".join(cells))
         for m, st in self.methods.items():
@@ -97,21 +128,68 @@ class MonteCarloResult:
                         f"[{st.nees_band[0]:.2f}, {st.nees_band[1]:.2f}]; all {len(self.names)} parameters: mean "
                         f"{st.nees_all_mean:.2f}, band [{st.nees_all_band[0]:.2f}, {st.nees_all_band[1]:.2f}]; status "
                         + ", ".join(f"{k} {v}" for k, v in sorted(st.statuses.items())))
+        if hand:
+            rows.append(f"hand-aware bound: lever arm as nuisance, slow external acceleration σ_s "
+                        f"{self.hand_psd.get('rms_m_s2', float('nan')):.4f} m/s², τ {self.hand_psd.get('tau_s', float('nan')):.2f} s "
+                        "(kf_hand's estimate, median over seeds)")
         return "\n".join(rows)
 
     def to_dict(self) -> dict:
         return {"schedule": self.schedule, "hand": self.hand, "sensor": self.sensor, "seeds": self.seeds,
                 "accelerometer": self.accelerometer, "parameters": list(self.names),
                 "truth_mean": self.truth_mean.tolist(), "sqrt_crlb": self.sqrt_crlb.tolist(),
+                "sqrt_crlb_hand": self.sqrt_crlb_hand.tolist(), "hand_psd": self.hand_psd,
                 "methods": {m: {"mean_error": st.mean_error.tolist(), "rmse": st.rmse.tolist(),
-                                "efficiency": st.efficiency.tolist(), "z_rms": st.z_rms.tolist(),
+                                "efficiency": st.efficiency.tolist(), "efficiency_hand": st.efficiency_hand.tolist(),
+                                "z_rms": st.z_rms.tolist(),
                                 "nees_mean": st.nees_mean, "nees_band": list(st.nees_band),
                                 "nees_all_mean": st.nees_all_mean, "nees_all_band": list(st.nees_all_band),
                                 "statuses": st.statuses} for m, st in self.methods.items()}}
 
 
+def as_user_file(rec: Recording) -> Recording:
+    """What a user's file carries: times, gyro, accelerometer (and temperature, field) with the rate —
+    no truth, no sensor model, no hand, no seed (issue 13: the estimators under test see nothing else)."""
+    return Recording(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, None, {"rate_hz": rec.rate_hz})
+
+
+def _estimator(method: str, accelerometer: str) -> Callable:
+    """The callable behind a method name (module docstring, "Methods")."""
+    if method == "iterated":
+        return lambda rec: calibrate(rec, "iterated", accelerometer=accelerometer, keep_history=False)
+    return load_estimator(method)
+
+
+def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, quat_true_nb: np.ndarray,
+              t_s: np.ndarray, theta_true: np.ndarray, config: FilterConfig, rate_hz: float, sigma_s_m_s2: float,
+              tau_s: float, vague: float = 10.0) -> np.ndarray:
+    """The hand-aware Cramér–Rao bound (15, 15) over the :data:`calib.kalman.HAND` states (module
+    docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
+    rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ) and the decimated, tremor-free
+    measurement of :mod:`calib.handkf` (every D-th sample, R = σ_f²/D)."""
+    from .handkf import _variance_ratio, lever_regressor
+
+    th = np.asarray(theta_true, float)
+    m = np.eye(3) + np.diag(th[0:3]) + np.array([[0, th[5], th[4]], [th[5], 0, th[3]], [th[4], th[3], 0]])
+    gyro = np.asarray(omega_true_rad_s) @ m.T + th[6:9]
+    dec = max(1, int(math.floor(1.0 / _variance_ratio(rate_hz))))
+    n = t_s.size
+    upd = np.zeros(n, bool)
+    upd[::dec] = True
+    cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s)
+    p0 = initial_covariance(HAND, cfg)
+    p0[3:9, 3:9] = np.eye(6) * vague**2
+    o = HAND.offset("lever_arm")
+    p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
+    r_var = config.vrw_m_s2_sqrt_hz**2 * rate_hz / dec
+    run = run_filter(gyro[None], np.asarray(f_gravity_body_m_s2)[None], t_s, np.asarray(quat_true_nb[0], float)[None],
+                     th[None], p0, HAND, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
+                     lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz))
+    return run.p[0]
+
+
 def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.ndarray, statuses: list[str],
-           filter_cols: slice) -> MethodStats:
+           filter_cols: slice, sqrt_crlb_hand: np.ndarray | None = None) -> MethodStats:
     err = est - truth
     n, p = err.shape
     rmse = np.sqrt(np.mean(err**2, axis=0))
@@ -128,7 +206,8 @@ def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.nd
     for s in statuses:
         counts[s] = counts.get(s, 0) + 1
     return MethodStats(err.mean(axis=0), rmse, rmse / sqrt_crlb, float(nees6.mean()), band6,
-                       np.sqrt(np.mean(z**2, axis=0)), float(nees.mean()), band, counts)
+                       np.sqrt(np.mean(z**2, axis=0)), float(nees.mean()), band, counts,
+                       rmse / sqrt_crlb_hand if sqrt_crlb_hand is not None and sqrt_crlb_hand.size else np.zeros(0))
 
 
 def monte_carlo(
@@ -150,6 +229,8 @@ def monte_carlo(
                         accelerometer=tuple(e for e in model.accelerometer if e.kind == "white_noise"))
     estimate = accelerometer == "estimate"
     names = GYRO_PARAMS + (ACC_PARAMS if estimate else ())
+    runners = {m: _estimator(m, accelerometer) for m in methods}   # unknown names fail before any simulation
+    psd = []
     truth_fixed = simulate_truth(sched, hnd, rate_hz, seed=first_seed) if hnd.is_ideal else None
     est = {m: [] for m in methods}
     cov = {m: [] for m in methods}
@@ -162,8 +243,11 @@ def monte_carlo(
         rec = apply_sensor(truth, model, np.random.default_rng(10_000 + seed))
         tc = truth_calibration(rec)
         truths.append(np.concatenate([tc.vector("gyro")] + ([tc.vector("accelerometer")] if estimate else [])))
+        user = as_user_file(rec)
         for m in methods:
-            c = calibrate(rec, m, accelerometer=accelerometer, keep_history=False)
+            c = runners[m](user)
+            if "hand" in c.diagnostics and "external_acc_psd" in c.diagnostics["hand"]:
+                psd.append(c.diagnostics["hand"]["external_acc_psd"])
             items = [("gyro", "bias"), ("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
             if estimate:
                 items += [("accelerometer", "bias"), ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")]
@@ -176,26 +260,46 @@ def monte_carlo(
             progress(1)
     truths_arr = np.stack(truths)
     rec0, c0 = first
-    noise = c0.diagnostics["noise"]
-    config = FilterConfig(noise["arw_rad_s_sqrt_hz"], noise["vrw_m_s2_sqrt_hz"], noise["external_acc_allowance_m_s2"],
-                          gravity_m_s2=noise["gravity_m_s2"])
+    prep0 = prepare(rec0, accelerometer=accelerometer)
+    noise = prep0.config
+    if hnd.is_ideal or estimate:   # the calibration's own noise levels, as before
+        config = noise
+    else:                          # a hand's rest is not still: the sensor's white noise from above the tremor band
+        ra, rb = prep0.rest_range
+        arw, vrw = white_density(rec0.gyro_rad_s[ra:rb], rate_hz), white_density(rec0.acc_m_s2[ra:rb], rate_hz)
+        config = replace(noise, external_acc_allowance_m_s2=0.0, arw_rad_s_sqrt_hz=arw or noise.arw_rad_s_sqrt_hz,
+                         vrw_m_s2_sqrt_hz=vrw or noise.vrw_m_s2_sqrt_hz)
     tr = rec0.truth
-    start = int(round((c0.diagnostics["filter"]["start_s"] - rec0.t_s[0]) * rate_hz))
-    f_g = quat_rotate(quat_conjugate(tr.quat_nb[start:]), np.array([0.0, 0.0, config.gravity_m_s2]))
+    start = prep0.start
+    # the attitude the filter's own integration (trapezoid + coning) gives from the true rate: a truth whose
+    # rate does not integrate exactly to its attitude (a hand's wobble and tremor, simulated finer) would
+    # feed the recursion a non-zero residual, and with its vague prior the nominal would leave the truth
+    q_int = integrate_gyro(rec0.t_s[start:], tr.omega_body_rad_s[start:], tr.quat_nb[start])
+    f_g = quat_rotate(quat_conjugate(q_int), np.array([0.0, 0.0, config.gravity_m_s2]))
     th = np.zeros(18)
     th[0:3], th[3:6], th[6:9] = truths_arr[0, 3:6], truths_arr[0, 6:9], truths_arr[0, 0:3]
     if estimate:
         th[9:12], th[12:15], th[15:18] = truths_arr[0, 9:12], truths_arr[0, 12:15], truths_arr[0, 15:18]
     layout = JOINT if estimate else PAPER
-    p = crlb_joint(tr.omega_body_rad_s[start:], f_g, tr.quat_nb[start:], rec0.t_s[start:], th, layout, config, rate_hz)
-    a, b = (int(round(x * rate_hz)) for x in c0.diagnostics["rest_segments"][0])
+    p = crlb_joint(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, layout, config, rate_hz)
+    a, b = prep0.rest_range
     bias_crlb = np.full(3, config.arw_rad_s_sqrt_hz * math.sqrt(rate_hz) / math.sqrt(max(b - a, 1)))
     sd = np.sqrt(np.diag(p))
     crlb = [bias_crlb if not estimate else sd[9:12], sd[3:9]]
     if estimate:
         crlb.append(sd[12:21])
     sqrt_crlb = np.concatenate(crlb)
-    result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), truths_arr, sqrt_crlb, status[m], slice(3, 9))
+    sqrt_hand, hand_psd = np.zeros(0), {}
+    if not estimate:
+        if psd:
+            hand_psd = {"rms_m_s2": float(np.median([d["rms_m_s2"] for d in psd])),
+                        "tau_s": float(np.median([d["tau_s"] for d in psd]))}
+        else:
+            hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0}
+        ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
+                       hand_psd["rms_m_s2"], hand_psd["tau_s"])
+        sqrt_hand = np.concatenate([bias_crlb, np.sqrt(np.diag(ph))[3:9]])
+    result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), truths_arr, sqrt_crlb, status[m], slice(3, 9), sqrt_hand)
               for m in methods}
     return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
-                            accelerometer, names)
+                            accelerometer, names, sqrt_hand, hand_psd)

@@ -69,6 +69,11 @@ class NoiseLevels:
     def vrw_m_s2_sqrt_hz(self) -> float:
         return self.acc_sigma_m_s2 / math.sqrt(self.rate_hz)
 
+    @property
+    def at_floor(self) -> bool:
+        """Either triad's measured noise below its floor (a noise-free or coarsely quantised input)."""
+        return self.gyro_measured_rad_s < self.gyro_floor_rad_s or self.acc_measured_m_s2 < self.acc_floor_m_s2
+
     def notes(self) -> list[str]:
         out = []
         if self.gyro_measured_rad_s < self.gyro_floor_rad_s:

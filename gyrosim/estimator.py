@@ -12,7 +12,7 @@ An *estimator* is any callable ``estimator(rec: Recording) -> Calibration``:
   builds one from the gyro's three arrays, for estimators written before the result type.
 
 Built-ins live in :mod:`calib.estimators` (``kf``, ``smoother``, ``kf_session_r``, ``kf_adaptive``,
-``kf_gated``, ``kf_adaptive_gated``, ``kf_lever_arm``, ``kf_joint``, ``iterated_joint``); a user's
+``kf_gated``, ``kf_adaptive_gated``, ``kf_lever_arm``, ``kf_joint``, ``iterated_joint``, ``kf_hand``); a user's
 estimator is named by import path ``package.module:attribute`` (an estimator, or a class/factory
 called with no arguments that returns one).  ``examples/own_estimator.py`` plugs one in.
 """
@@ -31,7 +31,7 @@ from .recording import Recording
 __all__ = ["Estimate", "Estimator", "load_estimator", "BUILTIN_ESTIMATORS"]
 
 BUILTIN_ESTIMATORS = ("kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated",
-                      "kf_lever_arm", "kf_joint", "iterated_joint")
+                      "kf_lever_arm", "kf_joint", "iterated_joint", "kf_hand")
 
 
 def Estimate(bias_rad_s: np.ndarray, scale_factor: np.ndarray, nonorthogonality: np.ndarray,  # noqa: N802

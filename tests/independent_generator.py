@@ -10,6 +10,8 @@ simulator for the calibrator.  Kinematic, numpy only, written independently:
   accelerometer = (I + S_a + N(G_a)) Cᵀ (0, 0, g) + b_a + white noise (a raw accelerometer when
   S_a, G_a, b_a are given; N(G) = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]] for both triads);
 * noise-free when both noise levels are 0 (the CSV then carries 9 significant digits);
+* optionally an imperfect hand: a lever arm from the rotation centre (closed-form ω̇) and tremor / sway
+  as band-limited sums of sines in nav (issue 13);
 * CSV in deg/s and g with the header t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z.
 
 Schedules: ``STEPS`` (Zhou 2020 Table 6-like: vertical and horizontal turns, two rest poses) and
@@ -106,23 +108,70 @@ def kinematics(rate_hz: float = 100.0, steps=STEPS, q0=None) -> tuple[np.ndarray
     return np.arange(omega.shape[0]) / rate_hz, omega, quat
 
 
+def angular_acceleration(rate_hz: float = 100.0, steps=STEPS) -> np.ndarray:
+    """ω̇ (N, 3) rad/s² of a schedule in closed form: d/dt of (A/T)(1 − cos 2πt/T) = (2πA/T²) sin 2πt/T."""
+    out = []
+    for kind, axis, angle, dur in steps:
+        t = np.arange(int(round(dur * rate_hz))) / rate_hz
+        a = np.zeros((t.size, 3))
+        if kind == "rot":
+            a[:, axis] = 2 * np.pi * angle / dur**2 * np.sin(2 * np.pi * t / dur)
+        out.append(a)
+    return np.concatenate(out)
+
+
+def sum_of_sines(rng: np.random.Generator, t: np.ndarray, band_hz: tuple[float, float], rms: float,
+                 components: int = 40) -> np.ndarray:
+    """(N, 3) random acceleration with E|a|² = rms² over ``band_hz``: per axis a sum of ``components``
+    sinusoids of uniform random frequency in the band and random phase, each of amplitude
+    √(2 rms² / (3 J)) (J sinusoids of amplitude A have variance J A²/2).  Not gyrosim's frequency-domain
+    synthesis: a different construction of band-limited motion, on purpose."""
+    amp = math.sqrt(2.0 * rms**2 / (3.0 * components))
+    out = np.zeros((t.size, 3))
+    for i in range(3):
+        f = rng.uniform(band_hz[0], band_hz[1], components)
+        ph = rng.uniform(0.0, 2 * np.pi, components)
+        out[:, i] = amp * np.sin(2 * np.pi * np.outer(t, f) + ph).sum(axis=1)
+    return out
+
+
 def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_deg_s=(1.5, -1.0, 0.8),
                     scale=(0.03, -0.02, 0.04), nonortho=(0.015, -0.01, 0.02), gyro_noise_deg_s=0.05,
                     acc_noise_g=0.001, acc_bias_g=(0.0, 0.0, 0.0), acc_scale=(0.0, 0.0, 0.0),
                     acc_nonortho=(0.0, 0.0, 0.0), kin=None, g_sensitivity=None, delay_s: float = 0.0,
-                    field_enu_ut=None, mag_noise_ut: float = 0.0) -> dict:
+                    field_enu_ut=None, mag_noise_ut: float = 0.0,
+                    lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
+                    sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0)) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
     ``delay_s``: the gyro output at t is its noise-free value at t − d (linear interpolation; the
     first samples hold the first value);
     ``field_enu_ut``: a constant field (µT, ENU) seen by an ideal magnetometer, m = Cᵀ B + noise
-    (``mag_ut`` in the result)."""
+    (``mag_ut`` in the result).
+
+    An imperfect hand (issue 13), its own way: ``lever_arm_m`` r (body, m, from the rotation centre to
+    the accelerometer) adds ω̇ × r + ω × (ω × r) with the closed-form ω̇ of :func:`angular_acceleration`;
+    ``tremor_acc_rms_m_s2`` / ``sway_acc_rms_m_s2`` add a translation of the hand in nav, band-limited
+    sums of sines (:func:`sum_of_sines`), seen in the body as Cᵀ a."""
     rng = np.random.default_rng(seed)
     t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
     n = omega.shape[0]
     bias = np.radians(np.asarray(bias_deg_s, float))
-    gravity_body = np.einsum("nji,j->ni", np.stack([_dcm(q) for q in quat]), np.array([0.0, 0.0, G]))
+    dcm = np.stack([_dcm(q) for q in quat])
+    gravity_body = np.einsum("nji,j->ni", dcm, np.array([0.0, 0.0, G]))
+    hand_rng = np.random.default_rng([seed, 13])   # its own stream: the sensor noise stays that of `seed`
+    f_hand = np.zeros((n, 3))
+    if lever_arm_m is not None:
+        r = np.asarray(lever_arm_m, float)
+        wdot = angular_acceleration(rate_hz, steps)
+        f_hand += np.cross(wdot, r) + np.cross(omega, np.cross(omega, r))
+    a_nav = np.zeros((n, 3))
+    if tremor_acc_rms_m_s2 > 0:
+        a_nav += sum_of_sines(hand_rng, t, tremor_band_hz, tremor_acc_rms_m_s2)
+    if sway_acc_rms_m_s2 > 0:
+        a_nav += sum_of_sines(hand_rng, t, sway_band_hz, sway_acc_rms_m_s2)
+    f_hand += np.einsum("nji,nj->ni", dcm, a_nav)
     clean = omega @ _m(scale, nonortho).T + bias
     if g_sensitivity is not None:
         clean = clean + gravity_body @ np.asarray(g_sensitivity, float).T
@@ -130,10 +179,10 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
         clean = np.stack([np.interp(t - delay_s, t, clean[:, i]) for i in range(3)], axis=1)
     gyro = clean + rng.normal(size=(n, 3)) * math.radians(gyro_noise_deg_s)
     acc_bias = np.asarray(acc_bias_g, float) * G
-    acc = gravity_body @ _m(acc_scale, acc_nonortho).T + acc_bias + rng.normal(size=(n, 3)) * acc_noise_g * G
+    acc = (gravity_body + f_hand) @ _m(acc_scale, acc_nonortho).T + acc_bias + rng.normal(size=(n, 3)) * acc_noise_g * G
     mag = None
     if field_enu_ut is not None:
-        mag = np.einsum("nji,j->ni", np.stack([_dcm(q) for q in quat]), np.asarray(field_enu_ut, float))
+        mag = np.einsum("nji,j->ni", dcm, np.asarray(field_enu_ut, float))
         mag = mag + rng.normal(size=(n, 3)) * mag_noise_ut
     return {"t_s": t, "gyro_rad_s": gyro, "acc_m_s2": acc, "mag_ut": mag, "omega_rad_s": omega, "quat_nb": quat,
             "bias_rad_s": bias, "scale_factor": np.asarray(scale, float), "nonorthogonality": np.asarray(nonortho, float),

@@ -1,0 +1,105 @@
+"""Issue 13's campaign: method × hand → RMS error, efficiency (ideal and hand-aware bound), NEES.
+
+    python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 --out docs/hand_zhou2020_sim_consumer.json
+    python benchmarks/hand_campaign.py --sensor mpu9250 --hands typical,shaky --seeds 10 --out docs/hand_mpu9250.json
+    python benchmarks/hand_campaign.py --table docs/hand_*.json --plot docs/hand_rmse.png   # docs/hand.md's table
+
+(cells already in --out are kept: a campaign can be run hand by hand)
+
+Every cell is :func:`calib.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz, the sensor with its
+accelerometer calibrated — only its white noise kept — and ``accelerometer="calibrated"``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from calib.montecarlo import monte_carlo
+from calib.outputs import write_json_atomic
+
+HANDS = ("ideal", "steady", "typical", "shaky")
+
+
+def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tuple[str, ...] = HANDS) -> None:
+    """Run the cells of ``hands``; cells already in ``out`` (same sensor and methods) are kept."""
+    cells = {}
+    if Path(out).exists():
+        old = json.loads(Path(out).read_text())
+        if old.get("sensor") == sensor and old.get("methods") == list(methods):
+            cells = old["cells"]
+    for hand in hands:
+        t0 = time.time()
+        with tqdm(total=seeds, desc=f"{sensor} {hand}", unit="seed") as bar:
+            r = monte_carlo("zhou2020", hand, sensor, seeds, 100.0, methods, progress=bar.update,
+                            calibrated_accelerometer=True, accelerometer="calibrated")
+        cells[hand] = {**r.to_dict(), "seconds": time.time() - t0}
+        print(r.summary(), flush=True)
+        write_json_atomic(out, {"sensor": sensor, "seeds": seeds, "methods": list(methods), "cells": cells})
+
+
+def table(paths: list[str]) -> str:
+    rows = ["| sensor | method | hand | S, G RMSE max | ÷ ideal-hand RMSE | eff. vs ideal bound (max S, G) | "
+            "eff. vs hand bound (max S, G) | NEES (6) | 95 % band | statuses |", "|" + "---|" * 10]
+    for p in paths:
+        d = json.load(open(p))
+        for m in d["methods"]:
+            base = max(d["cells"]["ideal"]["methods"][m]["rmse"][3:9]) if "ideal" in d["cells"] else float("nan")
+            for hand, c in d["cells"].items():
+                st = c["methods"][m]
+                rm = max(st["rmse"][3:9])
+                eh = max(st["efficiency_hand"][3:9]) if st["efficiency_hand"] else float("nan")
+                rows.append(f"| {d['sensor']} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
+                            f"{eh:.2f} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
+                            + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
+    return "\n".join(rows)
+
+
+def plot(paths: list[str], out: str) -> None:
+    """RMS error of S, G (max over the six) per hand, one line per sensor × method (log scale)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for p in paths:
+        d = json.load(open(p))
+        hands = [h for h in HANDS if h in d["cells"]]
+        for m in d["methods"]:
+            ax.plot(hands, [max(d["cells"][h]["methods"][m]["rmse"][3:9]) for h in hands], marker="o",
+                    label=f"{d['sensor']}: {m}")
+    ax.set_yscale("log")
+    ax.set_ylabel("RMS error, max over S and G")
+    ax.set_title("zhou2020 schedule, accelerometer calibrated")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sensor", default="zhou2020_sim_consumer")
+    ap.add_argument("--seeds", type=int, default=50)
+    ap.add_argument("--methods", default="kf,kf_lever_arm,kf_hand")
+    ap.add_argument("--hands", default=",".join(HANDS), help="comma-separated hand presets (default all four)")
+    ap.add_argument("--out")
+    ap.add_argument("--table", nargs="*")
+    ap.add_argument("--plot", help="with --table: also write this PNG")
+    a = ap.parse_args()
+    if a.table:
+        print(table(a.table))
+        if a.plot:
+            plot(a.table, a.plot)
+        return
+    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out, tuple(a.hands.split(",")))
+
+
+if __name__ == "__main__":
+    np.seterr(all="ignore")
+    main()

@@ -1,0 +1,286 @@
+"""``kf_hand``: the gyro calibration with the hand in the model (issue 13).
+
+A hand-held session's accelerometer senses, besides gravity and its white noise (body frame RFU,
+nav ENU; f the specific force, g_b gravity in the body):
+
+    f = g_b + K(ω, ω̇) r + C(q)ᵀ a_e + v,     K(ω, ω̇) = [ω̇×] + [ω×][ω×]
+
+* r — the lever arm from the rotation centre (wrist, elbow) to the accelerometer, body frame, m: a
+  constant (the accelerometer–gyro site offset is part of it).  f − g_b = ω̇ × r + ω × (ω × r) is
+  deterministic and correlated with the rotation, so the paper's filter turns it into S and G errors
+  (0.3 % with a 6 cm wrist): it is estimated, three states;
+* a_e — the hand's own translation, in nav: tremor (8–12 Hz) and sway (0.2–1 Hz), coloured.  The
+  calibration's information lives below ~1 Hz (the rotations), so the tremor band is removed rather
+  than modelled: the specific force is rotated to nav with the gyro's own attitude, low-passed there
+  (zero-phase Butterworth, ``CUTOFF_HZ``; in nav, so that the slow gravity direction, not the fast
+  wobble the gyro also sees, is what is smoothed) and rotated back — a whitening pre-filter — and the
+  filter updates every D-th sample with R = σ_f²/D (the white noise averaged over D samples: the
+  information per second of the raw samples, not more), D = ⌊1/ρ⌋ where ρ = Σh² is the low-pass's
+  white-noise variance ratio.  The slow rest (sway) is a first-order Gauss–Markov process per nav
+  axis, three states, stationary σ_s and time constant τ estimated from the data (the PSD
+  2σ_s²τ/(1 + (2πfτ)²) is reported);
+* axis wobble is real rotation: the gyro sees it, nothing to remove.
+
+Noise levels from the data, as every estimator here (:mod:`calib.noiselevels`), but from the first
+rest's spectrum *above* the tremor band (:func:`white_density`): a hand's rest is not still, and its
+standard deviation would count the tremor as sensor noise (and make σ pessimistic by that much).
+
+Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
+:func:`calib.fastkf.run_filter` with the :data:`calib.kalman.HAND` layout, 15 states):
+
+1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, r̂ = 0;
+2. σ_s and τ from the previous pass's lever arm: e = |f_lp − K r̂| − g is the component of a_e along
+   gravity (attitude-free, so the gyro's own errors do not enter; for an isotropic a_e its variance is
+   the per-axis σ_s²): σ_s² = var e − ρσ_f², τ such that the model's PSD at low frequency 4σ_s²τ is
+   e's below 0.2 Hz (:func:`_gm_from_residual`); passes 2 and 3 with them.
+
+The result's σ is the filter's P, inflated from the innovations when they still carry more
+low-frequency power than the model (:func:`calib.consistency.innovation_inflation`).  The hand's
+parameters go to ``diagnostics["hand"]``: ``lever_arm_m`` with ``lever_arm_std_m``,
+``external_acc_psd`` (σ_s, τ, the PSD at 0 Hz, the tremor-band RMS removed) — a finding for the user.
+
+A session whose motion cannot tell the lever arm from S or G (posterior correlation above
+``CONFOUND_CORRELATION``) is refused with the parameters named and the motion that separates them:
+the lever arm's acceleration grows with ω² (and ω̇), a scale factor's attitude error with ∫ω, so the
+same rotation at two different speeds separates them.
+
+Source: the lever-arm kinematics of any rigid body (e.g. Titterton & Weston, *Strapdown Inertial
+Navigation Technology*, 2nd ed., §10.4, lever-arm compensation); Gauss–Markov shaping filters for
+coloured measurement noise: Gelb, *Applied Optimal Estimation* (1974), §4.5; Bryson & Henrikson 1968.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import signal as sp_signal
+
+from gyrosim.calibration import Calibration
+from gyrosim.errors import RecordingError
+from gyrosim.recording import Recording
+from gyrosim.rotations import quat_conjugate, quat_rotate, skew
+from gyrosim.strapdown import integrate_gyro
+
+from .calibrate import prepare, rest_mask
+from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
+from .fastkf import run_filter
+from .kalman import HAND, initial_covariance, m_matrix, theta_slice
+
+__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density"]
+
+CUTOFF_HZ = 4.0            # below the tremor band (8–12 Hz), above the schedule's rotations (< 1 Hz)
+ORDER = 4
+CONFOUND_CORRELATION = 0.98
+LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
+WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)
+PASSES = 3
+
+
+def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.ndarray:
+    """K(ω, ω̇) = [ω̇×] + [ω×]² (N, 3, 3) from a compensated rate (N, 3), both low-passed at ``CUTOFF_HZ``
+    (the same band as the specific force they explain); ω̇ by central differences."""
+    ws = _lowpass(w_rad_s, rate_hz)
+    dw = np.gradient(ws, t_s, axis=0)
+    sw = skew(ws)
+    return skew(dw) + sw @ sw
+
+
+def _lowpass(x: np.ndarray, rate_hz: float) -> np.ndarray:
+    b, a = sp_signal.butter(ORDER, min(CUTOFF_HZ / (rate_hz / 2), 0.9))
+    return sp_signal.filtfilt(b, a, x, axis=0)
+
+
+def _variance_ratio(rate_hz: float) -> float:
+    """ρ = Σh² of the zero-phase low-pass's impulse response: its white-noise variance ratio."""
+    n = int(40 * rate_hz / CUTOFF_HZ) + 64
+    imp = np.zeros(n)
+    imp[n // 2] = 1.0
+    return float(np.sum(_lowpass(imp, rate_hz) ** 2))
+
+
+def _gm_from_residual(e: np.ndarray, dt_s: float, white_var: float, white_psd: float) -> tuple[float, float]:
+    """(σ_s, τ) of a first-order Gauss–Markov fit to a residual ``e`` (N,): σ_s² its variance beyond
+    ``white_var``; τ such that the model's one-sided PSD at low frequency, 4σ_s²τ, equals the residual's
+    below ``LOW_BAND_HZ`` beyond the white ``white_psd`` (Welch) — the band the rotations' information
+    lives in.  A hand's translation is bounded (mm), so its acceleration has little power there; a τ
+    fitted to the autocorrelation's 1/e lag instead would put the sway band's power at 0 Hz and make σ
+    several times pessimistic (measured)."""
+    e = e - e.mean()
+    s2 = max(float(np.mean(e**2)) - white_var, 0.0)
+    if s2 <= 0.0:
+        return 0.0, 1.0
+    fs = 1.0 / dt_s
+    f, pxx = sp_signal.welch(e, fs=fs, nperseg=int(min(e.size, 20 * fs)))
+    low = (f > 0) & (f <= LOW_BAND_HZ)
+    s_low = max(float(np.mean(pxx[low])) - white_psd, 0.0) if low.any() else 4 * s2
+    tau = s_low / (4.0 * s2)
+    return math.sqrt(s2), min(max(tau, 2.0 * dt_s), 10.0)
+
+
+def white_density(x: np.ndarray, rate_hz: float) -> float | None:
+    """White-noise density N (per √Hz, mean of the axes) of rest samples ``x`` (N, 3) from their spectrum
+    above the tremor band, ``WHITE_BAND_HZ`` … 0.45 f_s (Welch; one-sided PSD 2N²): the rest segment's
+    standard deviation would count the hand's tremor as sensor noise.  None when the rate leaves no such
+    band or the rest is shorter than 2 s."""
+    hi = 0.45 * rate_hz
+    if hi <= WHITE_BAND_HZ + 5.0 or x.shape[0] < 2 * rate_hz:
+        return None
+    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, nperseg=int(min(x.shape[0], rate_hz)), axis=0)
+    band = (f >= WHITE_BAND_HZ) & (f <= hi)
+    return float(np.sqrt(np.mean(pxx[band]) / 2.0))
+
+
+def kf_hand(rec: Recording) -> Calibration:
+    """The hand-aware gyro calibration (module docstring); calibrated accelerometer (Zhou §3.3.2)."""
+    prep = prepare(rec, accelerometer="calibrated")
+    ra, rb = prep.rest_range
+    nz = prep.noise
+    arw = white_density(rec.gyro_rad_s[ra:rb], rec.rate_hz)
+    vrw = white_density(rec.acc_m_s2[ra:rb], rec.rate_hz)
+    cfg0 = prep.config
+    if arw is not None and vrw is not None:   # never below the quantisation / discretisation floors
+        cfg0 = type(cfg0)(**{**cfg0.__dict__,
+                             "arw_rad_s_sqrt_hz": max(arw, nz.gyro_floor_rad_s / math.sqrt(rec.rate_hz)),
+                             "vrw_m_s2_sqrt_hz": max(vrw, nz.acc_floor_m_s2 / math.sqrt(rec.rate_hz))})
+    a, fs = prep.start, rec.rate_hz
+    t = rec.t_s[a:]
+    n = t.size
+    sigma_f2 = cfg0.vrw_m_s2_sqrt_hz**2 * fs
+    rho = _variance_ratio(fs)
+    dec = max(1, int(math.floor(1.0 / rho)))
+    upd = np.zeros(n, bool)
+    upd[::dec] = True
+    if prep.saturated is not None:
+        upd &= ~prep.saturated[a:]
+    r_var = sigma_f2 / dec
+    g_up = np.array([0.0, 0.0, cfg0.gravity_m_s2])
+    theta = prep.theta0.copy()
+    hand0 = np.zeros(6)
+    # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed)
+    f_lp0 = _lowpass(rec.acc_m_s2[a:], fs)
+    along = float(np.mean((np.linalg.norm(f_lp0, axis=1) - cfg0.gravity_m_s2) ** 2)) - sigma_f2 * rho
+    sigma_s, tau = math.sqrt(max(3.0 * along, r_var)), 1.0
+    tremor_rms = math.sqrt(max(float(np.mean(np.sum((rec.acc_m_s2[a:] - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
+    still = rest_mask(prep, n)
+    for p in range(PASSES):
+        m = m_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")])
+        w = (rec.gyro_rad_s[a:] - theta[theta_slice("gyro_bias")]) @ np.linalg.inv(m).T
+        q = integrate_gyro(t, w, prep.quat0_nb)
+        f_nav = quat_rotate(q, rec.acc_m_s2[a:])
+        f_lp = quat_rotate(quat_conjugate(q), _lowpass(f_nav, fs))       # whitening pre-filter (nav low-pass)
+        kreg = lever_regressor(w, t, fs)
+        if p > 0:   # Gauss–Markov σ_s, τ from the previous pass's lever arm (module docstring, step 2)
+            e = np.linalg.norm(f_lp - np.einsum("nij,j->ni", kreg, hand0[:3]), axis=1) - cfg0.gravity_m_s2
+            sigma_s, tau = _gm_from_residual(e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2)
+            sigma_s = max(sigma_s, 1e-3 * math.sqrt(r_var))
+        cfg = type(cfg0)(**{**cfg0.__dict__, "external_acc_allowance_m_s2": 0.0, "ext_acc_rms_m_s2": sigma_s,
+                            "ext_acc_tau_s": tau})
+        p0 = initial_covariance(HAND, cfg)
+        x0 = np.zeros(HAND.n)
+        x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
+        x0[HAND.offset("lever_arm"):HAND.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
+        h0 = np.concatenate([hand0[:3], np.zeros(3)])
+        out = run_filter(rec.gyro_rad_s[None, a:], f_lp[None], t, prep.quat0_nb[None], theta[None], p0, HAND, cfg, fs,
+                         r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still, x0=x0[None],
+                         lever_regressor=kreg, hand0=h0)
+        theta = out.theta[0].copy()
+        hand0 = out.hand[0].copy()
+    P = out.p[0]
+    ol = HAND.offset("lever_arm")
+    _confounding(P, ol)
+    infl = innovation_inflation(out.whitened[0], t[1:])
+    cov = np.zeros((9, 9))
+    cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)
+    cov[3:, 3:] = P[3:9, 3:9] * infl.factor
+    values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
+              "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
+    status, notes = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
+                            check_estimate(values, cov, cfg0.gravity_m_s2))
+    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+    r_hat = hand0[:3]
+    r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl.factor)
+    hand = {"lever_arm_m": r_hat.tolist(), "lever_arm_std_m": r_sd.tolist(),
+            "external_acc_psd": {"model": "first-order Gauss–Markov per nav axis (after the tremor low-pass)",
+                                 "rms_m_s2": sigma_s, "tau_s": tau,
+                                 "psd_one_sided_0hz_m2_s4_per_hz": 4 * sigma_s**2 * tau,  # 4σ²τ/(1 + (2πfτ)²)
+                                 "tremor_band_rms_m_s2": tremor_rms, "lowpass_hz": CUTOFF_HZ,
+                                 "update_every_samples": dec}}
+    notes.append(f"hand: lever arm r̂ = {np.array2string(r_hat * 100, precision=1)} ± "
+                 f"{np.array2string(r_sd * 100, precision=1)} cm (body); slow external acceleration "
+                 f"{sigma_s:.3f} m/s² RMS (τ {tau:.2f} s); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
+    gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
+            "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
+    return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
+                                   method="kf_hand",
+                                   diagnostics={"hand": hand, "consistency": {"sigma_inflation": infl.to_dict()},
+                                                "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
+                                                          "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
+                                                          "gravity_m_s2": cfg0.gravity_m_s2},
+                                                "rest_segments": prep.rest.to_list(),
+                                                "filter": {"states": list(HAND.names), "passes": PASSES,
+                                                           "samples": int(n), "rate_hz": fs,
+                                                           "start_s": float(rec.t_s[a])}})
+
+
+def _confounding(P: np.ndarray, ol: int) -> None:
+    """Refuse a session whose motion cannot tell the lever arm from S, G (module docstring)."""
+    sd = np.sqrt(np.clip(np.diag(P), 1e-300, None))
+    corr = P / np.outer(sd, sd)
+    names = HAND.names
+    bad = []
+    for i in range(ol, ol + 3):
+        for j in range(3, 9):
+            if abs(corr[i, j]) > CONFOUND_CORRELATION:
+                bad.append(f"lever arm {names[i]} with {names[j]} (correlation {corr[i, j]:+.3f})")
+    if bad:
+        raise RecordingError(
+            "this session's motion cannot separate the hand's lever arm from the gyro errors: " + "; ".join(bad) +
+            ". The lever arm's acceleration grows with ω² and ω̇, a scale or axis error's attitude error with the "
+            "angle turned: repeat the rotations about each axis at two clearly different speeds (one at least "
+            "twice the other), including rotations about horizontal axes — or use --method kf if the device turned "
+            "about its own sensor (no lever arm)")
+
+
+CROSS_CHECK_TAIL = 0.001
+
+
+def hand_cross_check(rec: Recording, gyro_params: np.ndarray, cov_sg: np.ndarray,
+                     acc_m_s2: np.ndarray | None = None) -> tuple[list[str], dict]:
+    """Does a hand-blind estimate of S, G (``gyro_params`` (6,), covariance ``cov_sg`` (6, 6)) agree with
+    ``kf_hand``'s on the same recording?  The lever arm's acceleration is correlated with the rotation,
+    so what a model without it aliases into S and G does not show in its residuals — no test of its own
+    innovations can see it.  The difference δ to the hand-aware estimate can: under both models'
+    claims δ ~ N(0, C_δ), C_δ ≤ C + C_hand (conservative: the estimates' positive correlation ignored),
+    and δᵀC_δ⁻¹δ above χ²₆'s 99.9 % quantile means the hand-blind σ is understated — by at least
+    max_i |δ_i|/σ_i / 3 (the factor a 3σ error would need).  ``acc_m_s2``: the accelerometer already
+    compensated (a joint calibration's own accelerometer estimate), else the recording's.
+
+    Returns (warnings — empty when consistent or when ``kf_hand`` cannot run on this recording —,
+    diagnostics)."""
+    from scipy import stats
+
+    r = rec if acc_m_s2 is None else rec.with_signals(acc_m_s2=acc_m_s2)
+    try:
+        h = kf_hand(r)
+    except RecordingError as exc:
+        return [], {"skipped": str(exc)}
+    items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
+    th = np.concatenate([h.value(t, k) for t, k in items])
+    ch = h.block_covariance(items)
+    d = np.asarray(gyro_params, float) - th
+    c = np.asarray(cov_sg, float) + ch
+    stat = float(d @ np.linalg.solve(c, d))
+    thr = float(stats.chi2.ppf(1 - CROSS_CHECK_TAIL, 6))
+    sd = np.sqrt(np.diag(cov_sg))
+    under = float(np.max(np.abs(d) / sd) / 3.0)
+    diag = {"chi2": stat, "threshold_99_9": thr, "kf_hand_minus_this": (-d).tolist(),
+            "sigma_understated_at_least": under if stat > thr else 1.0,
+            "lever_arm_m": h.diagnostics["hand"]["lever_arm_m"]}
+    if stat <= thr:
+        return [], diag
+    r_cm = np.array(h.diagnostics["hand"]["lever_arm_m"]) * 100
+    return [f"inconsistent: the hand-aware estimate (kf_hand) differs from this one by χ² {stat:.0f} on 6 S, G "
+            f"(99.9 % bound {thr:.1f}), up to {3 * under:.0f} σ: σ is understated at least ×{under:.1f}. The hand "
+            f"turned the device about a point {np.array2string(r_cm, precision=1)} cm away (lever arm, body frame), "
+            "whose acceleration this model reads as gravity; use kf_hand (calib run --method hand)"], diag
