@@ -612,11 +612,12 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     from gyrosim.recording import save_hdf5
 
     from .inputs import RATETABLE, TEMPERATURE
-    from .thermal_comp import METHODS, ThermalCompensation, compare_methods, fit_compensation, split_cycles
+    from .thermal_comp import METHODS, ThermalCompensation, compare_methods, fit_compensation, fit_methods, split_cycles
 
     if args.compensate and not args.out:
         raise GyrosimError("--compensate needs --out PATH for the compensated recording")
-    check_output_paths({"--json": args.json, "--out": args.out}, _files(args.recording, args.train, args.ratetable))
+    check_output_paths({"--json": args.json, "--out": args.out, "--rrd": args.rrd},
+                       _files(args.recording, args.train, args.ratetable))
     loaded = _open(args, TEMPERATURE)
     rec = loaded.recording
     _print_input_warnings(loaded.report)
@@ -636,7 +637,8 @@ def cmd_temperature(args: argparse.Namespace) -> int:
         rt = _open(args, RATETABLE, args.ratetable).recording
         extra["piecewise_linear (rate-table points)"] = ThermalCompensation(
             "piecewise_linear (rate-table points)", (piecewise_model(calibrate_rate_table(rt)),))
-    rows = compare_methods(train, test, methods, extra)
+    fitted = fit_methods(train, methods, extra)
+    rows = compare_methods(train, test, methods, fitted=fitted)
     base = rows[0]
     print(f"held out: {len(test)} record(s)/cycle(s); trained on {len(train)}")
     print(f"{'method':<38} {'RMS °/s':>9} {'BS °/h':>9} {'ADEV min °/h':>13} {'ADEV 1000 s °/h':>16} {'× better (BS)':>14}")
@@ -645,6 +647,15 @@ def cmd_temperature(args: argparse.Namespace) -> int:
               f"{r.adev_1000s_deg_h:16.2f} {base.bias_stability_deg_h / r.bias_stability_deg_h:14.1f}")
     if args.json:
         write_json_atomic(args.json, [r.__dict__ for r in rows])
+    if args.rrd:
+        from .viz_temperature import save_temperature_rrd
+
+        held = [(float(c.t_s[0]), float(c.t_s[-1])) for c in test] if not args.train else \
+            [(float(rec.t_s[0]), float(rec.t_s[-1]))]
+        desc = f"{args.train}" if args.train else f"the first {args.train_cycles} chamber cycle(s)"
+        with atomic_path(args.rrd) as tmp:
+            save_temperature_rrd(tmp, rec, fitted, rows, held, desc)
+        print(f"wrote {args.rrd}; open it with:  rerun {args.rrd}")
     if args.compensate:
         comp = fit_compensation(train, args.compensate)
         save_hdf5(comp.compensate(rec), args.out)
@@ -1178,6 +1189,7 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("--compensate", help="method whose compensation to write (needs --out)")
     tp.add_argument("--out", help="compensated recording (.h5); never the input")
     tp.add_argument("--json", help="write the comparison table as JSON")
+    tp.add_argument("--rrd", help="write a rerun recording: temperature, drift, each model's held-out residual, bias vs temperature")
     _input_options(tp)
     tp.set_defaults(func=cmd_temperature)
     rtc = sub.add_parser("ratetable", help="bias and scale at each temperature point of a rate-table recording")

@@ -40,7 +40,7 @@ from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
 
 from .timeblocks import block_means, time_block_index
 
-__all__ = ["METHODS", "ThermalCompensation", "fit_compensation", "evaluate", "compare_methods", "split_cycles"]
+__all__ = ["METHODS", "ThermalCompensation", "fit_compensation", "fit_methods", "evaluate", "compare_methods", "split_cycles"]
 
 METHODS = ("none", "polynomial", "piecewise_linear", "rbf", "polynomial+dT/dt")
 BLOCK_S = 10.0
@@ -260,11 +260,17 @@ def evaluate(comp: ThermalCompensation | None, test: Recording, method: str = ""
                    adev_min, adev_1000, comp.detail if comp else "")
 
 
+def fit_methods(train: list[Recording], methods: tuple[str, ...] = METHODS,
+                extra: dict[str, ThermalCompensation] | None = None) -> dict[str, ThermalCompensation]:
+    """Each method fitted on the training cycles (name → model), then the ``extra`` models as given."""
+    return {**{m: fit_compensation(train, m) for m in methods}, **(extra or {})}
+
+
 def compare_methods(train: list[Recording], test: list[Recording], methods: tuple[str, ...] = METHODS,
-                    extra: dict[str, ThermalCompensation] | None = None) -> list[Metrics]:
-    """Fit each method on the training cycles, evaluate on the held-out ones (their concatenation)."""
+                    extra: dict[str, ThermalCompensation] | None = None,
+                    fitted: dict[str, ThermalCompensation] | None = None) -> list[Metrics]:
+    """Fit each method on the training cycles (or take them from ``fitted``, :func:`fit_methods`),
+    evaluate on the held-out ones (their concatenation)."""
     held = _concat(test) if len(test) > 1 else test[0]
-    rows = [evaluate(fit_compensation(train, m), held) for m in methods]
-    for name, comp in (extra or {}).items():
-        rows.append(evaluate(comp, held, name))
-    return rows
+    fitted = fitted if fitted is not None else fit_methods(train, methods, extra)
+    return [evaluate(comp, held, name if name not in methods else "") for name, comp in fitted.items()]

@@ -23,6 +23,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from gyrosim.recording import Recording
+from gyrosim.viewer import (Span, board_eye, board_view, log10_floor, log_marks, log_story, series_view, shared_range,
+                            story_blueprint)
 
 TIMELINE = "sensor_time"
 AXES = ("x", "y", "z")
@@ -48,9 +50,11 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
     if "external_acc" in truth.extra:
         _series(stream, "truth/external_acc", t, truth.extra["external_acc"])
     step = max(1, int(round(rec.rate_hz / pose_rate_hz)))
-    sel = slice(None, None, step)
+    sel = np.arange(0, rec.n, step)
     q = truth.quat_nb[sel]
     pos = truth.position_nav_m[sel] if truth.position_nav_m is not None else np.zeros((q.shape[0], 3))
+    ok = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(pos), axis=1)  # optical references have gaps
+    sel, q, pos = sel[ok], q[ok], pos[ok]
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     stream.log("world/board/pcb", rr.Boxes3D(half_sizes=[0.02, 0.015, 0.0008], colors=[20, 120, 40]), static=True)
     stream.log("world/board/axes", rr.Arrows3D(vectors=np.eye(3) * 0.05, colors=[[255, 0, 0], [0, 255, 0], [0, 0, 255]]), static=True)
@@ -62,10 +66,11 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
     if "wrist_position" in truth.extra and "elbow_position" in truth.extra:
         wrist = truth.extra["wrist_position"][sel]
         elbow = truth.extra["elbow_position"][sel]
-        shoulder = np.array([0.18, 0.0, 1.42])
-        for k, tk in enumerate(t[sel]):
-            stream.set_time(TIMELINE, duration=float(tk))
-            stream.log("world/arm", rr.LineStrips3D([[shoulder, elbow[k], wrist[k], pos[k]]], radii=0.02, colors=[200, 160, 140]))
+        n = wrist.shape[0]
+        strips = np.stack([np.broadcast_to(SHOULDER_M, (n, 3)), elbow, wrist, pos], axis=1)  # (n, 4, 3)
+        stream.log("world/arm", rr.LineStrips3D.from_fields(radii=[0.02], colors=[[200, 160, 140]]), static=True)
+        stream.send_columns("world/arm", indexes=[rr.TimeColumn(TIMELINE, duration=t[sel])],
+                            columns=rr.LineStrips3D.columns(strips=list(strips)).partition(np.ones(n, int)))
 
 
 def log_calibration(stream: rr.RecordingStream, result, truth: dict | None = None) -> None:
@@ -93,56 +98,173 @@ def log_calibration(stream: rr.RecordingStream, result, truth: dict | None = Non
                 )
 
 
-def calibration_blueprint() -> rrb.Blueprint:
-    """Open on P converging and the estimates, with the raw signals and the 3-D view beside."""
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="calib/P/S", name="√P scale factor"),
-                rrb.TimeSeriesView(origin="calib/P/G", name="√P non-orthogonality"),
-                rrb.TimeSeriesView(origin="calib/P/phi", name="√P attitude (rad)"),
-            ),
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="calib/estimate/S", name="scale factor (— true)"),
-                rrb.TimeSeriesView(origin="calib/estimate/G", name="non-orthogonality (— true)"),
-                rrb.TimeSeriesView(origin="calib/nis", name="NIS (expected 2)"),
-            ),
-            rrb.Vertical(
-                rrb.Spatial3DView(origin="world", name="hand and board"),
-                rrb.TimeSeriesView(origin="imu/gyro", name="gyro (rad/s)"),
-                rrb.TimeSeriesView(origin="imu/acc", name="accelerometer (m/s²)"),
-            ),
+SHOULDER_M = np.array([0.18, 0.0, 1.42])  # the hand model's shoulder (nav ENU, m), drawn as the arm's first point
+
+
+def _board_positions(rec: Recording) -> np.ndarray | None:
+    """The board's positions (nav, m) where its pose is known (finite), or None without a pose."""
+    truth = rec.truth
+    if truth is None or truth.quat_nb is None:
+        return None
+    pos = truth.position_nav_m if truth.position_nav_m is not None else np.zeros((rec.n, 3))
+    ok = np.all(np.isfinite(truth.quat_nb), axis=1) & np.all(np.isfinite(pos), axis=1)
+    return pos[ok] if ok.any() else None
+
+
+def _eye(rec: Recording, pos: np.ndarray | None) -> rrb.EyeControls3D | None:
+    """The camera on the board; from the side of the arm when the recording has the hand model's arm."""
+    if pos is None:
+        return None
+    arm = rec.truth is not None and "wrist_position" in rec.truth.extra
+    return board_eye(pos[:: max(1, pos.shape[0] // 2000)], SHOULDER_M[None, :] if arm else None,
+                     tracking_entity="world/board")
+
+
+def _rest_segments(result) -> list[tuple[float, float]]:
+    return [(float(a), float(b)) for a, b in (getattr(result, "diagnostics", {}) or {}).get("rest_segments", [])]
+
+
+def _first_within(t: np.ndarray, sd: np.ndarray, factor: float = 1.1) -> float:
+    """First time after which √P stays within ``factor`` of its final value."""
+    above = np.nonzero(sd > factor * sd[-1])[0]
+    return float(t[above[-1] + 1]) if above.size and above[-1] + 1 < t.size else float(t[0])
+
+
+def calibration_story(rec: Recording, result, truth: dict | None) -> str:
+    """One paragraph (markdown): what converged, by when, to what; the rest segments; the status."""
+    h = result.history.arrays() if result.history is not None else None
+    dur = float(rec.t_s[-1] - rec.t_s[0]) if rec.n else 0.0
+    lines = [f"**{'Simulated' if truth is not None else 'Recorded'} session, {dur:.0f} s at {rec.rate_hz:.0f} Hz — "
+             f"Zhou 2020 filter (`{result.method}`), status {result.status}.**", ""]
+    if h is not None and h["t_s"].size > 1:
+        names = list(result.history.state_names)
+        sd, t = h["sd"], h["t_s"]
+        parts = []
+        for blk, label in (("S", "scale factor"), ("G", "non-orthogonality")):
+            idx = [i for i, n in enumerate(names) if n.split("_")[0] == blk]
+            if idx:
+                s = sd[:, idx].max(axis=1)
+                parts.append(f"√P of the {label} falls from {s[0]:.2g} to {s[-1]:.2g} (×{s[0] / max(s[-1], 1e-300):.0f}), "
+                             f"within 10 % of its final value from {_first_within(t, s):.0f} s")
+        lines.append("Left: log10 √P per state over the whole session — " + "; ".join(parts) + ".")
+    sf, g = result.value("gyro", "scale_factor"), result.value("gyro", "nonorthogonality")
+    sfs, gs = result.std("gyro", "scale_factor"), result.std("gyro", "nonorthogonality")
+    est = ("Middle: the estimates" + (" against the truth (flat lines)" if truth is not None else "") +
+           f"; final S = {', '.join(f'{a:+.5f}±{b:.5f}' for a, b in zip(sf, sfs))}, "
+           f"G = {', '.join(f'{a:+.5f}±{b:.5f}' for a, b in zip(g, gs))}")
+    if truth is not None:
+        es = (sf - np.asarray(truth["scale_factor"])) / np.maximum(sfs, 1e-300)
+        eg = (g - np.asarray(truth["nonorthogonality"])) / np.maximum(gs, 1e-300)
+        est += f"; error/σ: S {np.round(es, 1).tolist()}, G {np.round(eg, 1).tolist()}"
+    if h is not None and h["nis"].size:
+        est += f"; NIS mean {float(np.mean(h['nis'])):.2f} (expected 2)"
+    lines.append(est + ".")
+    rest = _rest_segments(result)
+    if rest:
+        lines.append(f"Right: the raw signals; green dots mark the {len(rest)} rest segment(s) the filter found "
+                     f"({', '.join(f'{a:.0f}–{b:.0f} s' for a, b in rest[:6])}{' …' if len(rest) > 6 else ''}).")
+    else:
+        lines.append("Right: the raw signals. **No rest segment was found** in this recording: the gyro bias has "
+                     "no static average to start from (see the warnings).")
+    if _board_positions(rec) is None:
+        lines.append("No 3-D view: the recording carries no attitude truth.")
+    if result.warnings:
+        lines.append("Warnings: " + "; ".join(result.warnings[:4]))
+    return "\n".join(lines)
+
+
+def calibration_blueprint(span: Span | None = None, *, has_pose: bool = True, has_truth: bool = True,
+                          acc_estimated: bool = False, ranges: dict | None = None,
+                          eye: rrb.EyeControls3D | None = None) -> rrb.Blueprint:
+    """Open on P converging (log10 √P, the whole session on every plot) and the estimates, with the raw
+    signals (rest segments marked) and the board in 3-D beside, under the story text.
+
+    ``ranges``: y ranges by key ``logP`` (S and G share it), ``phi``, ``S``, ``G``, ``nis``, ``gyro``,
+    ``acc`` (computed by :func:`save_calibration_rrd` from the data)."""
+    span = span or Span(0.0, 1.0)
+    r = ranges or {}
+    true = " (— true)" if has_truth else ""
+    cols = [
+        rrb.Vertical(
+            series_view("calib/log10_sqrtP/S", "log10 √P scale factor", span, y_range=r.get("logP"),
+                        contents=["$origin/**", "marks/rest/logP_S"]),
+            series_view("calib/log10_sqrtP/G", "log10 √P non-orthogonality", span, y_range=r.get("logP"),
+                        contents=["$origin/**", "marks/rest/logP_G"]),
+            series_view("calib/log10_sqrtP/phi", "log10 √P attitude (rad)", span, y_range=r.get("phi")),
         ),
-        collapse_panels=True,
-    )
+        rrb.Vertical(
+            series_view("calib/estimate/S", "scale factor" + true, span, y_range=r.get("S")),
+            series_view("calib/estimate/G", "non-orthogonality" + true, span, y_range=r.get("G")),
+            series_view("calib/nis", "NIS (expected 2)", span, y_range=r.get("nis")),
+        ),
+    ]
+    right = [board_view("world", "hand and board (ENU, m)", eye)] if has_pose else []
+    right += [series_view("imu/gyro", "gyro (rad/s), rest ●", span, y_range=r.get("gyro"),
+                          contents=["$origin/**", "marks/rest/gyro"], legend_corner="LeftBottom"),
+              series_view("imu/acc", "accelerometer (m/s²), rest ●", span, y_range=r.get("acc"),
+                          contents=["$origin/**", "marks/rest/acc"], legend_corner="LeftBottom")]
+    cols.append(rrb.Vertical(*right))
+    if acc_estimated:
+        cols.append(rrb.Vertical(*[series_view(f"calib/log10_sqrtP/{b}", f"log10 √P {label}", span)
+                                   for b, label in (("ba", "acc bias (m/s²)"), ("Sa", "acc scale factor"),
+                                                    ("Ga", "acc non-orthogonality"))]))
+    return story_blueprint(rrb.Horizontal(*cols), story_share=1.0, body_share=5.0)
 
 
 def save_calibration_rrd(path: str | Path, rec: Recording, result, truth: dict | None = None,
                          application_id: str = "gyrosim_calib") -> Path:
-    """Write the recording and the calibration run to an .rrd (open with ``rerun PATH``)."""
+    """Write the recording and the calibration run to an .rrd (open with ``rerun PATH``): the data of
+    :func:`log_recording` and :func:`log_calibration`, ``calib/log10_sqrtP/...`` (log10 √P),
+    ``marks/rest/...`` (rest segments) and ``story`` (the text), opened by :func:`calibration_blueprint`."""
     path = Path(path)
     stream = rr.RecordingStream(application_id)
     stream.save(str(path))
-    stream.send_blueprint(calibration_blueprint())
+    span = Span.of(rec.t_s)
+    h = result.history.arrays() if result.history is not None else None
+    ranges = {"gyro": shared_range(rec.gyro_rad_s), "acc": shared_range(rec.acc_m_s2)}
+    names = list(result.history.state_names) if h is not None else []
+    if h is not None and h["t_s"].size:
+        lsd = log10_floor(h["sd"])
+        blk = np.array([n.split("_")[0] for n in names])
+        sg = np.isin(blk, ["S", "G"])
+        ranges["logP"] = shared_range(lsd[:, sg], quantile=0, pad=0.15)
+        ranges["phi"] = shared_range(lsd[:, blk == "phi"], quantile=0)
+        inc_s = [] if truth is None else list(np.asarray(truth["scale_factor"], float))
+        inc_g = [] if truth is None else list(np.asarray(truth["nonorthogonality"], float))
+        ranges["S"] = shared_range(h["scale"], quantile=0.005, include=inc_s)
+        ranges["G"] = shared_range(h["nonorthogonality"], quantile=0.005, include=inc_g)
+        ranges["nis"] = (0.0, max(10.0, float(np.quantile(h["nis"], 0.99)) if h["nis"].size else 10.0))
+        for i in range(0, len(names), 3):
+            _series(stream, f"calib/log10_sqrtP/{names[i].split('_')[0]}", h["t_s"], lsd[:, i:i + 3])
+    rest = _rest_segments(result)
+    for view, lo_hi, at_top in (("gyro", ranges["gyro"], True), ("acc", ranges["acc"], True),
+                                ("logP_S", ranges.get("logP"), False), ("logP_G", ranges.get("logP"), False)):
+        if lo_hi is not None:
+            level = lo_hi[1] - 0.04 * (lo_hi[1] - lo_hi[0]) if at_top else lo_hi[0] + 0.03 * (lo_hi[1] - lo_hi[0])
+            log_marks(stream, f"marks/rest/{view}", span, level, intervals=rest, name="rest")
+    pos = _board_positions(rec)
+    eye = _eye(rec, pos)
+    stream.send_blueprint(calibration_blueprint(span, has_pose=pos is not None, has_truth=truth is not None,
+                                                acc_estimated="ba_x" in names, ranges=ranges, eye=eye))
+    log_story(stream, calibration_story(rec, result, truth))
     log_recording(stream, rec)
-    log_calibration(stream, result, truth)
+    if h is not None:
+        log_calibration(stream, result, truth)
     stream.flush()
     return path
 
 
-def blueprint() -> rrb.Blueprint:
-    """Open on the signals and the 3-D view."""
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="imu/gyro", name="gyro (rad/s)"),
-                rrb.TimeSeriesView(origin="imu/acc", name="accelerometer (m/s²)"),
-                rrb.TimeSeriesView(origin="truth/external_acc", name="external acceleration (m/s², truth)"),
-            ),
-            rrb.Spatial3DView(origin="world", name="hand and board"),
+def blueprint(span: Span | None = None, eye: rrb.EyeControls3D | None = None) -> rrb.Blueprint:
+    """Open on the signals (the whole recording) and the 3-D view framed on the board."""
+    span = span or Span(0.0, 1.0)
+    return story_blueprint(rrb.Horizontal(
+        rrb.Vertical(
+            series_view("imu/gyro", "gyro (rad/s)", span),
+            series_view("imu/acc", "accelerometer (m/s²)", span),
+            series_view("truth/external_acc", "external acceleration (m/s², truth)", span),
         ),
-        collapse_panels=True,
-    )
+        board_view("world", "hand and board (ENU, m)", eye),
+    ), story_share=1.0, body_share=6.0)
 
 
 def save_session_rrd(path: str | Path, rec: Recording, application_id: str = "gyrosim_calib") -> Path:
@@ -150,7 +272,12 @@ def save_session_rrd(path: str | Path, rec: Recording, application_id: str = "gy
     path = Path(path)
     stream = rr.RecordingStream(application_id)
     stream.save(str(path))
-    stream.send_blueprint(blueprint())
+    pos = _board_positions(rec)
+    eye = _eye(rec, pos)
+    stream.send_blueprint(blueprint(Span.of(rec.t_s), eye))
+    log_story(stream, f"**Recorded session, {rec.t_s[-1] - rec.t_s[0]:.0f} s at {rec.rate_hz:.0f} Hz:** the raw gyro and "
+                      "accelerometer (body frame), the external acceleration the hand adds (truth) and the hand and board "
+                      "in 3-D" + ("" if pos is not None else " (no attitude truth: no 3-D pose)") + ".")
     log_recording(stream, rec)
     stream.flush()
     return path
@@ -162,8 +289,8 @@ def log_magnetometer(stream: rr.RecordingStream, rec: Recording, result, step: i
 
     Entities: ``mag/raw/{x,y,z}`` and ``mag/calibrated/{x,y,z}`` (µT, body frame) and their
     magnitudes ``mag/magnitude/{raw,calibrated}`` on ``sensor_time``; ``mag/cloud/raw`` and
-    ``mag/cloud/calibrated``: the samples as 3-D point clouds (the ellipsoid and the sphere it
-    becomes, centred on the origin after calibration), disturbed samples red;
+    ``mag/cloud/calibrated``: the samples as 3-D point clouds (the ellipsoid, amber, and the sphere
+    it becomes, blue, centred on the origin after calibration), disturbed samples red;
     ``mag/disturbed``: 1 where a disturbance was found."""
     t = rec.t_s
     m = np.asarray(rec.mag_ut, dtype=float)
@@ -179,30 +306,75 @@ def log_magnetometer(stream: rr.RecordingStream, rec: Recording, result, step: i
     stream.send_columns("mag/disturbed", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
                         columns=rr.Scalars.columns(scalars=dist))
     step = step or max(1, t.size // 5000)
-    colours = np.where(dist[::step, None] > 0, [[230, 40, 40]], [[40, 120, 230]]).astype(np.uint8)
-    stream.log("mag/cloud/raw", rr.Points3D(m[::step], colors=colours, radii=0.3), static=True)
-    stream.log("mag/cloud/calibrated", rr.Points3D(b[::step], colors=colours, radii=0.3), static=True)
+    bad = dist[::step, None] > 0
+    raw_c = np.where(bad, [[230, 40, 40]], [[200, 140, 40]]).astype(np.uint8)   # raw: amber, disturbed red
+    cal_c = np.where(bad, [[230, 40, 40]], [[40, 120, 230]]).astype(np.uint8)   # calibrated: blue, disturbed red
+    stream.log("mag/cloud/raw", rr.Points3D(m[::step], colors=raw_c, radii=0.3), static=True)
+    stream.log("mag/cloud/calibrated", rr.Points3D(b[::step], colors=cal_c, radii=0.3), static=True)
+
+
+def magnetometer_story(rec: Recording, result) -> str:
+    """One paragraph: the fit, |B| spread before/after, the disturbances found (or that none were)."""
+    m = np.asarray(rec.mag_ut, float)
+    b = result.compensate(m)
+    raw, cal = np.linalg.norm(m, axis=1), np.linalg.norm(b, axis=1)
+    lines = [f"**Magnetometer calibration (`{result.method}`), status {result.status}** — {rec.t_s[-1] - rec.t_s[0]:.0f} s "
+             f"at {rec.rate_hz:.0f} Hz.", "",
+             f"Hard iron {np.round(result.hard_iron_ut, 2).tolist()} µT (±{np.round(result.hard_iron_std_ut, 2).tolist()}); "
+             f"field {result.field_ut:.2f} ± {result.field_std_ut:.2f} µT, inclination {result.inclination_deg:.2f}° "
+             f"({result.field_reference}).",
+             f"Left: the samples in 3-D — the raw ellipsoid (off-centre) becomes the calibrated sphere on the origin. "
+             f"Middle: |B| raw (spread {np.std(raw):.2f} µT RMS) vs calibrated ({np.std(cal):.2f} µT), one y scale."]
+    if result.disturbances:
+        d = result.disturbances
+        lines.append(f"Red dots mark the {len(d)} local disturbance(s) found: " +
+                     ", ".join(f"{x.t_start_s:.0f}–{x.t_end_s:.0f} s (up to {x.max_field_deviation_ut:.1f} µT)" for x in d[:5]) +
+                     (" …" if len(d) > 5 else "") + "; their samples are red in the cloud.")
+    else:
+        lines.append("**No local disturbance was found** in this recording (no red marks).")
+    if result.warnings:
+        lines.append("Warnings: " + "; ".join(result.warnings[:4]))
+    return "\n".join(lines)
+
+
+def magnetometer_blueprint(span: Span, *, has_pose: bool, mag_range: tuple[float, float] | None = None,
+                           eye: rrb.EyeControls3D | None = None, field_ut: float = 50.0) -> rrb.Blueprint:
+    """Story; the field cloud in 3-D; |B| raw and calibrated on one scale with disturbances marked; the
+    calibrated field; the board in 3-D when the recording has its pose."""
+    right = [series_view("mag/calibrated", "calibrated field (µT, body)", span)]
+    if has_pose:
+        right.append(board_view("world", "hand and board (ENU, m)", eye))
+    return story_blueprint(rrb.Horizontal(
+        rrb.Spatial3DView(origin="mag/cloud", name="field samples (µT): raw ellipsoid → calibrated sphere",
+                          # outside the sphere of radius |B|, looking at the origin (the calibrated centre)
+                          eye_controls=rrb.EyeControls3D(kind="Orbital", position=[2.2 * field_ut, -2.2 * field_ut,
+                                                                                   1.4 * field_ut],
+                                                         look_target=[0.0, 0.0, 0.0], eye_up=[0.0, 0.0, 1.0])),
+        rrb.Vertical(
+            series_view("mag/magnitude", "|B| raw and calibrated (µT), disturbances ●", span, y_range=mag_range,
+                        contents=["$origin/**", "marks/disturbed"]),
+            series_view("mag/disturbed", "local disturbance found (1 = yes)", span, y_range=(-0.1, 1.1)),
+        ),
+        rrb.Vertical(*right)), story_share=1.0, body_share=4.0)
 
 
 def save_magnetometer_rrd(path: str | Path, rec: Recording, result, application_id: str = "gyrosim_calib") -> Path:
-    """Write the magnetometer calibration (:func:`log_magnetometer`) and the board's motion to an .rrd."""
+    """Write the magnetometer calibration (:func:`log_magnetometer`), the board's motion, ``story`` and
+    ``marks/disturbed`` to an .rrd, opened by :func:`magnetometer_blueprint`."""
     path = Path(path)
     stream = rr.RecordingStream(application_id)
     stream.save(str(path))
-    stream.send_blueprint(rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                rrb.Spatial3DView(origin="mag/cloud", name="field samples (µT): raw ellipsoid, calibrated sphere"),
-                rrb.TimeSeriesView(origin="mag/magnitude", name="|B| raw and calibrated (µT)"),
-            ),
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="mag/calibrated", name="calibrated field (µT, body)"),
-                rrb.TimeSeriesView(origin="mag/disturbed", name="local disturbance found"),
-                rrb.Spatial3DView(origin="world", name="hand and board"),
-            ),
-        ),
-        collapse_panels=True,
-    ))
+    span = Span.of(rec.t_s)
+    m = np.asarray(rec.mag_ut, float)
+    mags = np.linalg.norm(m, axis=1), np.linalg.norm(result.compensate(m), axis=1)
+    rng = shared_range(*mags, quantile=0.0)  # the whole range: the disturbances' excursions are the point
+    log_marks(stream, "marks/disturbed", span, rng[1] - 0.04 * (rng[1] - rng[0]), name="disturbed",
+              intervals=[(d.t_start_s, d.t_end_s) for d in result.disturbances], colour=(230, 40, 40))
+    pos = _board_positions(rec)
+    eye = _eye(rec, pos)
+    stream.send_blueprint(magnetometer_blueprint(span, has_pose=pos is not None, mag_range=rng, eye=eye,
+                                                 field_ut=float(np.median(mags[1]))))
+    log_story(stream, magnetometer_story(rec, result))
     log_recording(stream, rec)
     log_magnetometer(stream, rec, result)
     stream.flush()

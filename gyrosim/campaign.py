@@ -22,6 +22,11 @@ Scores per estimator (SI → reported units):
 * ``calibration_status``: the estimate's own verdict (``ok``, ``inconsistent``, ``diverged``;
   :class:`gyrosim.calibration.Calibration`), beside ``status`` (ran / failed).
 
+``summarise`` writes ``summary.csv``, ``error_vs_severity.png`` and ``summary.rrd``: the same summary
+as rerun plots (:func:`save_summary_rrd`; timeline ``ext_acc_rms_mm_s2``, the severity axis;
+``campaign/log10_rms_{S_pct,G_pct,bias_deg_s}/{estimator}`` log10 of the RMS errors (one curve per
+estimator, every hand and severity a point along x), ``campaign/failed_pct/{estimator}``, and the ``story`` text).
+
 The truth is the simulated device (:func:`gyrosim.calibration.truth_calibration`); estimators come
 through :mod:`gyrosim.estimator` and return a :class:`~gyrosim.calibration.Calibration`.
 """
@@ -381,7 +386,91 @@ def summarise(results: str | Path, out: str | Path | None = None) -> list[dict]:
             w.writeheader()
             w.writerows(summary)
         _plot(summary, out / "error_vs_severity.png")
+        save_summary_rrd(summary, out / "summary.rrd")
     return summary
+
+
+CAMPAIGN_TIMELINE = "ext_acc_rms_mm_s2"
+_GROUPS = (("S_pct", "scale factor error RMS (%)"), ("G_pct", "non-orthogonality error RMS (%)"),
+           ("bias_deg_s", "bias error RMS (°/s)"))
+
+
+def _segment(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "_-+." else "_" for c in str(name))
+
+
+def summary_story(summary: list[dict]) -> str:
+    """The campaign in one paragraph: per estimator, error at the mildest and the worst hand."""
+    if not summary:
+        return "**Campaign summary:** no task finished: nothing to show (see results.csv for the errors)."
+    ests = sorted({r["estimator"] for r in summary})
+    n = sum(int(r["n"]) for r in summary)
+    lines = [f"**Campaign: {n} calibrations, {len(ests)} estimator(s) ({', '.join(ests)}), hands "
+             f"{', '.join(sorted({r['hand'] for r in summary}))}** — error against the truth as the hand's external "
+             "acceleration grows (x: its RMS in mm/s²). Plots show log10 of the RMS error (one y scale for S and G), "
+             "and the failed-or-diverged rate.", ""]
+    parts = []
+    for est in ests:
+        rs = sorted([r for r in summary if r["estimator"] == est and "rms_S_pct" in r], key=lambda r: r["ext_acc_rms_m_s2"])
+        if not rs:
+            parts.append(f"{est}: every task crashed")
+            continue
+        a, b = rs[0], rs[-1]
+        parts.append(f"{est}: S error {a['rms_S_pct']:.3g} % at {a['ext_acc_rms_m_s2'] * 1000:.0f} mm/s² → "
+                     f"{b['rms_S_pct']:.3g} % at {b['ext_acc_rms_m_s2'] * 1000:.0f} mm/s², failed "
+                     f"{max(int(r['failed']) for r in rs)}/{max(int(r['n']) for r in rs)} at worst")
+    lines.append("; ".join(parts) + ".")
+    return "\n".join(lines)
+
+
+def summary_blueprint(x_span: tuple[float, float], log_range: tuple[float, float] | None):
+    """One view per error group (S and G on one log10 y range), the failure rate; x = the external
+    acceleration RMS over the whole span of the campaign (a sequence timeline)."""
+    import rerun.blueprint as rrb
+
+    from .viewer import Span, series_view, story_blueprint
+
+    span = Span(x_span[0], x_span[1], CAMPAIGN_TIMELINE, sequence=True)
+    views = [series_view(f"campaign/log10_rms_{g}", f"log10 {label}", span,
+                         y_range=log_range if g in ("S_pct", "G_pct") else None) for g, label in _GROUPS]
+    views.append(series_view("campaign/failed_pct", "failed or diverged (%)", span, y_range=(-2.0, 102.0)))
+    return story_blueprint(rrb.Grid(*views, grid_columns=2), timeline=CAMPAIGN_TIMELINE)
+
+
+def save_summary_rrd(summary: list[dict], path: str | Path) -> Path:
+    """``summary.rrd``: the summary's plots (module docstring) with a story; open with ``rerun PATH``."""
+    import rerun as rr
+
+    from .viewer import PALETTE, log_story, scalar_style, send_series, shared_range
+
+    path = Path(path)
+    stream = rr.RecordingStream("gyrosim_campaign")
+    stream.save(str(path))
+    x_all = [r["ext_acc_rms_m_s2"] * 1000.0 for r in summary if "ext_acc_rms_m_s2" in r]
+    x_span = (min(x_all), max(x_all)) if x_all else (0.0, 1.0)
+    if x_span[1] - x_span[0] < 1:
+        x_span = (x_span[0], x_span[0] + 1.0)
+    logs = [np.log10(max(r[f"rms_{g}"], 1e-12)) for r in summary for g in ("S_pct", "G_pct") if f"rms_{g}" in r]
+    stream.send_blueprint(summary_blueprint(x_span, shared_range(logs, quantile=0.0) if logs else None))
+    log_story(stream, summary_story(summary))
+    for k, est in enumerate(sorted({r["estimator"] for r in summary})):
+        colour = PALETTE[k % len(PALETTE)]  # the same colour for an estimator in every view
+        # one curve per estimator: the hands (and their severities) are points along the x axis
+        ok = sorted([r for r in summary if r["estimator"] == est and "ext_acc_rms_m_s2" in r and "rms_S_pct" in r],
+                    key=lambda r: r["ext_acc_rms_m_s2"])
+        if not ok:
+            continue
+        x = np.array([r["ext_acc_rms_m_s2"] * 1000.0 for r in ok])
+        for g, _ in _GROUPS:
+            p = f"campaign/log10_rms_{g}/{_segment(est)}"
+            scalar_style(stream, p, est, colour, width=2.0)
+            send_series(stream, p, x, np.log10(np.maximum([r[f"rms_{g}"] for r in ok], 1e-12)), CAMPAIGN_TIMELINE,
+                        sequence=True)
+        p = f"campaign/failed_pct/{_segment(est)}"
+        scalar_style(stream, p, est, colour, width=2.0)
+        send_series(stream, p, x, [100.0 * r["failed"] / r["n"] for r in ok], CAMPAIGN_TIMELINE, sequence=True)
+    stream.flush()
+    return path
 
 
 def _plot(summary: list[dict], path: Path) -> None:

@@ -284,7 +284,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     from .campaign import CampaignSpec, load_campaign, run_campaign, summarise
 
     check_output_paths({"--out": args.out}, [args.campaign], folders=["--out"],
-                       folder_files={"--out": ("results.csv", "summary.csv", "provenance.json", "error_vs_severity.png")})
+                       folder_files={"--out": ("results.csv", "summary.csv", "provenance.json", "error_vs_severity.png",
+                                               "summary.rrd")})
     over = {"hands": _csv_list(args.hand), "seeds": args.seeds, "first_seed": args.first_seed, "sensor": args.sensor,
             "estimators": _csv_list(args.method), "schedule": args.schedule, "rate_hz": args.rate,
             "calibrated_accelerometer": True if args.calibrated_accelerometer else None,
@@ -309,7 +310,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d} "
               f"{r['ext_acc_rms_m_s2']:12.4f} {r['rms_S_pct']:8.4f} [{r['rms_S_pct_lo']:.4f}, {r['rms_S_pct_hi']:.4f}] "
               f"{r['rms_G_pct']:8.4f} [{r['rms_G_pct_lo']:.4f}, {r['rms_G_pct_hi']:.4f}] {r['rms_bias_deg_s']:12.4f}")
-    print(f"wrote {path}, {Path(args.out) / 'summary.csv'}, {Path(args.out) / 'error_vs_severity.png'}")
+    print(f"wrote {path}, {Path(args.out) / 'summary.csv'}, {Path(args.out) / 'error_vs_severity.png'} and "
+          f"{Path(args.out) / 'summary.rrd'} (open it with:  rerun {Path(args.out) / 'summary.rrd'})")
     return 0
 
 

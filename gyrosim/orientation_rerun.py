@@ -29,20 +29,25 @@ TIMELINE = "sensor_time"
 PALETTE = [(230, 120, 20), (40, 110, 230), (200, 40, 160), (120, 120, 120), (20, 170, 170), (150, 90, 40)]
 
 
-def orientation_blueprint(estimators: tuple[str, ...]):
+def orientation_blueprint(estimators: tuple[str, ...], span=None, eye=None):
+    """Story on top; the boards in 3-D (camera on the row of boards); tilt and heading errors and the
+    disturbance over the whole session (:mod:`gyrosim.viewer`)."""
     import rerun.blueprint as rrb
 
-    return rrb.Blueprint(
+    from .viewer import Span, board_view, series_view, story_blueprint
+
+    span = span or Span(0.0, 1.0)
+    return story_blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="truth (green) and estimators"),
+            board_view("world", "truth (green) and estimators", eye),
             rrb.Vertical(
-                rrb.TimeSeriesView(origin="errors/tilt", name="tilt error (°)"),
-                rrb.TimeSeriesView(origin="errors/heading", name="heading error (°; 6-axis: offset removed)"),
-                rrb.TimeSeriesView(origin="events", name="disturbance"),
+                series_view("errors/tilt", "tilt error (°)", span),
+                series_view("errors/heading", "heading error (°; 6-axis: offset removed)", span),
+                series_view("events", "disturbance", span, y_range=(-0.1, 1.1)),
             ),
             column_shares=[1, 1],
         ),
-        collapse_panels=True,
+        story_share=1.0, body_share=6.0,
     )
 
 
@@ -79,10 +84,15 @@ def view_session(*, hand: str = "typical", sensor: str = "mpu9250", seed: int = 
     step = max(1, int(round(rec.rate_hz / pose_rate_hz)))
     sel = slice(None, None, step)
 
+    from .viewer import Span, board_eye, log_story
+
     path = Path(rrd)
     stream = rr.RecordingStream("gyrosim_orientation")
     stream.save(str(path))
-    stream.send_blueprint(orientation_blueprint(tuple(estimators)))
+    rows = np.array([[0.12 * i, 0.0, 0.0] for i in range(len(estimators) + 1)])  # the boards side by side (m, ENU)
+    stream.send_blueprint(orientation_blueprint(tuple(estimators), Span.of(t),
+                                                board_eye(rows, fill=2.6, max_radius_m=float(np.ptp(rows[:, 0])) / 2 + 0.1)))
+    summary = []
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     _board(stream, "world/truth", (20, 150, 40), 0.0, t[sel], q_true[sel])
     pulse = ((t >= t_d) & (t < t_e)).astype(float)
@@ -97,9 +107,15 @@ def view_session(*, hand: str = "typical", sensor: str = "mpu9250", seed: int = 
         q_e = error_quat_earth(q, q_true)
         color = PALETTE[i % len(PALETTE)]
         _board(stream, f"world/{name}", color, 0.12 * (i + 1), t[sel], q[sel])
-        for kind, series in (("tilt", inclination_error_rad(q_e)), ("heading", heading_error_rad(q_e, signed=True))):
+        tilt, heading = inclination_error_rad(q_e), heading_error_rad(q_e, signed=True)
+        summary.append(f"{name} RMS tilt {np.degrees(np.sqrt(np.mean(tilt ** 2))):.2f}°, heading "
+                       f"{np.degrees(np.sqrt(np.mean(heading ** 2))):.2f}°")
+        for kind, series in (("tilt", tilt), ("heading", heading)):
             stream.log(f"errors/{kind}/{name}", rr.SeriesLines(colors=[color], names=[name]), static=True)
             stream.send_columns(f"errors/{kind}/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
                                 columns=rr.Scalars.columns(scalars=np.degrees(series)))
+    log_story(stream, f"**Orientation estimators on one {variant} session** ({schedule}, hand {hand}, sensor {sensor}, seed "
+                      f"{seed}, {t[-1] - t[0]:.0f} s): the true attitude (green board) and each estimator's, side by side "
+                      f"0.12 m apart; the rate disturbance acts {t_d:.1f}–{t_e:.1f} s. " + "; ".join(summary) + ".")
     stream.flush()
     return path

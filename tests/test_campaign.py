@@ -53,6 +53,16 @@ def test_results_have_provenance_summary_and_a_physical_trend(in_process):
     for r in summary:
         assert r["rms_S_pct_lo"] <= r["rms_S_pct"] <= r["rms_S_pct_hi"]
     assert (out / "summary.csv").is_file() and (out / "error_vs_severity.png").stat().st_size > 1000
+    # summary.rrd (issue 15): the summary as plots against the external acceleration, every cell on x,
+    # S and G errors on one log10 scale
+    from gyrosim.viewer import read_blueprint, read_texts
+
+    views = {v.origin: v for v in read_blueprint(out / "summary.rrd", sequence_timelines=["ext_acc_rms_mm_s2"])}
+    s_view, g_view = views["campaign/log10_rms_S_pct"], views["campaign/log10_rms_G_pct"]
+    assert s_view.y_range == g_view.y_range and "campaign/failed_pct" in views
+    lo, hi = s_view.time_ranges["ext_acc_rms_mm_s2"]
+    assert all(lo <= round(r["ext_acc_rms_m_s2"] * 1000) <= hi for r in summary)
+    assert "kf: S error" in read_texts(out / "summary.rrd")["story"]
 
 
 def test_rerun_skips_finished_tasks(in_process):

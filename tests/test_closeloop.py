@@ -63,6 +63,20 @@ def test_a_50_hz_disturbance_is_unexplained_structure_not_an_effect():
     res = run_closeloop(rec.with_signals(gyro_rad_s=gyro))
     assert res.found == [], [f.effect for f in res.found]
     lines = res.unexplained["spectral_lines"]
+    # its closeloop.rrd says nothing was found and marks the line on the y spectrum (issue 15)
+    import tempfile
+
+    import rerun as rr
+
+    from calib.closeloop.rrd import write_closeloop_rrd
+    from gyrosim.viewer import read_texts
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_closeloop_rrd(res, f"{tmp}/cl.rrd")
+        assert "Found nothing" in read_texts(path)["story"]
+        marked = [c for c in rr.chunk.RrdReader(str(path)).stream().to_chunks()
+                  if c.entity_path == "/closeloop/spectrum/y/unexplained"]
+        f_hz = np.asarray(marked[0].to_record_batch().column("BarChart:abscissa").to_pylist()[0][0]["buffer"], float)
+        assert np.min(np.abs(f_hz - 50.0)) < 0.5  # one Welch bin (fs/nperseg ≈ 0.2 Hz here) and then some
     assert lines, res.unexplained["summary"]
     top = lines[0]
     assert top["axis"] == "y" and abs(top["frequency_hz"] - 50.0) <= 0.1
@@ -153,8 +167,21 @@ def test_cli_writes_report_json_md_plots_and_rrd(tmp_path, typical_session):
     md = (tmp_path / "cl" / "report.md").read_text()
     assert re.search(r"time offset of 3\.[34]\d ± 0\.0\d ms", md) and "residual_vs_time_offset.png" in md
     assert (tmp_path / "cl" / "residual_vs_time_offset.png").stat().st_size > 1000
-    assert (tmp_path / "cl" / "closeloop.rrd").stat().st_size > 1000
     assert h5.read_bytes() == before  # nothing the user gave is touched
+    # closeloop.rrd opens on the comparison (issue 15): per axis, before and after in ONE view, the three
+    # on one y range, the whole recording on x; the found effect against its regressor; the spectrum
+    from gyrosim.viewer import read_blueprint, read_texts
+
+    views = read_blueprint(tmp_path / "cl" / "closeloop.rrd")
+    axes = [v for v in views if v.kind == "TimeSeries" and any("residual_before" in c for c in v.contents)]
+    assert len(axes) == 3
+    for v in axes:
+        a = v.contents[0].rsplit("/", 1)[-1]
+        assert f"closeloop/residual_after/{a}" in v.contents and v.y_range == axes[0].y_range
+        assert v.time_ranges["sensor_time"][0] <= rec.t_s[0] + 0.1 and v.time_ranges["sensor_time"][1] >= rec.t_s[-1] - 0.1
+    bars = {v.origin for v in views if v.kind == "BarChart"}
+    assert {f"closeloop/vs/time_offset/{a}" for a in "xyz"} <= bars and {f"closeloop/spectrum/{a}" for a in "xyz"} <= bars
+    assert "time offset of 3.4" in read_texts(tmp_path / "cl" / "closeloop.rrd")["story"]
 
 
 DATA = available_datasets()

@@ -192,6 +192,17 @@ def test_a_room_anomaly_is_reported_as_a_disturbance_not_absorbed(tmp_path):
     assert np.all(err / res.hard_iron_std_ut < 4.0), err / res.hard_iron_std_ut
     absorbed = calibrate_magnetometer(rec, "ellipsoid", detect_disturbances=False)
     assert absorbed.diagnostics["residual_field_rms_uT"] >= 2 * res.diagnostics["residual_field_rms_uT"]
+    # its recording (issue 15) opens on |B| raw and calibrated in one view over the whole walk, the
+    # disturbance marked inside that view, and a story that names it
+    from calib.viz_rerun import save_magnetometer_rrd
+    from gyrosim.viewer import read_blueprint, read_texts
+
+    path = save_magnetometer_rrd(tmp_path / "mag.rrd", rec, res)
+    views = {v.origin: v for v in read_blueprint(path)}
+    mag = views["mag/magnitude"]
+    assert "marks/disturbed" in mag.contents and mag.time_ranges["sensor_time"][1] >= rec.t_s[-1] - 0.01
+    assert {views["mag/cloud"].kind, views["world"].kind} == {"3D"}
+    assert f"{len(res.disturbances)} local disturbance(s) found" in read_texts(path)["story"]
 
 
 def test_one_axis_rotation_refuses_the_soft_iron_by_name_and_says_which_rotations_to_add():

@@ -278,6 +278,12 @@ def test_rerun_view_has_truth_estimators_and_error_series(tmp_path):
                    "/events/disturbance"):
         assert entity in text, entity
     assert "/world/mahony" not in text  # only the estimators asked for
+    # it opens on the whole session with a story naming each estimator (gyrosim.viewer, issue 15)
+    from gyrosim.viewer import read_blueprint, read_texts
+
+    views = {v.origin: v for v in read_blueprint(path)}
+    assert views["errors/tilt"].time_ranges["sensor_time"][1] > 100.0 and views["world"].kind == "3D"
+    assert "vqf RMS tilt" in read_texts(path)["story"]
 
 
 def test_declination_turns_magnetic_into_geographic_north():

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from calib.ratetable import calibrate_rate_table, piecewise_model
-from calib.thermal_comp import compare_methods, fit_compensation, split_cycles
+from calib.thermal_comp import compare_methods, fit_compensation, fit_methods, split_cycles
 from gyrosim.chamber import load_chamber, simulate_chamber
 from gyrosim.errors import PresetError, RecordingError
 from gyrosim.ratetable import simulate_rate_table
@@ -90,9 +90,11 @@ def test_chamber_sensor_lags_the_ramp_and_shows_heating_cooling_hysteresis(chamb
     np.testing.assert_allclose(gap, 2 * h * rate, rtol=0.05)
 
 
-def test_best_compensation_is_ten_times_better_on_held_out_cycles(chamber):
+def test_best_compensation_is_ten_times_better_on_held_out_cycles(chamber, tmp_path):
     cycles = split_cycles(chamber)
-    rows = {r.method: r for r in compare_methods(cycles[:2], cycles[2:])}
+    fitted = fit_methods(cycles[:2])
+    listed = compare_methods(cycles[:2], cycles[2:], fitted=fitted)
+    rows = {r.method: r for r in listed}
     none = rows["none"]
     best = min(rows.values(), key=lambda r: r.bias_stability_deg_h)
     assert best.method == "polynomial+dT/dt"  # the device has hysteresis: only this method models it
@@ -101,6 +103,19 @@ def test_best_compensation_is_ten_times_better_on_held_out_cycles(chamber):
     assert rows["polynomial+dT/dt"].held_out_rms_deg_s < 0.5 * rows["polynomial"].held_out_rms_deg_s
     for m in ("polynomial", "piecewise_linear", "rbf"):
         assert rows[m].held_out_rms_deg_s < 0.1 * none.held_out_rms_deg_s
+    # the same comparison as a recording (issue 15): every model's residual in one view per axis on one
+    # y range, the whole chamber run on x, the held-out cycles marked, the story names the best model
+    from calib.viz_temperature import save_temperature_rrd
+    from gyrosim.viewer import read_blueprint, read_texts
+
+    held = [(float(c.t_s[0]), float(c.t_s[-1])) for c in cycles[2:]]
+    path = save_temperature_rrd(tmp_path / "t.rrd", chamber, fitted, listed, held, "2 cycles")
+    views = {v.origin: v for v in read_blueprint(path)}
+    res = [views[f"temperature/residual/{a}"] for a in "xyz"]
+    assert res[0].y_range == res[1].y_range == res[2].y_range
+    assert all(v.time_ranges["sensor_time"] == (chamber.t_s[0], chamber.t_s[-1]) for v in res)
+    assert {views[f"temperature/vs_temp/{a}"].kind for a in "xyz"} == {"BarChart"}
+    assert "Best: **polynomial+dT/dt**" in read_texts(path)["story"]
 
 
 def test_compensated_recording_is_a_new_file_and_flattens_the_bias(chamber, tmp_path):

@@ -108,23 +108,10 @@ def _plot_vs_regressor(res: CloseloopResult, rows_of, effect: str, series: np.nd
 
 
 def _write_rrd(res: CloseloopResult, path: Path) -> Path:
-    import rerun as rr
+    """closeloop.rrd with its designed blueprint (:mod:`calib.closeloop.rrd`)."""
+    from .rrd import write_closeloop_rrd
 
-    scale, _ = _row_scale(res)
-    stream = rr.RecordingStream("gyrosim_calib_closeloop")
-    stream.save(str(path))
-    for name, r in (("before", res.residual_before), ("after", res.residual_after)):
-        for a in range(3):
-            m = res.row_axis == a
-            if not m.any():
-                continue
-            stream.send_columns(f"closeloop/residual_{name}/{AXES[a]}",
-                                indexes=[rr.TimeColumn("sensor_time", duration=res.row_time_s[m])],
-                                columns=rr.Scalars.columns(scalars=r[m] * scale))
-    text = "\n".join(f"- {f.trace}" for f in res.found) or "nothing found"
-    stream.log("closeloop/findings", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
-    stream.flush()
-    return path
+    return write_closeloop_rrd(res, path)
 
 
 def write_closeloop_report(out: str | Path, rec: Recording, res: CloseloopResult) -> dict[str, Path]:
@@ -146,7 +133,8 @@ def write_closeloop_report(out: str | Path, rec: Recording, res: CloseloopResult
                 series = res.follows_series.get(f.effect)
                 if series is not None:
                     plots.append(_plot_vs_regressor(res, res.rows_of, f.effect, series, out / f"residual_vs_{f.effect}.png"))
-        paths["rrd"] = _write_rrd(res, out / "closeloop.rrd")
+    # written for every result: with no reference it opens on the text saying why nothing was analysed
+    paths["rrd"] = _write_rrd(res, out / "closeloop.rrd")
     paths["md"] = out / "report.md"
     paths["md"].write_text(_markdown(res, data["recording"], plots))
     return paths
