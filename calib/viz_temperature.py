@@ -26,6 +26,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from gyrosim.recording import Recording
+from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
 from gyrosim.viewer import (MARK_COLOURS, Span, log_bars, log_marks, log_story, scalar_style, send_series, series_view,
                             shared_range, story_blueprint)
 
@@ -35,7 +36,6 @@ from .timeblocks import block_means, time_block_index
 __all__ = ["temperature_blueprint", "temperature_story", "save_temperature_rrd"]
 
 AXES = "xyz"
-DEG_H = 180.0 / math.pi * 3600.0
 BLOCK_S = 10.0
 METHOD_COLOURS = [(220, 60, 50), (40, 160, 70), (40, 90, 220), (200, 130, 20), (150, 60, 200), (20, 170, 170),
                   (120, 120, 120)]

@@ -30,6 +30,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from scipy import signal as sp_signal
 
+from gyrosim.units import RAD2DEG
 from gyrosim.viewer import (MARK_COLOURS, Span, log_bars, log_marks, log_story, scalar_style, send_series, series_view,
                             shared_range, story_blueprint)
 
@@ -38,13 +39,12 @@ from .loop import CloseloopResult
 __all__ = ["closeloop_blueprint", "closeloop_story", "write_closeloop_rrd"]
 
 AXES = "xyz"
-DEG = 180.0 / math.pi
 BEFORE, AFTER = (150, 150, 150), (30, 110, 220)
 AXIS_COLOURS = {"x": (220, 60, 50), "y": (40, 160, 70), "z": (40, 90, 220)}
 
 
 def _scale(res: CloseloopResult) -> tuple[float, str]:
-    return (DEG, "°/s") if res.reference in ("truth", "optical", "static") else (1.0, "weighted")
+    return (RAD2DEG, "°/s") if res.reference in ("truth", "optical", "static") else (1.0, "weighted")
 
 
 def _has_rows(res: CloseloopResult) -> bool:
@@ -216,7 +216,7 @@ def write_closeloop_rrd(res: CloseloopResult, path: str | Path, application_id: 
         if n >= 64:
             fs = 1.0 / float(np.median(np.diff(t0)))
             for name, r, w in (("before", res.residual_before, 0.9), ("after", res.residual_after, 0.45)):
-                blocks = np.stack([r[res.row_axis == a][:n] for a in range(3)], axis=1) * DEG
+                blocks = np.stack([r[res.row_axis == a][:n] for a in range(3)], axis=1) * RAD2DEG
                 f, asd = _spectrum(blocks, fs)
                 df = float(f[1] - f[0]) if f.size > 1 else 1.0
                 for a in range(3):
