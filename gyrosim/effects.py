@@ -306,9 +306,6 @@ def nonortho_matrix(g: np.ndarray) -> np.ndarray:
     return np.array([[0.0, gz, gy], [gz, 0.0, gx], [gy, gx, 0.0]])
 
 
-_nonortho_matrix = nonortho_matrix  # the former private name, for branches written before it was public
-
-
 @dataclass(frozen=True)
 class ScaleFactor(Effect):
     """Scale-factor error: δ = S x, S = diag(Sx, Sy, Sz) (dimensionless).  Zhou 2020 eq. 2."""
