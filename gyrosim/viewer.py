@@ -272,8 +272,14 @@ def _store_chunks(path: Path, blueprint: bool):
 
 
 def _columns(chunk) -> dict[str, list]:
+    """The component columns of a chunk as Python lists.  Timeline columns (log_time is a
+    nanosecond timestamp) are skipped: pyarrow converts those to Python only with pandas installed,
+    which is not a dependency, and no blueprint property lives in them."""
+    import pyarrow as pa
+
     rb = chunk.to_record_batch()
-    return {f.name: rb.column(i).to_pylist() for i, f in enumerate(rb.schema)}
+    return {f.name: rb.column(i).to_pylist() for i, f in enumerate(rb.schema)
+            if not (pa.types.is_timestamp(f.type) or pa.types.is_duration(f.type))}
 
 
 def read_blueprint(path: str | Path, sequence_timelines: Iterable[str] = ()) -> list[ViewInfo]:
