@@ -154,7 +154,6 @@ def kf_hand(rec: Recording) -> Calibration:
     if prep.saturated is not None:
         upd &= ~prep.saturated[a:]
     r_var = sigma_f2 / dec
-    g_up = np.array([0.0, 0.0, cfg0.gravity_m_s2])
     theta = prep.theta0.copy()
     hand0 = np.zeros(6)
     # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from calib.calibrate import calibrate, true_gyro_parameters
+from calib.calibrate import calibrate
 from gyrosim.calibration import truth_calibration
 from calib.cli import main as calib_main
 from calib.inputs import load_recording

@@ -45,4 +45,4 @@ __all__ = ["open_recording", "load_recording", "prepare_recording", "read_record
            "TEMPERATURE", "RATETABLE", "GENERIC", "CSV_COLUMNS", "KNOWN_COLUMNS", "MAX_PLAUSIBLE_RATE_RAD_S",
            "MAX_INSERTED_FRACTION", "resample_temperature", "saturated_samples", "InputError", "FormatError", "FieldError",
            "TimeBaseError", "GapError", "RateError", "UnitError", "SpikeError", "DegenerateError", "MotionError",
-           "TooShortError"]
+           "TooShortError", "TemperatureTrendError"]
