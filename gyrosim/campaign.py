@@ -78,22 +78,32 @@ class CampaignSpec:
 
     def validate(self) -> None:
         from .estimator import load_estimator
-        from .hand import load_hand
-        from .schedule import load_schedule
-        from .sensor_model import load_sensor
 
-        if self.seeds < 1:
-            raise GyrosimError("a campaign needs --seeds ≥ 1")
-        if not self.hands or not self.estimators:
-            raise GyrosimError("a campaign needs at least one hand and one estimator")
-        if any(not (math.isfinite(s) and s >= 0) for s in self.severity):
-            raise GyrosimError(f"severity factors must be finite and ≥ 0, got {self.severity}")
-        for h in self.hands:
-            load_hand(h)
-        load_sensor(self.sensor)
-        load_schedule(self.schedule)
+        validate_session_grid(self, "a campaign")
         for e in self.estimators:
             load_estimator(e)
+
+
+def validate_session_grid(spec, what: str):
+    """The checks every campaign spec shares, before any work: seeds, hands × estimators not empty,
+    severity factors finite and ≥ 0, and every hand, the sensor and the schedule loadable.  ``spec``
+    has ``seeds``, ``hands``, ``estimators``, ``severity``, ``sensor``, ``schedule``; ``what`` names
+    the campaign in the messages ("a campaign").  Returns the loaded sensor model."""
+    from .hand import load_hand
+    from .schedule import load_schedule
+    from .sensor_model import load_sensor
+
+    if spec.seeds < 1:
+        raise GyrosimError(f"{what} needs --seeds ≥ 1")
+    if not spec.hands or not spec.estimators:
+        raise GyrosimError(f"{what} needs at least one hand and one estimator")
+    if any(not (math.isfinite(s) and s >= 0) for s in spec.severity):
+        raise GyrosimError(f"severity factors must be finite and ≥ 0, got {spec.severity}")
+    for h in spec.hands:
+        load_hand(h)
+    sensor = load_sensor(spec.sensor)
+    load_schedule(spec.schedule)
+    return sensor
 
 
 def load_campaign(path: str | Path, **overrides) -> CampaignSpec:

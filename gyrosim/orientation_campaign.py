@@ -74,25 +74,14 @@ class OrientationSpec:
     name: str = "orientation"
 
     def validate(self) -> None:
+        from .campaign import validate_session_grid
         from .estimator import load_estimator
-        from .hand import load_hand
         from .orientation import load_orientation_estimator
-        from .schedule import load_schedule
-        from .sensor_model import load_sensor
 
-        if self.seeds < 1:
-            raise GyrosimError("an orientation campaign needs --seeds ≥ 1")
-        if not self.hands or not self.estimators:
-            raise GyrosimError("an orientation campaign needs at least one hand and one estimator")
         bad = set(self.variants) - set(VARIANTS)
         if bad or not self.variants:
             raise GyrosimError(f"variants must be among {VARIANTS}, got {self.variants}")
-        if any(not (math.isfinite(s) and s >= 0) for s in self.severity):
-            raise GyrosimError(f"severity factors must be finite and ≥ 0, got {self.severity}")
-        for h in self.hands:
-            load_hand(h)
-        sensor = load_sensor(self.sensor)
-        load_schedule(self.schedule)
+        sensor = validate_session_grid(self, "an orientation campaign")
         for e in self.estimators:  # a missing optional package is named here, before any work
             load_orientation_estimator(e)
         if any(e.endswith("_9d") for e in self.estimators) and not sensor.magnetometer:
