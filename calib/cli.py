@@ -964,10 +964,8 @@ def cmd_mag(args: argparse.Namespace) -> int:
         from gyrosim.sensor_model import stored_sensor_model
 
         mag_effects = stored_sensor_model(rec.meta).magnetometer
-        wn = [e for e in mag_effects if e.kind == "white_noise"]
-        lsb = [e for e in mag_effects if e.kind == "quantization"]
-        sig = math.sqrt(float(np.mean(wn[0].density ** 2 * rec.rate_hz + (lsb[0].lsb ** 2 / 12 if lsb else 0.0)))) \
-            if wn else 0.0
+        var = [v for v in (e.sample_noise_variance(rec.rate_hz) for e in mag_effects) if v is not None]
+        sig = math.sqrt(float(np.mean(sum(var)))) if any(e.is_white_noise for e in mag_effects) else 0.0
         floor = math.degrees(heading_noise_floor_rad(rec.truth.extra["mag_field"], up, sig, truth["soft_iron"]))
         rms_b, rms_a = (math.degrees(math.sqrt(float(np.mean(e**2)))) for e in (before, after))
         print(f"  vs truth: hard iron error {np.round(res.hard_iron_ut - truth['hard_iron_uT'], 3).tolist()} µT; "
