@@ -103,6 +103,8 @@ class Effect:
     is_white_noise: ClassVar[bool] = False  # the triad's white measurement noise (``density``)
     # the closed loop may propose it as a gyro term; None → every deterministic error-stage gyro effect
     candidate: ClassVar[bool | None] = None
+    # a non-candidate: why the loop fits no term for it and how it is covered instead ("" → a general reason)
+    closeloop_reason: ClassVar[str] = ""
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """Derive ``triads`` and ``candidate``, and register a class that declares its own ``kind``."""

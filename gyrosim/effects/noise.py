@@ -102,6 +102,8 @@ class WhiteNoise(Effect):
     """
 
     kind: ClassVar[str] = "white_noise"
+    closeloop_reason: ClassVar[str] = (
+        "the noise floor itself: its level is the held-out residual the loop reports, not a term to fit")
     quantities: ClassVar[dict[str, str]] = {"gyro": "rate_density", "accelerometer": "acceleration_density",
                                             "magnetometer": "magnetic_field_density"}
     stochastic: ClassVar[bool] = True
@@ -167,6 +169,9 @@ class BiasInstability(Effect):
     """
 
     kind: ClassVar[str] = "bias_instability"
+    closeloop_reason: ClassVar[str] = (
+        "tested together with random_walk as 'bias drift' (one slow bias; one recording cannot "
+        "separate the two spectra reliably)")
     quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
                                             "magnetometer": "magnetic_field"}
     stochastic: ClassVar[bool] = True

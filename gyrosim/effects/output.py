@@ -25,6 +25,9 @@ class Bandwidth(Effect):
     (y_0 = u_0).  Inverse: u_k = (y_k − a y_{k−1}) / (1 − a), exact."""
 
     kind: ClassVar[str] = "bandwidth"
+    closeloop_reason: ClassVar[str] = (
+        "a first-order low-pass equals a time offset d = 1/(2π f_c) to first order in f/f_c; tested as "
+        "time_offset, whose equivalent cutoff is reported")
     quantities: ClassVar[dict[str, str]] = {"gyro": "frequency", "accelerometer": "frequency",
                                             "magnetometer": "frequency"}
     stage: ClassVar[str] = "output"
@@ -99,6 +102,8 @@ class Jitter(Effect):
     is the signal interpolated there (cubic spline).  Random, not invertible."""
 
     kind: ClassVar[str] = "jitter"
+    closeloop_reason: ClassVar[str] = (
+        "random sampling-time error: checked as residual variance growing with |dω/dt|² (structure tests)")
     quantities: ClassVar[dict[str, str]] = {"gyro": "time", "accelerometer": "time", "magnetometer": "time"}
     stage: ClassVar[str] = "output"
     stochastic: ClassVar[bool] = True
@@ -119,6 +124,8 @@ class Quantization(Effect):
     information-losing: compensation leaves it (error ≤ LSB/2, RMS LSB/√12)."""
 
     kind: ClassVar[str] = "quantization"
+    closeloop_reason: ClassVar[str] = (
+        "not a residual term (RMS LSB/√12): detected from the output's granularity (checks)")
     quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
                                             "magnetometer": "magnetic_field"}
     pointwise: ClassVar[bool] = True
@@ -150,6 +157,8 @@ class Saturation(Effect):
     (:meth:`check`) naming how many samples sit at the rails."""
 
     kind: ClassVar[str] = "saturation"
+    closeloop_reason: ClassVar[str] = (
+        "not a residual term: detected as samples at the rails (checks)")
     quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
                                             "magnetometer": "magnetic_field"}
     pointwise: ClassVar[bool] = True
