@@ -44,8 +44,8 @@ __all__ = ["NOISE_TERMS", "ModelFit", "candidate_models", "fit_model", "identify
 
 # the vocabulary's noise terms, discovered (each effect says which of its fields a fit estimates)
 NOISE_TERMS: dict[str, type[Effect]] = {k: c for k, c in EFFECTS.items() if c.noise_parameters}
-SHORT = {"white_noise": "white", "quantization_noise": "qn", "bias_instability": "flicker", "random_walk": "rw",
-         "gauss_markov": "gm", "rate_ramp": "drift"}
+# kind → short name, in the canonical order of a model's terms (each class's noise_rank)
+SHORT = {k: c.noise_short_name for k, c in sorted(NOISE_TERMS.items(), key=lambda kc: kc[1].noise_rank)}
 LONG = {v: k for k, v in SHORT.items()}
 
 

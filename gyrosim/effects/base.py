@@ -230,6 +230,26 @@ class Effect:
     # ---------------------------------------------------------------- stochastic-model identification
     # the fields a stochastic-model fit (calib.noise, GMWM) estimates, each > 0; () = not a noise term
     noise_parameters: ClassVar[tuple[str, ...]] = ()
+    noise_short_name: ClassVar[str] = ""  # the term in a model name ("white+flicker+rw")
+    noise_rank: ClassVar[int] = 0         # a model lists its terms by rank (the shortest τ they dominate first)
+    # triad → unit of the noise parameter in SI, and in the datasheet unit a summary shows (``noise_units`` keys)
+    noise_si_units: ClassVar[dict[str, str]] = {}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {}
+
+    @classmethod
+    def noise_unit(cls, field: str, triad: str, *, datasheet: bool = False) -> str:
+        """Unit of the noise parameter ``field`` on ``triad`` (SI, or the datasheet unit); a correlation
+        time is in s."""
+        if field == "tau_s":
+            return "s"
+        return (cls.noise_datasheet_units if datasheet else cls.noise_si_units).get(triad, "SI")
+
+    @classmethod
+    def noise_units(cls, field: str, value: float, rate_hz: float, triad: str) -> dict[str, float]:
+        """{unit label: value} of one identified noise parameter (SI ``value``) in the units users
+        need: the continuous and discrete (per sample at ``rate_hz``) forms and the datasheet unit
+        (gyro units for ``triad == 'gyro'``, accelerometer units otherwise)."""
+        return {"si": value}
 
     def haar_wavelet_variance(self, m: np.ndarray, dt_s: float) -> np.ndarray:
         """Theoretical Haar (MODWT) wavelet variance ν²_j (3, J) of this term's sampled sequence at

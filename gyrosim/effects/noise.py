@@ -16,6 +16,7 @@ from scipy import signal as sp_signal
 
 from .. import _kernels as kern
 from ..errors import GyrosimError
+from ..units import DEG, G0
 from .base import Effect, _need_rng, _vec
 
 __all__ = ["WhiteNoise", "BiasInstability", "RandomWalk", "GaussMarkov", "QuantizationNoise", "RateRamp",
@@ -146,6 +147,19 @@ class WhiteNoise(Effect):
         return self.density**2 * rate_hz
 
     noise_parameters: ClassVar[tuple[str, ...]] = ("density",)
+    noise_short_name: ClassVar[str] = "white"
+    noise_rank: ClassVar[int] = 0
+    noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s/sqrt(Hz)", "accelerometer": "m/s^2/sqrt(Hz)"}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/sqrt(h)", "accelerometer": "ug/sqrt(Hz) (two-sided)"}
+
+    @classmethod
+    def noise_units(cls, field, value, rate_hz, triad):
+        # two-sided PSD N² (Kalibr noise_density), one-sided 2N², per sample σ = N √f_s; 1 °/s/√Hz = 60 °/√h
+        out = {"continuous_two_sided (Kalibr noise_density)": value, "one_sided": math.sqrt(2) * value,
+               "discrete_sigma_per_sample": value * math.sqrt(rate_hz)}
+        out.update({"deg/sqrt(h)": value / DEG * 60.0} if triad == "gyro" else
+                   {"ug/sqrt(Hz) (two-sided)": value / G0 * 1e6, "ug/sqrt(Hz) (one-sided)": math.sqrt(2) * value / G0 * 1e6})
+        return out
 
     def haar_wavelet_variance(self, m, dt_s):
         # σ² = N²/Δt per sample; ν² = σ²/(2m) (P&W 2000 eq. 296)
@@ -232,6 +246,17 @@ class BiasInstability(Effect):
     # a noise fit builds this effect with its default model, flicker (a Gauss–Markov term is the
     # gauss_markov effect, sized by σ and τ rather than by B)
     noise_parameters: ClassVar[tuple[str, ...]] = ("value",)
+    noise_short_name: ClassVar[str] = "flicker"
+    noise_rank: ClassVar[int] = 2
+    noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s", "accelerometer": "m/s^2"}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/h", "accelerometer": "ug"}
+
+    @classmethod
+    def noise_units(cls, field, value, rate_hz, triad):
+        # the Allan floor of flicker noise is 0.664 B (IEEE Std 952)
+        out = {"B": value, "allan_floor_0.664B": 0.664 * value}
+        out.update({"deg/h": value / DEG * 3600} if triad == "gyro" else {"ug": value / G0 * 1e6})
+        return out
 
     def haar_wavelet_variance(self, m, dt_s):
         if self.model == "gauss_markov":
@@ -289,6 +314,17 @@ class RandomWalk(Effect):
         return 1.0 / (2.0 * f_min) if f_min > 0 else None
 
     noise_parameters: ClassVar[tuple[str, ...]] = ("value",)
+    noise_short_name: ClassVar[str] = "rw"
+    noise_rank: ClassVar[int] = 3
+    noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s^2/sqrt(Hz)", "accelerometer": "m/s^3/sqrt(Hz)"}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/h/sqrt(h)", "accelerometer": "ug/sqrt(h)"}
+
+    @classmethod
+    def noise_units(cls, field, value, rate_hz, triad):
+        # two-sided PSD K² of the bias derivative (Kalibr random_walk), per sample σ = K √Δt
+        out = {"continuous_two_sided (Kalibr random_walk)": value, "discrete_sigma_per_sample": value * math.sqrt(1.0 / rate_hz)}
+        out.update({"deg/h/sqrt(h)": value / DEG * 3600 * 60} if triad == "gyro" else {"ug/sqrt(h)": value / G0 * 1e6 * 60})
+        return out
 
     def haar_wavelet_variance(self, m, dt_s):
         # increments γ² = K²Δt; ν² = γ² (2m² + 1)/(12 m) (sum of squared weights of the increments
@@ -316,6 +352,18 @@ class GaussMarkov(Effect):
     invertible: ClassVar[bool] = False
     param_fields: ClassVar[tuple[str, ...]] = ("sigma", "tau_s")
     noise_parameters: ClassVar[tuple[str, ...]] = ("sigma", "tau_s")
+    noise_short_name: ClassVar[str] = "gm"
+    noise_rank: ClassVar[int] = 4
+    noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s", "accelerometer": "m/s^2"}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/h", "accelerometer": "ug"}
+
+    @classmethod
+    def noise_units(cls, field, value, rate_hz, triad):
+        if field == "tau_s":  # correlation time, and the discrete φ = e^{−Δt/τ}
+            return {"s": value, "discrete_phi": math.exp(-(1.0 / rate_hz) / value)}
+        out = {"stationary_sigma": value}
+        out.update({"deg/h": value / DEG * 3600} if triad == "gyro" else {"ug": value / G0 * 1e6})
+        return out
     sigma: np.ndarray = field(default_factory=lambda: np.zeros(3))
     tau_s: np.ndarray = field(default_factory=lambda: np.full(3, 100.0))
 
@@ -363,7 +411,18 @@ class QuantizationNoise(Effect):
     invertible: ClassVar[bool] = False
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     noise_parameters: ClassVar[tuple[str, ...]] = ("value",)
+    noise_short_name: ClassVar[str] = "qn"
+    noise_rank: ClassVar[int] = 1
+    noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad", "accelerometer": "m/s"}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "arcsec", "accelerometer": "mm/s"}
     value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @classmethod
+    def noise_units(cls, field, value, rate_hz, triad):
+        # per rate sample σ = √2 Q f_s (the difference of two angle errors over Δt)
+        out = {"Q": value, "discrete_sigma_per_sample": math.sqrt(2) * value * rate_hz}
+        out.update({"arcsec": value / DEG * 3600} if triad == "gyro" else {"mm/s": value * 1e3})
+        return out
 
     def __post_init__(self) -> None:
         v = _vec(self.value, name="quantization noise Q")
@@ -394,7 +453,17 @@ class RateRamp(Effect):
     quantities: ClassVar[dict[str, str]] = {"gyro": "rate_ramp", "accelerometer": "acceleration_ramp"}
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     noise_parameters: ClassVar[tuple[str, ...]] = ("value",)
+    noise_short_name: ClassVar[str] = "drift"
+    noise_rank: ClassVar[int] = 5
+    noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s^2", "accelerometer": "m/s^3"}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/h^2", "accelerometer": "ug/h"}
     value: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @classmethod
+    def noise_units(cls, field, value, rate_hz, triad):
+        out = {"R": value}
+        out.update({"deg/h^2": value / DEG * 3600**2} if triad == "gyro" else {"ug/h": value / G0 * 1e6 * 3600})
+        return out
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "value", _vec(self.value, name="rate ramp"))
