@@ -420,13 +420,13 @@ def cmd_noise(args: argparse.Namespace) -> int:
         trend_msg = (f"the temperature changes by {trend:+.2f} °C over the {rec.duration_s:.0f}-s record (straight-line fit): "
                      "the bias follows the temperature, so its drift would be read as random walk (or rate ramp) and "
                      "that estimate biased high")
-        asked_slow = models is not None and any(k in ("random_walk", "rate_ramp") for k in models[0])
+        asked_slow = models is not None and any(NOISE_TERMS[k].noise_bias_drift for k in models[0])
         if asked_slow and not args.allow_temperature_trend:
             raise TemperatureTrendError(f"{args.recording}: {trend_msg}; record at a stable temperature, compensate the "
                                         "temperature first (calib temperature), or pass --allow-temperature-trend")
         warnings.append(trend_msg)
     res = identify_noise(x, rec.rate_hz, args.triad, models, tuple(warnings))
-    chosen_slow = [a.axis for a in res.axes if any(k in ("random_walk", "rate_ramp") for k in a.selection.chosen.kinds)]
+    chosen_slow = [a.axis for a in res.axes if any(NOISE_TERMS[k].noise_bias_drift for k in a.selection.chosen.kinds)]
     if trend_msg and chosen_slow and not args.allow_temperature_trend:
         raise TemperatureTrendError(f"{args.recording}: axes {', '.join(chosen_slow)} chose a random walk or rate ramp, "
                                     f"but {trend_msg}; record at a stable temperature, compensate the temperature first "

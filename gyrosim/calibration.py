@@ -54,6 +54,7 @@ _SUMMARY = {"gyro": ((Bias.kind, "bias_rad_s"), (ScaleFactor.kind, "scale_factor
                               (NonOrthogonality.kind, "nonorthogonality"))}
 # the linear model ω̃ = (I + S + N) ω + b (Zhou 2020 eq. 1): its effect classes, by kind
 _LINEAR = {cls.kind: cls for cls in (Bias, ScaleFactor, NonOrthogonality)}
+LINEAR_KINDS = tuple(_LINEAR)  # ("bias", "scale_factor", "nonorthogonality"), the vector order
 
 
 def _deterministic(effects: tuple[Effect, ...]) -> tuple[Effect, ...]:
@@ -224,11 +225,11 @@ class Calibration:
 
     def vector(self, triad: str = "gyro") -> np.ndarray:
         """(b, S, G) of ``triad`` (9,), the order of :meth:`linear_covariance`."""
-        return np.concatenate([self.value(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")])
+        return np.concatenate([self.value(triad, k) for k in LINEAR_KINDS])
 
     def linear_covariance(self, triad: str = "gyro") -> np.ndarray:
         """Covariance (9, 9) of :meth:`vector`."""
-        return self.block_covariance([(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")])
+        return self.block_covariance([(triad, k) for k in LINEAR_KINDS])
 
     @property
     def ok(self) -> bool:

@@ -202,7 +202,7 @@ def fit_model(kinds: tuple[str, ...], wv: WaveletVariance, sd: np.ndarray) -> Mo
     from scipy.optimize import minimize, nnls
 
     model = _Model(kinds, wv.m, wv.dt_s)
-    gm = [j for j, k in enumerate(kinds) if k == "gauss_markov"]
+    gm = [j for j, k in enumerate(kinds) if "tau_s" in NOISE_TERMS[k].noise_parameters]  # terms with a correlation time
     w = 1.0 / sd
 
     def solve(cols: np.ndarray) -> tuple[np.ndarray, float]:

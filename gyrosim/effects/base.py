@@ -231,6 +231,7 @@ class Effect:
     # the fields a stochastic-model fit (calib.noise, GMWM) estimates, each > 0; () = not a noise term
     noise_parameters: ClassVar[tuple[str, ...]] = ()
     noise_short_name: ClassVar[str] = ""  # the term in a model name ("white+flicker+rw")
+    noise_bias_drift: ClassVar[bool] = False  # a slow bias drift: a temperature trend over a record reads as it
     noise_rank: ClassVar[int] = 0         # a model lists its terms by rank (the shortest τ they dominate first)
     # triad → unit of the noise parameter in SI, and in the datasheet unit a summary shows (``noise_units`` keys)
     noise_si_units: ClassVar[dict[str, str]] = {}

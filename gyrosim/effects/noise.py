@@ -315,6 +315,7 @@ class RandomWalk(Effect):
 
     noise_parameters: ClassVar[tuple[str, ...]] = ("value",)
     noise_short_name: ClassVar[str] = "rw"
+    noise_bias_drift: ClassVar[bool] = True
     noise_rank: ClassVar[int] = 3
     noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s^2/sqrt(Hz)", "accelerometer": "m/s^3/sqrt(Hz)"}
     noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/h/sqrt(h)", "accelerometer": "ug/sqrt(h)"}
@@ -454,6 +455,7 @@ class RateRamp(Effect):
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
     noise_parameters: ClassVar[tuple[str, ...]] = ("value",)
     noise_short_name: ClassVar[str] = "drift"
+    noise_bias_drift: ClassVar[bool] = True
     noise_rank: ClassVar[int] = 5
     noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s^2", "accelerometer": "m/s^3"}
     noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/h^2", "accelerometer": "ug/h"}
