@@ -121,3 +121,24 @@ def test_toy_effect_is_proposed_first_by_the_loop_in_its_own_unit(toy, recording
     assert "‰/(rad/s)" in first.evidence["summary"]  # the unit the class declares, scaled by its factor
     assert f"{est[0] * 1e3:.3g}" in first.evidence["summary"]
     assert toy(**{k: v for k, v in first.model.items() if k != "effect"}).value.shape == (3,)  # injectable
+
+
+def test_the_registry_is_filled_by_definition_and_refuses_a_kind_defined_twice():
+    from gyrosim.effects import Bias
+    from gyrosim.errors import GyrosimError
+
+    before = dict(EFFECTS)
+
+    @dataclass(frozen=True)
+    class LoudBias(Bias):  # a variant without a kind of its own: not a new vocabulary entry
+        pass
+
+    assert EFFECTS == before and LoudBias.kind == "bias"
+    with pytest.raises(GyrosimError, match="defined twice"):
+        @dataclass(frozen=True)
+        class OtherBias(VectorEffect):
+            kind: ClassVar[str] = "bias"
+            quantities: ClassVar[dict[str, str]] = {"gyro": "rate"}
+    assert EFFECTS == before and EFFECTS["bias"] is Bias
+    # derived declarations: a deterministic error-stage gyro effect is a loop candidate, a random one is not
+    assert Bias.candidate and not EFFECTS["white_noise"].candidate and EFFECTS["white_noise"].closeloop_reason
