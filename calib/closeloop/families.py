@@ -48,9 +48,9 @@ __all__ = ["earth_rate_summary"]
 
 
 
-def _proto_candidate(family: CandidateFamily, proto: Effect, ctx: SignalContext, follows: str,
-                     series: np.ndarray | None) -> Candidate:
-    reg = np.asarray(proto.sensitivity(ctx.omega_true_rad_s, ctx), dtype=float)
+def _class_candidate(family: CandidateFamily, ctx: SignalContext, follows: str, series: np.ndarray | None) -> Candidate:
+    """The candidate of the family's effect class as the class builds it (``Effect.candidate_regressor``)."""
+    proto, reg = family.effects[0].candidate_regressor(ctx)
     return Candidate(family, proto.kind, tuple(proto.param_names()), proto.with_params, follows, series, reg)
 
 
@@ -64,7 +64,7 @@ class ConstantBias(CandidateFamily):
     separated_by = "—"
 
     def build(self, kind, ctx, ref, options):
-        return _proto_candidate(self, Bias(), ctx, "a constant", np.ones_like(ctx.omega_true_rad_s))
+        return _class_candidate(self, ctx, "a constant", np.ones_like(ctx.omega_true_rad_s))
 
     def plausible_max(self, kind, ctx):
         return math.radians(5.0)
@@ -87,11 +87,10 @@ class _AxisMatrix(_RateDriven):
     equations of the gravity reference have far-away spurious solutions)."""
 
     bound = 0.3
-    proto: type[Effect] = ScaleFactor
     follows_text = ""
 
     def build(self, kind, ctx, ref, options):
-        return _proto_candidate(self, self.proto(), ctx, self.follows_text, ctx.omega_true_rad_s)
+        return _class_candidate(self, ctx, self.follows_text, ctx.omega_true_rad_s)
 
     def plausible_max(self, kind, ctx):
         return 0.05
@@ -107,7 +106,6 @@ class _AxisMatrix(_RateDriven):
 class ScaleFactorFamily(_AxisMatrix):
     effects = (ScaleFactor,)
     driver = "the rate on the same axis"
-    proto = ScaleFactor
     follows_text = "the rate on the same axis"
 
 
@@ -115,7 +113,6 @@ class ScaleFactorFamily(_AxisMatrix):
 class NonOrthogonalityFamily(_AxisMatrix):
     effects = (NonOrthogonality,)
     driver = "the rate on the other axes"
-    proto = NonOrthogonality
     follows_text = "the rate on the other axes (symmetric)"
 
 
@@ -123,7 +120,6 @@ class NonOrthogonalityFamily(_AxisMatrix):
 class MisalignmentFamily(_AxisMatrix):
     effects = (Misalignment,)
     driver = "the rate on the other axes"
-    proto = Misalignment
     follows_text = "the rate on the other axes"
 
     def caveat(self, kind, reference_kind):
@@ -155,7 +151,7 @@ class ScaleNonlinearityFamily(_RateDriven):
 
     def build(self, kind, ctx, ref, options):
         w = ctx.omega_true_rad_s
-        return _proto_candidate(self, ScaleNonlinearity(), ctx, "ω·|ω| on the same axis", w * np.abs(w))
+        return _class_candidate(self, ctx, "ω·|ω| on the same axis", w * np.abs(w))
 
     def plausible_max(self, kind, ctx):
         return 5e-3
@@ -181,7 +177,7 @@ class TimeOffsetFamily(CandidateFamily):
         if options.modelled_rate is not None:
             ctx = replace(ctx, omega_true_rad_s=options.modelled_rate)
         dw = np.gradient(ctx.omega_true_rad_s, ctx.t_s, axis=0)
-        return _proto_candidate(self, TimeOffset(), ctx, "dω/dt", dw)
+        return _class_candidate(self, ctx, "dω/dt", dw)
 
     def plausible_max(self, kind, ctx):
         return 50e-3
@@ -238,7 +234,7 @@ class GSensitivityFamily(CandidateFamily):
     separated_by = "rotations through different attitudes at constant temperature (a multi-position test)"
 
     def build(self, kind, ctx, ref, options):
-        return _proto_candidate(self, GSensitivity(), ctx, "the specific force", ctx.specific_force_true_m_s2)
+        return _class_candidate(self, ctx, "the specific force", ctx.specific_force_true_m_s2)
 
     def plausible_max(self, kind, ctx):
         return math.radians(0.5) / G0
@@ -266,7 +262,7 @@ class MagneticSensitivityFamily(CandidateFamily):
     def build(self, kind, ctx, ref, options):
         if ctx.mag_body_ut is None:
             return Untestable(kind, "the recording has no magnetometer channel")
-        return _proto_candidate(self, MagneticSensitivity(), ctx, "the magnetic field", ctx.mag_body_ut)
+        return _class_candidate(self, ctx, "the magnetic field", ctx.mag_body_ut)
 
     def plausible_max(self, kind, ctx):
         return math.radians(0.01)
@@ -326,10 +322,9 @@ class TemperatureBiasFamily(_Temperature):
     effects = (TemperatureBias,)
 
     def _build(self, kind, ctx):
-        t_ref, lo, hi = self._range(ctx)
-        proto = TemperatureBias(coefficients=np.zeros((3, 1)), t_ref_c=t_ref, range_c=(lo - 1.0, hi + 1.0))
+        t_ref, _, _ = self._range(ctx)
         temp = np.broadcast_to((ctx.temperature_c - t_ref)[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the temperature", temp)
+        return _class_candidate(self, ctx, "the temperature", temp)
 
     def plausible_max(self, kind, ctx):
         return math.radians(0.5)
@@ -341,10 +336,9 @@ class TemperatureScaleFamily(_Temperature):
     driver = "the temperature times the rate"
 
     def _build(self, kind, ctx):
-        t_ref, lo, hi = self._range(ctx)
-        proto = TemperatureScale(coefficients=np.zeros((3, 1)), t_ref_c=t_ref, range_c=(lo - 1.0, hi + 1.0))
+        t_ref, _, _ = self._range(ctx)
         w = ctx.omega_true_rad_s
-        return _proto_candidate(self, proto, ctx, "temperature × rate", (ctx.temperature_c - t_ref)[:, None] * w)
+        return _class_candidate(self, ctx, "temperature × rate", (ctx.temperature_c - t_ref)[:, None] * w)
 
     def plausible_max(self, kind, ctx):
         return 1e-3
@@ -362,9 +356,9 @@ class ThermalHysteresisFamily(_Temperature):
     separated_by = "a heating and a cooling pass over the same temperatures"
 
     def _build(self, kind, ctx):
-        proto = ThermalHysteresis(tau_s=300.0)
-        series = np.broadcast_to(proto.regressor(ctx)[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the low-passed temperature rate dT/dt", series)
+        series = np.broadcast_to(ThermalHysteresis.candidate_prototype(ctx).regressor(ctx)[:, None],
+                                 ctx.omega_true_rad_s.shape)
+        return _class_candidate(self, ctx, "the low-passed temperature rate dT/dt", series)
 
     def plausible_max(self, kind, ctx):
         return math.radians(100.0)
@@ -377,10 +371,8 @@ class TemperaturePiecewiseFamily(_Temperature):
     effects = (TemperaturePiecewise,)
 
     def _build(self, kind, ctx):
-        _, lo, hi = self._range(ctx)
-        proto = TemperaturePiecewise(points_c=np.linspace(lo, hi, 5), bias=np.zeros((3, 5)), scale=np.zeros((3, 5)))
         temp = np.broadcast_to((ctx.temperature_c - np.mean(ctx.temperature_c))[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the temperature (piecewise linear)", temp)
+        return _class_candidate(self, ctx, "the temperature (piecewise linear)", temp)
 
     def plausible_max(self, kind, ctx):
         return np.concatenate([np.full(15, math.radians(30.0)), np.full(15, 0.05)])
@@ -393,12 +385,9 @@ class TemperatureRBFFamily(_Temperature):
     effects = (TemperatureRBF,)
 
     def _build(self, kind, ctx):
-        t_ref, lo, hi = self._range(ctx)
-        centres = np.linspace(lo, hi, 6)
-        proto = TemperatureRBF(centres_c=centres, width_c=float(centres[1] - centres[0]), t_ref_c=t_ref,
-                               weights=np.zeros((3, 6)))
+        t_ref, _, _ = self._range(ctx)
         temp = np.broadcast_to((ctx.temperature_c - t_ref)[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the temperature (RBF of ΔT, ΔT²)", temp)
+        return _class_candidate(self, ctx, "the temperature (RBF of ΔT, ΔT²)", temp)
 
     def plausible_max(self, kind, ctx):
         return math.radians(30.0)

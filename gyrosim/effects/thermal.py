@@ -19,6 +19,12 @@ from .base import Effect, SignalContext, VectorEffect
 __all__ = ["TemperatureBias", "TemperatureScale", "ThermalHysteresis", "TemperaturePiecewise", "TemperatureRBF"]
 
 
+def _span_c(ctx: SignalContext) -> tuple[float, float, float]:
+    """(mean, min, max) of the recording's temperature (°C): where a thermal candidate is centred and valid."""
+    temp = ctx.require("temperature_c", "a thermal candidate")
+    return float(np.mean(temp)), float(np.min(temp)), float(np.max(temp))
+
+
 def _poly(t: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
     """Σ_p c[:, p] ΔT^(p+1) for coefficient matrix (3, P) → (N, 3)."""
     powers = np.stack([t ** (p + 1) for p in range(coeffs.shape[1])], axis=1)  # (N, P)
@@ -49,6 +55,12 @@ class TemperatureBias(Effect):
             if not np.all(np.isfinite(c)):
                 raise GyrosimError(f"{self.kind}: coefficients must be finite")
             object.__setattr__(self, name, c)
+
+    @classmethod
+    def candidate_prototype(cls, ctx):
+        """First order about the recording's mean temperature, valid 1 °C beyond its span."""
+        t_ref, lo, hi = _span_c(ctx)
+        return cls(coefficients=np.zeros((3, 1)), t_ref_c=t_ref, range_c=(lo - 1.0, hi + 1.0))
 
     def _dT(self, ctx: SignalContext) -> np.ndarray:
         temp = ctx.require("temperature_c", self.kind)
@@ -173,6 +185,12 @@ class TemperaturePiecewise(Effect):
                 raise GyrosimError(f"temperature_pwl: {name} must be finite with shape (3, {pts.size}), got {v.shape}")
             object.__setattr__(self, name, v)
 
+    @classmethod
+    def candidate_prototype(cls, ctx):
+        """Five points spread evenly over the recording's temperature span (seed 001)."""
+        _, lo, hi = _span_c(ctx)
+        return cls(points_c=np.linspace(lo, hi, 5), bias=np.zeros((3, 5)), scale=np.zeros((3, 5)))
+
     def _h(self, ctx: SignalContext) -> np.ndarray:
         return _hats(ctx.require("temperature_c", self.kind), self.points_c)
 
@@ -230,6 +248,13 @@ class TemperatureRBF(Effect):
         if w.shape != (3, c.size) or not np.all(np.isfinite(w)):
             raise GyrosimError(f"temperature_rbf: weights must be finite with shape (3, {c.size}), got {w.shape}")
         object.__setattr__(self, "weights", w)
+
+    @classmethod
+    def candidate_prototype(cls, ctx):
+        """Six centres spread evenly over the recording's span, one spacing wide, about its mean (seed 003)."""
+        t_ref, lo, hi = _span_c(ctx)
+        centres = np.linspace(lo, hi, 6)
+        return cls(centres_c=centres, width_c=float(centres[1] - centres[0]), t_ref_c=t_ref, weights=np.zeros((3, 6)))
 
     def basis(self, temp_c: np.ndarray) -> np.ndarray:
         """(N, K) Gaussian activations of the hidden layer."""
