@@ -1,21 +1,30 @@
-"""The model loop: fit the declared model, find what its residual lacks, add it, repeat — naming causes, not proxies.
+"""The gyro/accelerometer model loop: fit the declared model, find what its residual lacks, add it,
+repeat — naming causes, not proxies (docs/closeloop.md).
 
-Small named steps over typed values:
+Small named steps over typed, frozen values; the rounds are the driver's
+(:mod:`calib.closeloop.driver`, shared with the magnetometer loop :mod:`calib.closeloop.mag_loop`),
+the round's gyro steps are :class:`calib.closeloop.select.GyroSteps`:
 
 1. **reference** (:func:`~calib.closeloop.reference.build_reference`): truth rate > optical
-   orientation > at rest (zero rate) | gravity self-consistency; its rows are split into
-   alternating fit / held-out stretches (4 s by default).
-2. **residual of the declared model**: the vocabulary effects the user names (default bias,
-   scale factor, non-orthogonality: Zhou 2020 eq. 1), fitted by least squares on the fit rows
-   (:func:`~calib.closeloop.state.refit`).
-3. **candidates**: every other gyro effect of the vocabulary, built by its family
-   (:mod:`calib.closeloop.families`); one that cannot be built says why.
-4. **select** (:func:`~calib.closeloop.select.run_round`): identifiability gate → held-out gain →
-   confounding rule → acceptance on every held-out metric.
-5. **add**: the accepted term joins the model; repeat until no candidate is accepted.
-6. **report**: parameters on all rows, errors on held-out rows, the trace of each finding, what
-   could not be tested and why, confounded groups, refused additions and metric disagreements, and
-   the structure no candidate explains (:mod:`calib.closeloop.structure`).
+   orientation > at rest (zero rate) | gravity self-consistency; its rows r (rad/s, or weighted
+   pose-to-pose rows) are split into alternating fit / held-out stretches (4 s by default).  A
+   recording with none gives a report that says why (:class:`~calib.closeloop.reference.NoReferenceError`).
+2. **residual of the declared model** (:func:`_declared_residual`): the vocabulary effects the user
+   names (default bias, scale factor, non-orthogonality: y = (I + S + N) ω + b, Zhou et al. 2020
+   eq. 1), fitted by least squares on the fit rows, θ̂ = argmin ‖r − J θ‖² (:func:`~calib.closeloop.state.refit`).
+3. **candidates** (:func:`_candidates`): every other gyro effect of the vocabulary, its regressor
+   the effect's own sensitivity built by its family (:mod:`calib.closeloop.families`); one that
+   cannot be built says why (a :class:`~calib.closeloop.driver.NotTaken`).
+4. **select** (:class:`~calib.closeloop.select.GyroSteps`, :func:`~calib.closeloop.driver.select`):
+   identifiability gate → held-out gain G = n_eff ln(RSS₀/RSS₁) − Δp ln n_eff → confounding rule
+   → acceptance on every held-out metric (Wilcoxon signed-rank z per stretch).
+5. **add** (:func:`~calib.closeloop.driver.run_rounds`): the accepted term joins the model; repeat
+   until no candidate is accepted (at most ``max_rounds``).
+6. **report** (:func:`_report` → :class:`CloseloopResult`): parameters on all rows with σ the larger
+   of the τ_int-inflated and the cluster-robust covariance plus each term's own stochastic part
+   (:func:`_final_covariance`), errors on held-out rows, the trace of each finding, what could not
+   be tested and why, confounded groups, refused additions and metric disagreements, and the
+   structure no candidate explains (:mod:`calib.closeloop.structure`).
 """
 
 from __future__ import annotations
@@ -48,9 +57,11 @@ from .reference import GravityReference, NoReferenceError, RateReference, Refere
 from .result import Finding, LoopReport
 from .select import GyroSteps
 from .state import LoopSetup, ModelState, refit
-from .structure import channel_correlations, spectral_lines, variance_growth, whiteness
+from .structure import ChannelCorrelation, JitterGrowth, SpectralLine, channel_correlations, spectral_lines, \
+    variance_growth, whiteness
 
-__all__ = ["Finding", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED"]
+__all__ = ["Finding", "RateEvidence", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED",
+           "JSON_KEYS"]
 
 DEFAULT_DECLARED = ("bias", "scale_factor", "nonorthogonality")
 
@@ -89,25 +100,29 @@ class RateEvidence(JsonView):
 
 @dataclass(frozen=True)
 class Unexplained(JsonView):
-    """Structure in the final residual that no candidate explains."""
+    """Structure in the final residual that no candidate explains (docs/closeloop.md §7): spectral
+    lines, correlations with every channel, the residual's whiteness per axis (τ_int, Ljung–Box Q)
+    and variance growing with (dω/dt)² as timing jitter would."""
 
-    spectral_lines: tuple = ()
-    channel_correlations: tuple = ()
-    whiteness: dict = field(default_factory=dict)
-    variance_growth: dict | None = None
+    spectral_lines: tuple[SpectralLine, ...] = ()
+    channel_correlations: tuple[ChannelCorrelation, ...] = ()
+    whiteness: dict[str, float] = field(default_factory=dict)
+    variance_growth: JitterGrowth | None = None
     summary: str = ""
 
     def to_json(self) -> dict:
         return {"spectral_lines": [asdict(x) for x in self.spectral_lines],
                 "channel_correlations": [asdict(x) for x in self.channel_correlations],
-                "whiteness": dict(self.whiteness), "variance_growth": self.variance_growth, "summary": self.summary}
+                "whiteness": dict(self.whiteness),
+                "variance_growth": None if self.variance_growth is None else self.variance_growth.to_json(),
+                "summary": self.summary}
 
 
 @dataclass(frozen=True)
 class Checks(JsonView):
     """What the output itself says: quantization step per axis (rad/s), saturated samples, input warnings."""
 
-    quantization_lsb: dict
+    quantization_lsb: dict[str, float | None]
     saturated_samples: int
     warnings: tuple[str, ...]
 
@@ -534,8 +549,8 @@ def _unexplained(ref: Reference, rec: Recording, r: np.ndarray, held: np.ndarray
     dw = ref.rows_of(np.gradient(ref.ctx.omega_true_rad_s, ref.ctx.t_s, axis=0)).reshape(-1, 3)
     jitter = variance_growth(blocks, dw)
     if jitter:
-        parts.append(f"residual variance grows with (dω/dt)² as sampling-time jitter of {jitter['jitter_s'] * 1e3:.2f} ms "
-                     f"would ({jitter['z']:.1f}σ)")
+        parts.append(f"residual variance grows with (dω/dt)² as sampling-time jitter of {jitter.jitter_s * 1e3:.2f} ms "
+                     f"would ({jitter.z:.1f}σ)")
     taus = [white[f"tau_int_{a}"] for a in "xyz"]
     parts.append(f"residual autocorrelation time {min(taus):.1f}–{max(taus):.1f} samples (1 = white)")
     return Unexplained(tuple(lines), tuple(corr), white, jitter, "; ".join(parts))

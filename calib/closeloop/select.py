@@ -2,7 +2,8 @@
 score → confounding → acceptance on every metric → add (or not).
 
 1. **Gate** (:mod:`calib.closeloop.identify`): every candidate left in the pool is checked for
-   identifiability against the current model; one that fails leaves the pool with its reason.
+   identifiability against the current model; one that fails says why and is gated again next
+   round (once another term explains its part of the residual, its own excitation may show).
 2. **Score** (:func:`calib.closeloop.fit.held_out_score`): held-out gain G of each identifiable
    candidate; a positive G whose fitted parameters are physically implausible is refused.
 3. **Confounding** (:mod:`calib.closeloop.confounding`): the best candidate tied to a measured
@@ -10,9 +11,9 @@ score → confounding → acceptance on every metric → add (or not).
    nothing else has G > 0) and those that explain the same residual form a group; the rule picks
    the one that explains all the others do, else the physically direct channel first, and the drift
    only over a partial mimic of it.
-4. **Acceptance** (:mod:`calib.closeloop.metrics`): the model with the pick, fitted on the fit
-   rows, must leave no held-out metric worse beyond its noise, against the current model and
-   against the declared one.  A refused pick is reported (with the metrics' disagreement, if any)
+4. **Acceptance** (:func:`calib.closeloop.driver.accept_on_every_metric`): the model with the
+   pick, fitted on the fit rows, must leave no held-out metric worse beyond its noise, against the
+   current model and against the declared one.  A refused pick is reported (with the metrics' disagreement, if any)
    and the next best is tried.
 """
 
