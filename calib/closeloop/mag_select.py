@@ -24,7 +24,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .confounding import ConfoundedGroup, MemberEvidence
+from .confounding import MIN_OVERLAP, ConfoundedGroup, MemberEvidence, contribution_correlation, overlap
 from .driver import CandidateScore, NotTaken, Rejection, Scoring, accept_on_every_metric
 from .fit import integrated_time
 from .identify import Excitation
@@ -35,9 +35,8 @@ from .mag_reference import MagReference
 from .mag_terms import mag_term
 from .metrics import MetricChange, MetricSums
 
-__all__ = ["MagSetup", "MagSteps", "MAG_RULE", "MIN_OVERLAP", "noise_of"]
+__all__ = ["MagSetup", "MagSteps", "MAG_RULE", "noise_of"]
 
-MIN_OVERLAP = 0.5
 MAG_RULE = ("a member that explains all another does and more first; else the larger held-out gain (every magnetometer "
             "candidate reads its cause through the same channel: the reference field)")
 
@@ -163,17 +162,13 @@ class MagSteps:
                 continue
             fk = fits[k]
             both = c.fit(state.kinds + (best, k), state)
-            rb, rc, rbc = fits[best].rss(held), fk.rss(held), both.rss(held)
-            e_b, e_c = rss0 - rb, rss0 - rc
-            overlap = (e_b - (rc - rbc)) / min(e_b, e_c) if min(e_b, e_c) > 0 else 0.0
+            rc = fk.rss(held)
+            share = overlap(rss0, fits[best].rss(held), rc, both.rss(held))
             g_cb, g_bc = c.gain(fits[best], both), c.gain(fk, both)
-            if overlap >= MIN_OVERLAP or g_cb <= 0 or g_bc <= 0:
-                d_b, d_c = (state.residual[held] - fits[best].residual[held]).ravel(), \
-                    (state.residual[held] - fk.residual[held]).ravel()
-                den = float(np.linalg.norm(d_b) * np.linalg.norm(d_c))
-                members.append(MemberEvidence(k, "reference_field", live[k], 1 - rc / rss0, float(overlap),
-                                              float(g_cb), float(g_bc), float(d_b @ d_c) / den if den > 0 else math.nan,
-                                              mag_term(k).separated_by))
+            if share >= MIN_OVERLAP or g_cb <= 0 or g_bc <= 0:
+                rho = contribution_correlation(state.residual[held], fits[best].residual[held], fk.residual[held])
+                members.append(MemberEvidence(k, "reference_field", live[k], 1 - rc / rss0, float(share), float(g_cb),
+                                              float(g_bc), rho, mag_term(k).separated_by))
                 if g_bc <= 0 < g_cb:
                     wider.append(k)
         if not members:
