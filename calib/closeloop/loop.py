@@ -54,7 +54,7 @@ from .mag_loop import MagLoopResult, reference_frame_note, run_mag_loop
 from .mag_terms import is_mag_kind
 from .metrics import MetricChange, compare_metrics, explain_disagreement
 from .reference import GravityReference, NoReferenceError, RateReference, Reference, build_reference
-from .result import Finding, LoopReport
+from .result import Finding, LoopReport, trace_of
 from .select import GyroSteps
 from .state import LoopSetup, ModelState, refit
 from .structure import ChannelCorrelation, JitterGrowth, SpectralLine, channel_correlations, spectral_lines, \
@@ -376,12 +376,8 @@ def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, r
                             s.held_out_rms_after, term.follows, group.rivals if group is not None else [],
                             rnd.excitation, metrics, rep.summary)
     unit, scale = _row_display(setup.ref)
-    trace = (f"the residual follows {term.follows} → {rep.summary}; adding it cut the held-out residual from "
-             f"{s.held_out_rms_before * scale:.4g} to {s.held_out_rms_after * scale:.4g} {unit} (G = {s.gain:.0f} for "
-             f"{s.added_parameters} parameter(s))")
-    others = [m for m in metrics if m.name != "held_out_residual_rms"]
-    if others:
-        trace += "; " + ", ".join(m.describe() for m in others)
+    trace = trace_of(term.follows, rep.summary, "residual", s.held_out_rms_before * scale, s.held_out_rms_after * scale,
+                     unit, s.gain, s.added_parameters, metrics, "held_out_residual_rms")
     caveat = fam.caveat(term.kind, setup.ref.kind)
     if caveat:
         trace += f" — {caveat}"

@@ -39,7 +39,7 @@ from .mag_reference import MagReference, build_mag_reference
 from .mag_select import MAG_RULE, MagSetup, MagSteps, noise_of
 from .mag_terms import MAG_TERMS, mag_term
 from .metrics import MetricChange, compare_metrics, explain_disagreement
-from .result import Finding, LoopReport
+from .result import Finding, LoopReport, trace_of
 
 __all__ = ["MagFinding", "MagEvidence", "MagUnexplained", "MagLoopResult", "run_mag_loop", "MAG_RULE",
            "reference_frame_note", "not_analysed"]
@@ -225,12 +225,8 @@ def _finding(ref: MagReference, final: MagFit, rnd: Round[MagFit]) -> Finding:
     v, s = _params(ref, final, k)
     summ = term.summary(v, s)
     score, changes, g = rnd.score, rnd.pick.metrics, rnd.confounded
-    trace = (f"the residual follows {term.driver} → {summ}; adding it cut the held-out field residual from "
-             f"{score.held_out_rms_before:.4g} to {score.held_out_rms_after:.4g} µT (G = {score.gain:.0f} for "
-             f"{term.n_params} parameter(s))")
-    others = [m for m in changes if m.name != "held_out_field_residual_rms"]
-    if others:
-        trace += "; " + ", ".join(m.describe() for m in others)
+    trace = trace_of(term.driver, summ, "field residual", score.held_out_rms_before, score.held_out_rms_after, "µT",
+                     score.gain, term.n_params, changes, "held_out_field_residual_rms")
     if k == "frame_rotation" and ref.source == "optical":
         trace += (" — against an optical reference, a rotation between the optical body frame and the IMU frame "
                   "looks exactly like this; a misalignment the gyro loop finds against the same reference points "

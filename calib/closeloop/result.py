@@ -13,7 +13,7 @@ from .driver import Rejection, Round
 from .jsonview import JsonView
 from .metrics import MetricChange
 
-__all__ = ["Finding", "LoopReport"]
+__all__ = ["Finding", "LoopReport", "trace_of"]
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,19 @@ class Finding:
     def to_json(self) -> dict:
         return {"effect": self.effect, "params": self.params, "model": self.model, "evidence": self.evidence.to_json(),
                 "trace": self.trace}
+
+
+def trace_of(follows: str, summary: str, residual: str, before: float, after: float, unit: str, gain: float,
+             n_params: int, metrics: tuple[MetricChange, ...], residual_metric: str) -> str:
+    """A finding's trace, first part: what the residual follows, what was found, how much of the
+    held-out ``residual`` it took (RMS before → after in ``unit``, G for ``n_params`` parameters), and
+    every other held-out metric's change."""
+    trace = (f"the residual follows {follows} → {summary}; adding it cut the held-out {residual} from "
+             f"{before:.4g} to {after:.4g} {unit} (G = {gain:.0f} for {n_params} parameter(s))")
+    others = [m for m in metrics if m.name != residual_metric]
+    if others:
+        trace += "; " + ", ".join(m.describe() for m in others)
+    return trace
 
 
 @dataclass(frozen=True, kw_only=True)
