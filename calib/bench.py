@@ -9,7 +9,7 @@ best of ``repeats``:
   accelerometer states (the baseline, 1.00);
 * ``calib run`` now — 21 states (gyro bias, the accelerometer's 9 parameters), the |f| = g stage,
   observability and consistency checks, compiled;
-* the same with ``--method iterated`` and with ``--accelerometer calibrated`` (these include the hand
+* the same with ``--method iterated_session`` and with ``--accelerometer calibrated`` (these include the hand
   cross-check, which runs ``kf_hand`` once);
 * the paper's ``kf`` compiled without the hand cross-check, and ``kf_hand`` (its speed
   target is ≤ 1 s for this 3-minute session on one core, read beside ``kf`` in the same run);
@@ -41,12 +41,12 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
     prep = prepare(rec, accelerometer="estimate")
     a = prep.start
     n = rec.n - a
-    calibrate(rec, "kf")  # compile and warm every path once
+    calibrate(rec, "kf_session")  # compile and warm every path once
     cases = {
-        "today's kf (paper, 9 states, filterpy)": lambda: calibrate(rec, "kf", accelerometer="calibrated", engine="filterpy"),
-        "calib run (21 states, compiled)": lambda: calibrate(rec, "kf"),
-        "calib run --method iterated": lambda: calibrate(rec, "iterated"),
-        "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf", accelerometer="calibrated"),
+        "today's kf (paper, 9 states, filterpy)": lambda: calibrate(rec, "kf_session", accelerometer="calibrated", engine="filterpy"),
+        "calib run (21 states, compiled)": lambda: calibrate(rec, "kf_session"),
+        "calib run --method iterated_session": lambda: calibrate(rec, "iterated_session"),
+        "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session", accelerometer="calibrated"),
         "kf (paper, 9 states, compiled, no hand check)": lambda: _paper(rec, name="kf", check_hand=False),
         "kf_hand (15 states, 3 passes, compiled)": lambda: kf_hand(rec),
     }

@@ -83,7 +83,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         rec = simulate(schedule, hand, sensor, args.rate, seed=args.seed, progress=bar.update)
     rec_path = save_hdf5(rec, out / "session.h5")
     print(f"calibrating {rec.n} samples (Zhou 2020 filter) …", flush=True)
-    result = calibrate(rec, "kf", accelerometer=args.accelerometer)
+    result = calibrate(rec, "kf_session", accelerometer=args.accelerometer)
     truth = true_gyro_parameters(rec)
     from .validation import validate_attitude
 
@@ -128,10 +128,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     check (status inconsistent/diverged), 2 on bad input (calib.inputs: nothing is written)."""
     from gyrosim.calibration import truth_calibration
 
-    from .calibrate import calibrate
+    from .calibrate import DEPRECATED_METHODS, calibrate
     from .inputs import KF
 
     check_output_paths({"--json": args.json, "--rrd": args.rrd}, _files(args.recording))
+    method = args.method
+    if method in DEPRECATED_METHODS:  # the former spellings: still run, with a note
+        method = DEPRECATED_METHODS[method]
+        print(f"warning: --method {args.method} is deprecated: use --method {method} (the same filter; 'kf' names "
+              "the paper's filter in campaigns and Monte Carlo, which calib run does not run)", file=sys.stderr)
     loaded = _open(args, KF)
     rec = loaded.recording
     if args.method == "hand":
@@ -143,7 +148,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         result = kf_hand(rec)
     else:
-        result = calibrate(rec, args.method, accelerometer=args.accelerometer,
+        result = calibrate(rec, method, accelerometer=args.accelerometer,
                            external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity)
     d = result.to_dict()
     from .calibrate import prepare
@@ -582,7 +587,7 @@ def cmd_closeloop_bench(args: argparse.Namespace) -> int:
         run_closeloop(rec)
         t_cl = time.perf_counter() - t0
         t0 = time.perf_counter()
-        calibrate(rec, "kf")
+        calibrate(rec, "kf_session")
         t_kf = time.perf_counter() - t0
         print(f"{name:<46} {rec.t_s.size:8d} {t_cl:12.2f} {t_kf:14.2f} {t_cl / t_kf:7.2f}")
     return 0
@@ -1068,10 +1073,13 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="calibrate a recording (HDF5 or CSV): gyro and accelerometer bias, scale factor, "
                                    "non-orthogonality; exit 1 when the result fails its own check (status inconsistent/diverged)")
     r.add_argument("recording", help=RECORDING_HELP)
-    r.add_argument("--method", default="kf", choices=("kf", "iterated", "hand"),
-                   help="kf: one filter pass; iterated: re-linearised passes (Gauss–Newton on the batch posterior); "
-                        "hand: kf_hand, the hand's lever arm and coloured external acceleration in the model "
-                        "(with --accelerometer calibrated; docs/hand.md)")
+    r.add_argument("--method", default="kf_session", choices=("kf_session", "iterated_session", "hand", "kf", "iterated"),
+                   help="kf_session: one filter pass with a session-wide external-acceleration allowance (the result "
+                        "is labelled kf_joint, or kf_session_r with --accelerometer calibrated: the registered "
+                        "estimators it equals); iterated_session: re-linearised passes (Gauss–Newton on the batch "
+                        "posterior; iterated_joint / iterated_session_r); hand: kf_hand, the hand's lever arm and "
+                        "coloured external acceleration in the model (with --accelerometer calibrated; docs/hand.md); "
+                        "kf, iterated: former spellings of kf_session, iterated_session (deprecated)")
     r.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
                    help="estimate: the accelerometer's bias, scale factor and non-orthogonality with the gyro's (default); "
                         "calibrated: assume it calibrated (Zhou 2020 §3.3.2, the paper's 9-state filter)")
@@ -1112,9 +1120,10 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("--sensor", default="zhou2020_sim", help="sensor preset or TOML path (default zhou2020_sim: Zhou 2020 Table 7)")
     mc.add_argument("--seeds", type=integer(2, 100_000), default=50, help="sessions, 2 … 1e5 (default 50)")
     mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] (default 100)")
-    mc.add_argument("--methods", default="kf,iterated",
-                    help="comma-separated: any registered estimator (kf = the paper's filter, kf_hand, kf_lever_arm, "
-                         "kf_session_r, …, or package.module:attribute) and iterated (calib run --method iterated)")
+    mc.add_argument("--methods", default="kf,iterated_session",
+                    help="comma-separated: any registered estimator (kf = the paper's filter, iterated = it in three "
+                         "passes, kf_hand, kf_lever_arm, kf_session_r, …, or package.module:attribute) and kf_session, "
+                         "iterated_session (calib run's filter, with the --accelerometer mode asked)")
     mc.add_argument("--calibrated-accelerometer", action="store_true",
                     help="simulate a calibrated accelerometer: keep only its white noise (Zhou §3.3.2's assumption)")
     mc.add_argument("--accelerometer", default="calibrated", choices=("estimate", "calibrated"),

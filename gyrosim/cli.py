@@ -440,7 +440,7 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--first-seed", type=seed, help="seed of the first session, 0 … 2³²−1")
     cp.add_argument("--sensor", help="sensor preset (default mpu9250)")
     cp.add_argument("--method", help="comma-separated estimators: names registered in the gyrosim.estimators entry points (calib's kf, "
-                         "smoother, kf_adaptive, ...) or import paths package.module:attribute")
+                         "iterated, kf_hand, kf_adaptive, ...) or import paths package.module:attribute")
     cp.add_argument("--schedule", help="schedule of every session: built-in name or TOML path (default zhou2020)")
     cp.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), help="sample rate, Hz, in (0, 1e6]")
     cp.add_argument("--severity", type=positive_list(),

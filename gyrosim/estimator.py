@@ -3,9 +3,9 @@
 An *estimator* is any callable ``estimator(rec: Recording) -> Calibration``:
 
 * it receives a :class:`~gyrosim.recording.Recording` — gyro (rad/s) and accelerometer (m/s²) in
-  the body frame RFU, times (s), optional temperature/field; in a campaign the recording is the
-  corrupted simulation, and its truth (and the simulator's sensor model in its metadata) is *not*
-  for the estimator to use (the campaign scores against it afterwards);
+  the body frame RFU, times (s), optional temperature/field; in a campaign that is
+  :func:`as_user_file` of the corrupted simulation: no truth, no sensor model, no hand (the
+  campaign scores against them afterwards);
 * it returns a :class:`gyrosim.calibration.Calibration`: the estimated effects of the vocabulary
   (the gyro's bias, scale factor and non-orthogonality at least — Zhou 2020 eq. 1:
   ω̃ = (I + diag(S) + N(G)) ω + b), their covariance, a status and warnings.  :func:`Estimate`
@@ -13,7 +13,7 @@ An *estimator* is any callable ``estimator(rec: Recording) -> Calibration``:
 
 Estimators are found by name through the entry-point group ``gyrosim.estimators``
 (:mod:`gyrosim.plugins`), so gyrosim never imports the package that provides them: calib registers
-its own there (``kf``, ``smoother``, ``kf_session_r``, ... in its ``pyproject.toml``), and a user's
+its own there (``kf``, ``iterated``, ``kf_session_r``, ... in its ``pyproject.toml``), and a user's
 installed package can register more the same way.  Any estimator can also be named by import path
 ``package.module:attribute``.  Either names an estimator, or a class/factory called with no
 arguments that returns one.  ``examples/own_estimator.py`` plugs one in.
@@ -30,7 +30,7 @@ from .errors import GyrosimError
 from .plugins import load, registered
 from .recording import Recording
 
-__all__ = ["Estimate", "Estimator", "load_estimator", "registered_estimators", "ENTRY_POINT_GROUP"]
+__all__ = ["Estimate", "Estimator", "load_estimator", "registered_estimators", "as_user_file", "ENTRY_POINT_GROUP"]
 
 ENTRY_POINT_GROUP = "gyrosim.estimators"
 
@@ -61,6 +61,14 @@ def Estimate(bias_rad_s: np.ndarray, scale_factor: np.ndarray, nonorthogonality:
         if c.shape != (9, 9):
             raise GyrosimError(f"Estimate covariance must be 9×9 over (b, S, G), got {c.shape}")
     return Calibration.from_linear(gyro=arrays, covariance=covariance, warnings=tuple(warnings), method=method)
+
+
+def as_user_file(rec: Recording) -> Recording:
+    """What a user's file carries: times, gyro, accelerometer (and temperature, field) with the rate —
+    no truth, no sensor model, no hand, no seed.  Campaigns hand estimators this view of a simulated
+    session, so an estimator cannot lean on the simulator's knowledge (an oracle that needs the
+    truth is asked for by name and reads the full recording itself)."""
+    return Recording(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, None, {"rate_hz": rec.rate_hz})
 
 
 class Estimator(Protocol):

@@ -107,9 +107,9 @@ def make_tasks(spec: OrientationSpec) -> list[OrientationTask]:
 
 def _calibrated(rec, spec: OrientationSpec):
     """The recording compensated by calib's estimate from it (and the magnetometer's, 9-axis)."""
-    from .estimator import load_estimator
+    from .estimator import as_user_file, load_estimator
 
-    cal = load_estimator(spec.calibration)(rec)
+    cal = load_estimator(spec.calibration)(as_user_file(rec))  # the estimator sees a user's file
     out = cal.compensate(rec)
     if rec.mag_ut is not None:  # calib's ellipsoid fit, found by entry point (gyrosim does not import calib)
         from .plugins import load
