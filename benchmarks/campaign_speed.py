@@ -92,7 +92,7 @@ def _worker(hand: str, method: str) -> None:
         out = {"physics": acc.get("physics", 0.0),
                "motion + controls": acc.get("truth", 0.0) - acc.get("physics", 0.0),
                "sensor model": acc.get("sensor model", 0.0), "estimator": acc.get("estimator", 0.0),
-               "session": total, "status": rows[0]["status"], "error": rows[0].get("error", "")}
+               "session": total, "status": rows[0].status, "error": rows[0].error}
         out["scoring + rest"] = total - sum(out[k] for k in STAGES[:4])
         print(json.dumps(out), flush=True)
 

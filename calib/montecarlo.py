@@ -44,7 +44,6 @@ from scipy import stats
 from gyrosim.calibration import truth_calibration
 from gyrosim.estimator import as_user_file, load_estimator
 from gyrosim.hand import load_hand
-from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.schedule import load_schedule
 from gyrosim.sensor_model import load_sensor
