@@ -133,6 +133,9 @@ def smoother(rec: Recording) -> Calibration:
     return iterated(rec)
 
 
+smoother.deprecated_alias_of = "iterated"  # type: ignore[attr-defined]  (gyrosim.estimator warns on load)
+
+
 def kf_session_r(rec: Recording) -> Calibration:
     """One R for the session from its (|f| − g)² (``calib run --accelerometer calibrated``)."""
     return _run(rec, session_r=True, name="kf_session_r")

@@ -21,6 +21,7 @@ arguments that returns one.  ``examples/own_estimator.py`` plugs one in.
 
 from __future__ import annotations
 
+import warnings
 from typing import Callable, Protocol
 
 import numpy as np
@@ -77,8 +78,14 @@ class Estimator(Protocol):
 
 def load_estimator(spec: str) -> Callable[[Recording], Calibration]:
     """A registered name (entry-point group ``gyrosim.estimators``) or ``package.module:attribute``;
-    raises :class:`GyrosimError` before any work if it cannot be loaded."""
+    raises :class:`GyrosimError` before any work if it cannot be loaded.  An estimator whose
+    ``deprecated_alias_of`` attribute names another (a former name kept working) loads with a
+    FutureWarning naming the current one."""
     obj = load(ENTRY_POINT_GROUP, spec, what="estimator")
+    alias = getattr(obj, "deprecated_alias_of", None)
+    if alias:  # a former name kept working; FutureWarning: shown to command-line users by default
+        warnings.warn(f"estimator {spec!r} is deprecated: use {alias!r} (the same algorithm under its one name)",
+                      FutureWarning, stacklevel=2)
     if isinstance(obj, type):
         obj = obj()
     if not callable(obj):

@@ -55,8 +55,10 @@ def test_every_registered_estimator_ignores_truth_and_metadata(device_session):
 
 def test_smoother_is_a_warning_alias_of_iterated(device_session):
     user = as_user_file(device_session)
+    with pytest.warns(FutureWarning, match="'smoother' is deprecated: use 'iterated'"):   # what a CLI user sees
+        smoother = load_estimator("smoother")
     with pytest.warns(DeprecationWarning, match="iterated"):
-        old = load_estimator("smoother")(user)
+        old = smoother(user)
     _same(old, load_estimator("iterated")(user))
 
 
