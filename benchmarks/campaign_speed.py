@@ -124,9 +124,13 @@ def dask_worker_table(sessions: int, hand: str, method: str) -> list[dict]:
 
     spec = campaign.CampaignSpec(hands=(hand,), seeds=sessions + 1, estimators=(method,), calibrated_accelerometer=True)
     tasks = campaign.make_tasks(spec)
-    configs = {"MALLOC_TRIM_THRESHOLD_=32 MiB": {**campaign.DASK_CONFIG,
-                                                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 32 << 20},
-               "campaign (unset)": campaign.DASK_CONFIG}
+    # the campaign's cluster first: a Nanny spawned with the variable set also writes it into this
+    # process's environment (Dask's "pre-spawn" poisoning), which a later spawn would inherit
+    configs = {"campaign (unset)": campaign.DASK_CONFIG,
+               "MALLOC_TRIM_THRESHOLD_=32 MiB": {**campaign.DASK_CONFIG,
+                                                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 32 << 20}}
+    if "MALLOC_TRIM_THRESHOLD_" in os.environ:
+        raise RuntimeError("MALLOC_TRIM_THRESHOLD_ is set in this environment: every worker would inherit it")
     clients = {}
     for name, cfg in configs.items():
         with dask.config.set(cfg):
@@ -181,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.sessions} sessions per worker ({args.hand} hand, {args.method}), 1-worker LocalCluster each; "
               f"1-min load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
         print(f"{'worker spawned with':<32} {'CPU s/session':>14} {'page faults/session':>20} {'÷ campaign':>11}")
-        ref = rows[-1]["cpu_s_per_session"]
+        ref = rows[0]["cpu_s_per_session"]
         for r in rows:
             print(f"{r['worker']:<32} {r['cpu_s_per_session']:14.3f} {r['page_faults_per_session']:20.0f} "
                   f"{r['cpu_s_per_session'] / ref:11.2f}")
