@@ -100,6 +100,7 @@ def test_gyrosim_imports_and_lists_estimators_with_calib_blocked():
     assert "REFUSED GyrosimError" in out and "cannot import module 'calib.estimators'" in out, out
 
 
+@pytest.mark.filterwarnings("ignore:estimator 'smoother' is deprecated:FutureWarning")  # the alias is exported too
 def test_every_estimator_calib_exports_is_registered_and_resolves():
     import calib.estimators as est
 
