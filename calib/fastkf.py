@@ -132,7 +132,7 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=False)
 def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
-            kreg, hand0, gm_tau, gm_var):  # pragma: no cover
+            kreg, hand0, gm_tau, gm_var, bias_rw2):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
@@ -234,6 +234,9 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
             Pb[0, 0] += qd
             Pb[1, 1] += qd
             Pb[2, 2] += qd
+            if o_bg >= 0 and bias_rw2 > 0.0:                   # the bias's random walk: Q_bb = q_b Δt
+                for j in range(3):
+                    Pb[o_bg + j, o_bg + j] += bias_rw2 * dt
             # ---- update with the accelerometer sample
             if upd[b, k]:
                 C = _nb_qmat(q)
@@ -457,7 +460,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     theta, p, q, nis, inn, hsd, hth, hand, wht = _kernel(
         g, a, arr(greg), arr(still, np.bool_), arr(t_s), arr(q0), arr(theta0), arr(x0), arr(p0), layout.offsets(),
         config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
-        float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2))
+        float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
+        float(config.gyro_bias_rw_rad_s_sqrt_s**2))
     return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
                      hand if layout.models_hand else None, wht)
 

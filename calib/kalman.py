@@ -30,7 +30,8 @@ compensates the samples, ω̂ = M̂_g⁻¹(ω̃ − b̂_g), f̂ = M̂_a⁻¹(f̃
 symmetric N_g of eq. 2 the block is the symmetric J_G (tested).  F² = 0 (only the φ rows are
 non-zero and F's φ columns are zero), so Φ = I + F Δt exactly, F at the step's midpoint.
 Process noise Q_φφ = N_g² Δt I (ε isotropic: Ĉ M̂⁻¹ N_g² M̂⁻ᵀ Ĉᵀ ≈ N_g² I); the parameters are
-random constants (Q = 0).
+random constants (Q = 0), except the gyro bias when ``FilterConfig.gyro_bias_rw_rad_s_sqrt_s`` > 0
+(a random walk, Q_bb = q_b Δt I: the drift of a consumer gyro's bias during the session).
 
 **Measurement** (Zhou eq. 11–12, extended): z = Ĉ f̂ − g_up, g_up = (0, 0, g):
 
@@ -77,7 +78,7 @@ from filterpy.kalman import KalmanFilter
 from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
-__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND",
+__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
            "HAND_BLOCKS",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
@@ -149,6 +150,7 @@ class StateLayout:
 PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated accelerometer, static bias)
 JOINT = StateLayout(BLOCKS[:7])          # + gyro bias and the accelerometer's 9 parameters: 21 states
 HAND = StateLayout(BLOCKS[:3] + HAND_BLOCKS)  # the paper's 9 + lever arm + external acceleration: 15 states
+HAND_BIAS = StateLayout(BLOCKS[:4] + HAND_BLOCKS)  # kf_hand: HAND + the gyro bias (a random walk): 18 states
 
 
 def theta_slice(block: str) -> slice:
@@ -229,6 +231,9 @@ class FilterConfig:
     (:data:`HAND`): the lever arm's prior σ ``prior_lever_arm_m`` (a wrist 30 cm away covers any hand-held
     grip), and the external acceleration a first-order Gauss–Markov process per nav axis with
     stationary RMS ``ext_acc_rms_m_s2`` and time constant ``ext_acc_tau_s`` (:mod:`calib.handkf`).
+    ``gyro_bias_rw_rad_s_sqrt_s``: with a ``gyro_bias`` block, the bias is a random walk,
+    ḃ_g = w_b, E[w_b w_bᵀ] = q_b I δ(t), q_b = this² (rad²/s³): Q_bb = q_b Δt per step (IEEE 952's rate
+    random walk K; 0: a random constant, the paper's model).
     """
 
     arw_rad_s_sqrt_hz: float
@@ -247,6 +252,7 @@ class FilterConfig:
     prior_lever_arm_m: float = 0.3
     ext_acc_rms_m_s2: float = 0.0
     ext_acc_tau_s: float = 1.0
+    gyro_bias_rw_rad_s_sqrt_s: float = 0.0
 
     def r_var(self, rate_hz: float) -> float:
         """R per axis, (m/s²)²: σ_f² + a_ext²."""
@@ -425,6 +431,10 @@ class ZhouFilter:
             F[0:3, lay.offset("gyro_bias"):lay.offset("gyro_bias") + 3] = cm
         kf.F = F                                                         # Φ = I + F Δt (exact, F² = 0)
         kf.Q[0, 0] = kf.Q[1, 1] = kf.Q[2, 2] = self.config.arw_rad_s_sqrt_hz**2 * dt
+        ob = self.layout.offset("gyro_bias")
+        if ob >= 0:                                                      # the bias's random walk, q_b Δt
+            for j in range(3):
+                kf.Q[ob + j, ob + j] = self.config.gyro_bias_rw_rad_s_sqrt_s**2 * dt
         kf.predict()                                                     # P = Φ P Φᵀ + Q
         innov, nis, white = np.full(3, np.nan), float("nan"), np.full(3, np.nan)
         if update:

@@ -16,8 +16,7 @@ import independent_generator as ig
 from calib import estimators
 from calib.cli import main as calib_main
 from calib.consistency import apply_inflation, innovation_inflation
-from calib.handkf import CONFOUND_CORRELATION, _confounding
-from calib.kalman import HAND
+from calib.handkf import CONFOUND_CORRELATION, LAYOUT, _confounding
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 
@@ -102,14 +101,14 @@ def test_innovation_inflation_measures_the_long_run_variance():
 def test_confounded_lever_arm_is_refused_with_the_motion_that_separates_it():
     """A posterior where the lever arm's r_y moves with S_x (correlation above the threshold) is refused,
     naming both and the separating motion (two speeds)."""
-    p = np.eye(HAND.n)
-    o, s = HAND.offset("lever_arm") + 1, HAND.offset("gyro_scale")
+    p = np.eye(LAYOUT.n)
+    o, s = LAYOUT.offset("lever_arm") + 1, LAYOUT.offset("gyro_scale")
     c = (CONFOUND_CORRELATION + 1) / 2
     p[o, s] = p[s, o] = c
     with pytest.raises(RecordingError, match=r"lever arm r_y with S_x.*two clearly different speeds"):
-        _confounding(p, HAND.offset("lever_arm"))
+        _confounding(p, LAYOUT.offset("lever_arm"))
     p[o, s] = p[s, o] = 0.5
-    _confounding(p, HAND.offset("lever_arm"))
+    _confounding(p, LAYOUT.offset("lever_arm"))
 
 
 def test_calib_run_exit_codes_and_coaching_with_a_hand(kin, tmp_path, capsys):
@@ -165,3 +164,37 @@ def test_kf_hand_nees_in_band_per_hand_preset(hand):
     st = r.methods["kf_hand"]
     assert st.nees_band[0] / 1.5**2 < st.nees_mean < st.nees_band[1], st.nees_mean
     assert "diverged" not in st.statuses
+
+
+def _rests_with_walk(rng, q_rad2_s3: float, arw: float, rate_hz: float = 100.0):
+    """A gyro at rest for 8 s in turn with 20-s gaps (6 rests, 5 pairs), its bias a random walk of intensity q."""
+    n = int(148 * rate_hz)
+    t = np.arange(n) / rate_hz
+    bias = np.cumsum(rng.normal(size=(n, 3)) * np.sqrt(q_rad2_s3 / rate_hz), axis=0)
+    gyro = bias + rng.normal(size=(n, 3)) * arw * np.sqrt(rate_hz)
+    rests = tuple((int(s * rate_hz), int((s + 8) * rate_hz)) for s in range(0, 148, 28))
+    return gyro, t, rests
+
+
+def test_bias_drift_recovers_a_random_walk_and_stays_silent_without_one():
+    """bias_drift's method-of-moments q̂ on 6 rests (5 pairs, 15 degrees of freedom): for a random walk
+    well above the rests' white noise (K = 1e-4 rad/s/√s, rest-mean noise 3.5e-5 rad/s against a 20-s
+    step of 4.5e-4 rad/s) q̂ is unbiased with relative σ ≈ √(2/15) = 0.37 per session, so the mean over 100
+    sessions is within 4·0.037 = 15 % of q.  Without a walk, q̂ > 0 only when the statistic passes its
+    χ²(15) 95 % quantile: in ≈ 5 % of 200 sessions (binomial σ 1.5 %: below 11 %)."""
+    from calib.handkf import bias_drift
+
+    rng = np.random.default_rng(5)
+    arw, q = 1e-4, 1e-8
+    qs = []
+    for _ in range(100):
+        g, t, rests = _rests_with_walk(rng, q, arw)
+        d = bias_drift(g, t, rests, arw)
+        assert d.dof == 15
+        qs.append(d.q_rad2_s3)
+    assert abs(np.mean(qs) / q - 1) < 4 * np.sqrt(2 / 15) / np.sqrt(100), np.mean(qs) / q
+    fired = 0
+    for _ in range(200):
+        g, t, rests = _rests_with_walk(rng, 0.0, arw)
+        fired += bias_drift(g, t, rests, arw).q_rad2_s3 > 0
+    assert fired < 22, fired
