@@ -88,18 +88,21 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 # error-state blocks (3 states each) in their fixed order; θ (the nominal parameters) has one
 # 3-vector per block after "phi"
 # after them the hand's blocks (compiled filter only, :mod:`calib.handkf`): the lever arm r
-# (body, m; a constant) and the external acceleration a_e (nav, m/s²; a first-order Gauss–Markov
-# process); their nominals live beside θ, not in it (θ keeps its 18 sensor parameters)
+# (body, m; a constant) and the external acceleration a_e = x − z (nav, m/s²): x a first-order
+# Gauss–Markov process ("ext_acc"), z its own first-order low-pass ("ext_acc_lp"), so that a_e's PSD
+# falls to zero at 0 Hz as a bounded hand translation's does (z ≡ 0 when the high-pass time constant is
+# infinite: the plain Gauss–Markov a_e); their nominals live beside θ, not in it (θ keeps its 18 sensor
+# parameters)
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
-          "lever_arm", "ext_acc")
+          "lever_arm", "ext_acc", "ext_acc_lp")
 THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:]
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
-          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae"}
+          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
-                "ext_acc": "external acceleration"}
+                "ext_acc": "external acceleration", "ext_acc_lp": "external acceleration's low-pass"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -231,6 +234,8 @@ class FilterConfig:
     (:data:`HAND`): the lever arm's prior σ ``prior_lever_arm_m`` (a wrist 30 cm away covers any hand-held
     grip), and the external acceleration a first-order Gauss–Markov process per nav axis with
     stationary RMS ``ext_acc_rms_m_s2`` and time constant ``ext_acc_tau_s`` (:mod:`calib.handkf`).
+    ``ext_acc_highpass_tau_s`` τ_h: a_e = x − z, ż = (x − z)/τ_h (∞: a_e = x, the plain Gauss–Markov
+    process); the one-sided PSD of a_e is 4σ²τ/(1 + (2πfτ)²) · (2πfτ_h)²/(1 + (2πfτ_h)²).
     ``gyro_bias_rw_rad_s_sqrt_s``: with a ``gyro_bias`` block, the bias is a random walk,
     ḃ_g = w_b, E[w_b w_bᵀ] = q_b I δ(t), q_b = this² (rad²/s³): Q_bb = q_b Δt per step (IEEE 952's rate
     random walk K; 0: a random constant, the paper's model).
@@ -253,6 +258,7 @@ class FilterConfig:
     ext_acc_rms_m_s2: float = 0.0
     ext_acc_tau_s: float = 1.0
     gyro_bias_rw_rad_s_sqrt_s: float = 0.0
+    ext_acc_highpass_tau_s: float = math.inf
 
     def r_var(self, rate_hz: float) -> float:
         """R per axis, (m/s²)²: σ_f² + a_ext²."""
@@ -265,7 +271,15 @@ class FilterConfig:
                 "acc_bias": np.full(3, self.prior_acc_bias_m_s2), "acc_scale": np.full(3, self.prior_acc_scale),
                 "acc_nonorth": np.full(3, self.prior_acc_nonorthogonality),
                 "lever_arm": np.full(3, self.prior_lever_arm_m),
-                "ext_acc": np.full(3, self.ext_acc_rms_m_s2)}[block]
+                "ext_acc": np.full(3, self.ext_acc_rms_m_s2),
+                "ext_acc_lp": np.full(3, self.ext_acc_rms_m_s2 * math.sqrt(self.ext_acc_lp_fraction))}[block]
+
+    @property
+    def ext_acc_lp_fraction(self) -> float:
+        """c = τ/(τ + τ_h): the stationary Var z = Cov(x, z) = c σ² of the low-pass z of a first-order
+        Gauss–Markov x (∫₀^∞ e^{−s/τ_h}/τ_h · σ² e^{−s/τ} ds; the same for Var z by symmetry); 0 for τ_h = ∞."""
+        th = self.ext_acc_highpass_tau_s
+        return 0.0 if not math.isfinite(th) else self.ext_acc_tau_s / (self.ext_acc_tau_s + th)
 
 
 def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,
@@ -288,6 +302,10 @@ def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.n
     for b in layout.blocks:
         o = layout.offset(b)
         p[o:o + 3, o:o + 3] = np.diag(config.prior_sigma(b) ** 2)
+    if layout.has("ext_acc_lp"):                 # stationary Cov(x, z) = c σ² (FilterConfig.ext_acc_lp_fraction)
+        oe, oz = layout.offset("ext_acc"), layout.offset("ext_acc_lp")
+        for j in range(3):
+            p[oe + j, oz + j] = p[oz + j, oe + j] = config.ext_acc_lp_fraction * config.ext_acc_rms_m_s2**2
     if tilt_sigma_rad is not None:
         p[0, 0] = p[1, 1] = tilt_sigma_rad**2
     if layout.estimates_accelerometer and acc_covariance is not None:
