@@ -103,46 +103,53 @@ def _variance_ratio(rate_hz: float) -> float:
     return float(np.sum(_lowpass(imp, rate_hz) ** 2))
 
 
-def _gm_from_residual(e: np.ndarray, dt_s: float, white_var: float, white_psd: float) -> tuple[float, float, float]:
-    """(σ_x, τ, τ_h) of the high-passed Gauss–Markov a_e = x − z (:class:`calib.kalman.FilterConfig`) fitted
-    to a residual ``e`` (N,), whose one-sided PSD is
+def _gm_from_residual(e: np.ndarray, dt_s: float, white_var: float,
+                      white_psd: float) -> tuple[float, float, float, int]:
+    """(σ_x, τ, τ_h, m) of the high-passed Gauss–Markov a_e (:class:`calib.kalman.FilterConfig`) fitted to a
+    residual ``e`` (N,), whose one-sided PSD is
 
-        S_a(f) = 4σ_x²τ / (1 + (2πfτ)²) · (2πfτ_h)² / (1 + (2πfτ_h)²),   Var a = σ_x² τ_h / (τ + τ_h).
+        S_a(f) = 4σ_x²τ / (1 + (2πfτ)²) · [(2πfτ_h)² / (1 + (2πfτ_h)²)]^m,    m ∈ {1, 2}.
 
-    A hand's translation is bounded (mm), so its acceleration's PSD falls towards 0 Hz (as f⁴ times the
-    displacement's); a first-order Gauss–Markov process (τ_h = ∞) stays flat there and over-weights the
-    band the rotations' information lives in (< 0.2 Hz), which made σ of S pessimistic ×2–3 with a hand
-    (measured).  The fit: Var a = var e − ``white_var`` fixes σ_x for each (τ, τ_h) of a log grid
-    (τ_h = ∞ included); the pair minimising Σ_f w_f (ln(S_a + W) − ln Ŝ_e)², Ŝ_e Welch's estimate with
-    40-s segments over 0.02–2.5 Hz (below the 4-Hz pre-filter), W = ``white_psd`` and w_f = 1/f (each
-    octave weighs the same, rather than the many high bins) is kept.  (0, 1, ∞) when e has no excess
-    variance.  Source: the shaping-filter construction of coloured noise (Gelb 1974, §4.5; Brown & Hwang
-    2012, §3.9): a first-order Gauss–Markov process through a first-order high-pass."""
+    A hand's translation is bounded (mm), so its acceleration's PSD falls towards 0 Hz — as f⁴ times the
+    displacement's, the second-order high-pass (m = 2); a first-order Gauss–Markov process (τ_h = ∞) stays
+    flat there and over-weights the band the rotations' information lives in (< 0.2 Hz): σ of S was
+    pessimistic ×2–3 with a hand (measured).  The fit: Var a = ∫S_a df = var e − ``white_var`` fixes σ_x
+    for each (τ, τ_h, m) of a log grid (τ_h = ∞ included; the integral numerically on a log frequency
+    grid); the triple minimising Σ_f w_f (ln(S_a + W) − ln Ŝ_e)², Ŝ_e Welch's estimate with 40-s segments
+    over 0.02–2.5 Hz (below the 4-Hz pre-filter), W = ``white_psd``, w_f = 1/f (each octave weighs the
+    same, rather than the many high bins), is kept.  (0, 1, ∞, 1) when e has no excess variance.
+    Source: the shaping-filter construction of coloured noise (Gelb, *Applied Optimal Estimation*, 1974,
+    §4.5; Brown & Hwang, *Introduction to Random Signals and Applied Kalman Filtering*, 4th ed., §3.9)."""
     e = e - e.mean()
     s2 = max(float(np.mean(e**2)) - white_var, 0.0)
     if s2 <= 0.0:
-        return 0.0, 1.0, math.inf
+        return 0.0, 1.0, math.inf, 1
     fs = 1.0 / dt_s
     f, pxx = sp_signal.welch(e, fs=fs, nperseg=int(min(e.size, 40 * fs)))
     band = (f >= 0.02) & (f <= 2.5) & (pxx > 0)
     if band.sum() < 5:
-        return math.sqrt(s2), 1.0, math.inf
+        return math.sqrt(s2), 1.0, math.inf, 1
     f, lp, w = f[band], np.log(pxx[band]), 1.0 / f[band]
-    best = (math.inf, 1.0, math.inf)
-    w2 = (2 * np.pi * f) ** 2
-    for tau in np.geomspace(2 * dt_s, 10.0, 28):
-        gm = 4.0 * tau / (1.0 + w2 * tau**2)
-        for th in list(np.geomspace(0.1, 30.0, 24)) + [math.inf]:
-            if math.isfinite(th):
-                hp, frac = w2 * th**2 / (1.0 + w2 * th**2), th / (tau + th)
-            else:
-                hp, frac = 1.0, 1.0
-            sx2 = s2 / frac
-            cost = float(np.sum(w * (np.log(sx2 * gm * hp + white_psd) - lp) ** 2))
-            if cost < best[0]:
-                best = (cost, float(tau), float(th), sx2)
-    _, tau, th, sx2 = best
-    return math.sqrt(sx2), tau, th
+    taus = np.geomspace(2 * dt_s, 10.0, 28)[:, None, None]
+    ths = np.concatenate([np.geomspace(0.1, 30.0, 24), [np.inf]])[None, :, None]
+    fi = np.geomspace(1e-4, 0.5 * fs, 2000)                            # for ∫ S df (σ_x = 1)
+    best = (math.inf, 1.0, math.inf, 1, s2)
+    for m in (1, 2):
+        def shape(fr):
+            w2 = (2 * np.pi * fr) ** 2
+            with np.errstate(divide="ignore", invalid="ignore"):
+                hp = (1.0 / (1.0 + 1.0 / (w2 * ths**2))) ** m           # 1 for τ_h = ∞
+            return 4.0 * taus / (1.0 + w2 * taus**2) * hp
+        var1 = np.trapezoid(shape(fi[None, None, :]), fi, axis=-1)      # (τ, τ_h): Var a for σ_x = 1
+        var1 = var1 + 4.0 * taus[..., 0] * fi[0] * (ths[..., 0] == np.inf)  # the flat PSD below fi[0]
+        sx2 = s2 / np.maximum(var1, 1e-300)
+        model = sx2[..., None] * shape(f[None, None, :])
+        cost = np.sum(w * (np.log(model + white_psd) - lp) ** 2, axis=-1)
+        k = np.unravel_index(int(np.argmin(cost)), cost.shape)
+        if cost[k] < best[0]:
+            best = (float(cost[k]), float(taus[k[0], 0, 0]), float(ths[0, k[1], 0]), m, float(sx2[k]))
+    _, tau, th, m, sx2 = best
+    return math.sqrt(sx2), tau, th, (m if math.isfinite(th) else 1)
 
 
 @dataclass(frozen=True)
@@ -265,7 +272,7 @@ def kf_hand(rec: Recording) -> Calibration:
     # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed)
     f_lp0 = _lowpass(rec.acc_m_s2[a:], fs)
     along = float(np.mean((np.linalg.norm(f_lp0, axis=1) - cfg0.gravity_m_s2) ** 2)) - sigma_f2 * rho
-    sigma_s, tau, tau_hp = math.sqrt(max(3.0 * along, r_var)), 1.0, math.inf
+    sigma_s, tau, tau_hp, hp_order = math.sqrt(max(3.0 * along, r_var)), 1.0, math.inf, 1
     tremor_rms = math.sqrt(max(float(np.mean(np.sum((rec.acc_m_s2[a:] - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
     still = rest_mask(prep, n)
     for p in range(PASSES):
@@ -278,15 +285,15 @@ def kf_hand(rec: Recording) -> Calibration:
         kreg = lever_regressor(w, t, fs)
         if p > 0:   # Gauss–Markov σ_s, τ from the previous pass's lever arm (module docstring, step 2)
             e = np.linalg.norm(f_lp - np.einsum("nij,j->ni", kreg, hand0[:3]), axis=1) - cfg0.gravity_m_s2
-            sigma_s, tau, tau_hp = _gm_from_residual(e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2)
+            sigma_s, tau, tau_hp, hp_order = _gm_from_residual(e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2)
             sigma_s = max(sigma_s, 1e-3 * math.sqrt(r_var))
         cfg = type(cfg0)(**{**cfg0.__dict__, "external_acc_allowance_m_s2": 0.0, "ext_acc_rms_m_s2": sigma_s,
-                            "ext_acc_tau_s": tau, "ext_acc_highpass_tau_s": tau_hp})
+                            "ext_acc_tau_s": tau, "ext_acc_highpass_tau_s": tau_hp, "ext_acc_highpass_order": hp_order})
         p0 = initial_covariance(LAYOUT, cfg, tilt_sigma_rad=tilt)
         x0 = np.zeros(LAYOUT.n)
         x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
         x0[LAYOUT.offset("lever_arm"):LAYOUT.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
-        h0 = np.concatenate([hand0[:3], np.zeros(6)])
+        h0 = np.concatenate([hand0[:3], np.zeros(9)])
         out = run_filter(rec.gyro_rad_s[None, a:], f_lp[None], t, prep.quat0_nb[None], theta[None], p0,
                          LAYOUT, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
                          x0=x0[None], lever_regressor=kreg, hand0=h0)
@@ -312,19 +319,19 @@ def kf_hand(rec: Recording) -> Calibration:
     r_hat = hand0[:3]
     r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl.factor)
     hand = {"lever_arm_m": r_hat.tolist(), "lever_arm_std_m": r_sd.tolist(),
-            "external_acc_psd": {"model": "a_e = x − z per nav axis (after the tremor low-pass): x first-order "
-                                          "Gauss–Markov (rms_m_s2, tau_s), z its first-order low-pass (highpass_tau_s; "
-                                          "null: z = 0); one-sided PSD 4σ²τ/(1 + (2πfτ)²)·(2πfτ_h)²/(1 + (2πfτ_h)²)",
+            "external_acc_psd": {"model": "a_e = a first-order Gauss–Markov x (rms_m_s2, tau_s) per nav axis after the tremor "
+                                          "low-pass, high-passed (highpass_tau_s, highpass_order m; null: none): "
+                                          "one-sided PSD 4σ²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m",
                                  "rms_m_s2": sigma_s, "tau_s": tau,
                                  "highpass_tau_s": tau_hp if math.isfinite(tau_hp) else None,
-                                 "acc_rms_m_s2": sigma_s * math.sqrt(1.0 - cfg.ext_acc_lp_fraction),
+                                 "highpass_order": hp_order, "acc_rms_m_s2": cfg.ext_acc_rms_a_m_s2,
                                  "psd_one_sided_0hz_m2_s4_per_hz": 4 * sigma_s**2 * tau if not math.isfinite(tau_hp) else 0.0,
                                  "tremor_band_rms_m_s2": tremor_rms, "lowpass_hz": CUTOFF_HZ,
                                  "update_every_samples": dec}}
     notes.append(f"hand: lever arm r̂ = {np.array2string(r_hat * 100, precision=1)} ± "
                  f"{np.array2string(r_sd * 100, precision=1)} cm (body); slow external acceleration "
-                 f"{sigma_s * math.sqrt(1.0 - cfg.ext_acc_lp_fraction):.3f} m/s² RMS (τ {tau:.2f} s, high-pass "
-                 f"{'none' if not math.isfinite(tau_hp) else f'{tau_hp:.1f} s'}); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
+                 f"{cfg.ext_acc_rms_a_m_s2:.3f} m/s² RMS (τ {tau:.2f} s, high-pass "
+                 f"{'none' if not math.isfinite(tau_hp) else f'order {hp_order}, {tau_hp:.1f} s'}); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
     gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
     return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),

@@ -91,18 +91,21 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 # (body, m; a constant) and the external acceleration a_e = x − z (nav, m/s²): x a first-order
 # Gauss–Markov process ("ext_acc"), z its own first-order low-pass ("ext_acc_lp"), so that a_e's PSD
 # falls to zero at 0 Hz as a bounded hand translation's does (z ≡ 0 when the high-pass time constant is
-# infinite: the plain Gauss–Markov a_e); their nominals live beside θ, not in it (θ keeps its 18 sensor
+# infinite: the plain Gauss–Markov a_e); a second-order high-pass adds z₂, the low-pass of x − z
+# ("ext_acc_lp2"), a_e = x − z − z₂ (z₂ ≡ 0 for the first order); their nominals live beside θ, not in it (θ keeps its 18 sensor
 # parameters)
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
-          "lever_arm", "ext_acc", "ext_acc_lp")
+          "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2")
 THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:]
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
-          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael"}
+          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
+          "ext_acc_lp2": "ael2"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
-                "ext_acc": "external acceleration", "ext_acc_lp": "external acceleration's low-pass"}
+                "ext_acc": "external acceleration", "ext_acc_lp": "external acceleration's low-pass",
+                "ext_acc_lp2": "external acceleration's second low-pass"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -234,8 +237,9 @@ class FilterConfig:
     (:data:`HAND`): the lever arm's prior σ ``prior_lever_arm_m`` (a wrist 30 cm away covers any hand-held
     grip), and the external acceleration a first-order Gauss–Markov process per nav axis with
     stationary RMS ``ext_acc_rms_m_s2`` and time constant ``ext_acc_tau_s`` (:mod:`calib.handkf`).
-    ``ext_acc_highpass_tau_s`` τ_h: a_e = x − z, ż = (x − z)/τ_h (∞: a_e = x, the plain Gauss–Markov
-    process); the one-sided PSD of a_e is 4σ²τ/(1 + (2πfτ)²) · (2πfτ_h)²/(1 + (2πfτ_h)²).
+    ``ext_acc_highpass_tau_s`` τ_h, ``ext_acc_highpass_order`` m (1 or 2): a_e = x − z (− z₂), ż = (x − z)/τ_h,
+    ż₂ = (x − z − z₂)/τ_h (∞: a_e = x, the plain Gauss–Markov process); the one-sided PSD of a_e is
+    4σ²τ/(1 + (2πfτ)²) · [(2πfτ_h)²/(1 + (2πfτ_h)²)]^m.
     ``gyro_bias_rw_rad_s_sqrt_s``: with a ``gyro_bias`` block, the bias is a random walk,
     ḃ_g = w_b, E[w_b w_bᵀ] = q_b I δ(t), q_b = this² (rad²/s³): Q_bb = q_b Δt per step (IEEE 952's rate
     random walk K; 0: a random constant, the paper's model).
@@ -259,6 +263,7 @@ class FilterConfig:
     ext_acc_tau_s: float = 1.0
     gyro_bias_rw_rad_s_sqrt_s: float = 0.0
     ext_acc_highpass_tau_s: float = math.inf
+    ext_acc_highpass_order: int = 1
 
     def r_var(self, rate_hz: float) -> float:
         """R per axis, (m/s²)²: σ_f² + a_ext²."""
@@ -272,14 +277,34 @@ class FilterConfig:
                 "acc_nonorth": np.full(3, self.prior_acc_nonorthogonality),
                 "lever_arm": np.full(3, self.prior_lever_arm_m),
                 "ext_acc": np.full(3, self.ext_acc_rms_m_s2),
-                "ext_acc_lp": np.full(3, self.ext_acc_rms_m_s2 * math.sqrt(self.ext_acc_lp_fraction))}[block]
+                "ext_acc_lp": np.zeros(3), "ext_acc_lp2": np.zeros(3)}[block]   # with ext_acc: ext_acc_stationary
+
+    def ext_acc_stationary(self) -> np.ndarray:
+        """Stationary covariance (k, k) of one nav axis's (x, z[, z₂]) (k = 1 + high-pass order; k = 1 for
+        τ_h = ∞): the continuous Lyapunov equation A Σ + Σ Aᵀ + Q = 0 of ẋ = −x/τ + w (E w² = 2σ²/τ),
+        ż = (x − z)/τ_h, ż₂ = (x − z − z₂)/τ_h (Gelb 1974, §4.4).  a_e = x − z − z₂ has variance vΣvᵀ,
+        v = (1, −1, −1)."""
+        from scipy.linalg import solve_continuous_lyapunov
+
+        tau, th, s2 = self.ext_acc_tau_s, self.ext_acc_highpass_tau_s, self.ext_acc_rms_m_s2**2
+        if not math.isfinite(th):
+            return np.array([[s2]])
+        k = 1 + int(self.ext_acc_highpass_order)
+        a = np.zeros((k, k))
+        a[0, 0] = -1.0 / tau
+        for i in range(1, k):
+            a[i, 0] = 1.0 / th
+            a[i, 1:i + 1] = -1.0 / th
+        q = np.zeros((k, k))
+        q[0, 0] = 2.0 * s2 / tau
+        return solve_continuous_lyapunov(a, -q)
 
     @property
-    def ext_acc_lp_fraction(self) -> float:
-        """c = τ/(τ + τ_h): the stationary Var z = Cov(x, z) = c σ² of the low-pass z of a first-order
-        Gauss–Markov x (∫₀^∞ e^{−s/τ_h}/τ_h · σ² e^{−s/τ} ds; the same for Var z by symmetry); 0 for τ_h = ∞."""
-        th = self.ext_acc_highpass_tau_s
-        return 0.0 if not math.isfinite(th) else self.ext_acc_tau_s / (self.ext_acc_tau_s + th)
+    def ext_acc_rms_a_m_s2(self) -> float:
+        """RMS of one axis of a_e = x − z − z₂ (:meth:`ext_acc_stationary`)."""
+        c = self.ext_acc_stationary()
+        v = np.array([1.0] + [-1.0] * (c.shape[0] - 1))
+        return float(math.sqrt(max(v @ c @ v, 0.0)))
 
 
 def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,
@@ -302,10 +327,14 @@ def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.n
     for b in layout.blocks:
         o = layout.offset(b)
         p[o:o + 3, o:o + 3] = np.diag(config.prior_sigma(b) ** 2)
-    if layout.has("ext_acc_lp"):                 # stationary Cov(x, z) = c σ² (FilterConfig.ext_acc_lp_fraction)
-        oe, oz = layout.offset("ext_acc"), layout.offset("ext_acc_lp")
+    if layout.has("ext_acc"):                    # (x, z, z₂) start stationary (FilterConfig.ext_acc_stationary)
+        c = config.ext_acc_stationary()
+        idx = [layout.offset(b) for b in ("ext_acc", "ext_acc_lp", "ext_acc_lp2")][:c.shape[0]]
         for j in range(3):
-            p[oe + j, oz + j] = p[oz + j, oe + j] = config.ext_acc_lp_fraction * config.ext_acc_rms_m_s2**2
+            for u, ou in enumerate(idx):
+                for v, ov in enumerate(idx):
+                    if ou >= 0 and ov >= 0:
+                        p[ou + j, ov + j] = c[u, v]
     if tilt_sigma_rad is not None:
         p[0, 0] = p[1, 1] = tilt_sigma_rad**2
     if layout.estimates_accelerometer and acc_covariance is not None:

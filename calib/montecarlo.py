@@ -163,7 +163,7 @@ def _estimator(method: str, accelerometer: str) -> Callable:
 def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, quat_true_nb: np.ndarray,
               t_s: np.ndarray, theta_true: np.ndarray, config: FilterConfig, rate_hz: float, sigma_s_m_s2: float,
               tau_s: float, vague: float = 10.0, highpass_tau_s: float = math.inf,
-              bias_rw_rad_s_sqrt_s: float = 0.0) -> np.ndarray:
+              bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1) -> np.ndarray:
     """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.kalman.HAND` states (module
     docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
     rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
@@ -180,7 +180,8 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     upd = np.zeros(n, bool)
     upd[::dec] = True
     cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s,
-                  ext_acc_highpass_tau_s=highpass_tau_s, gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s)
+                  ext_acc_highpass_tau_s=highpass_tau_s, ext_acc_highpass_order=int(highpass_order),
+                  gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s)
     layout = HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND
     p0 = initial_covariance(layout, cfg)
     p0[3:9, 3:9] = np.eye(6) * vague**2
@@ -303,12 +304,14 @@ def monte_carlo(
             hand_psd = {"rms_m_s2": float(np.median([d["rms_m_s2"] for d in psd])),
                         "tau_s": float(np.median([d["tau_s"] for d in psd])),
                         "highpass_tau_s": float(np.median([math.inf if h is None else h for h in hp])),
+                        "highpass_order": int(round(float(np.median([d.get("highpass_order", 1) for d in psd])))),
                         "bias_rw_rad_s_sqrt_s": float(np.median(drift)) if drift else 0.0}
         else:
-            hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0, "highpass_tau_s": math.inf, "bias_rw_rad_s_sqrt_s": 0.0}
+            hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0, "highpass_tau_s": math.inf, "highpass_order": 1,
+                        "bias_rw_rad_s_sqrt_s": 0.0}
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
                        hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
-                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"])
+                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"])
         if not math.isfinite(hand_psd["highpass_tau_s"]):
             hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
         sqrt_hand = np.concatenate([bias_crlb, np.sqrt(np.diag(ph))[3:9]])
