@@ -16,28 +16,36 @@ nav ENU; f the specific force, g_b gravity in the body):
   wobble the gyro also sees, is what is smoothed) and rotated back — a whitening pre-filter — and the
   filter updates every D-th sample with R = σ_f²/D (the white noise averaged over D samples: the
   information per second of the raw samples, not more), D = ⌊1/ρ⌋ where ρ = Σh² is the low-pass's
-  white-noise variance ratio.  The slow rest (sway) is a first-order Gauss–Markov process per nav
-  axis, three states, stationary σ_s and time constant τ estimated from the data (the PSD
-  2σ_s²τ/(1 + (2πfτ)²) is reported);
-* axis wobble is real rotation: the gyro sees it, nothing to remove.
+  white-noise variance ratio.  The slow rest (sway) is a shaping filter per nav axis: a first-order
+  Gauss–Markov x (σ_s, τ) high-passed (τ_h, order m ∈ {1, 2}): a_e = x − z (− z₂), z the low-pass of
+  x, z₂ that of x − z — a hand's translation is bounded, so its acceleration has no power at 0 Hz (the
+  one-sided PSD 4σ_s²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m, estimated from the data, is
+  reported); three to nine states;
+* axis wobble is real rotation: the gyro sees it, nothing to remove;
+* the gyro bias b_g drifts during a session (a consumer gyro's warm-up, its g-sensitivity after a change
+  of attitude, bias instability): a random-walk state, ḃ_g = w, E w² = q_b, q_b from the rests' own
+  bias change (:func:`bias_drift`; 0 when the rests agree within their white noise), prior the first
+  rest's average.  The filter starts after that rest (its gyro samples would otherwise inform the bias
+  twice), the tilt prior the rest's accelerometer mean's σ.
 
 Noise levels from the data, as every estimator here (:mod:`calib.noiselevels`), but from the first
 rest's spectrum *above* the tremor band (:func:`white_density`): a hand's rest is not still, and its
 standard deviation would count the tremor as sensor noise (and make σ pessimistic by that much).
 
 Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
-:func:`calib.fastkf.run_filter` with the :data:`calib.kalman.HAND_BIAS` layout, 18 states):
+:func:`calib.fastkf.run_filter` with the :data:`calib.kalman.HAND_BIAS` layout: attitude, S, G, gyro
+bias, lever arm, x, z, z₂ — 24 states, the unused z₂ (m = 1) or z (no high-pass) inert):
 
-1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, r̂ = 0;
-2. σ_s and τ from the previous pass's lever arm: e = |f_lp − K r̂| − g is the component of a_e along
-   gravity (attitude-free, so the gyro's own errors do not enter; for an isotropic a_e its variance is
-   the per-axis σ_s²): σ_s² = var e − ρσ_f², τ such that the model's PSD at low frequency 4σ_s²τ is
-   e's below 0.2 Hz (:func:`_gm_from_residual`); passes 2 and 3 with them.
+1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, no high-pass, r̂ = 0;
+2. passes 2 and 3: (σ_s, τ, τ_h, m) from the previous pass's lever arm: e = |f_lp − K r̂| − g is the
+   component of a_e along gravity (attitude-free, so the gyro's own errors do not enter; for an
+   isotropic a_e its variance is one axis's), fitted to e's spectrum (:func:`_gm_from_residual`).
 
 The result's σ is the filter's P, inflated from the innovations when they still carry more
 low-frequency power than the model (:func:`calib.consistency.innovation_inflation`).  The hand's
 parameters go to ``diagnostics["hand"]``: ``lever_arm_m`` with ``lever_arm_std_m``,
-``external_acc_psd`` (σ_s, τ, the PSD at 0 Hz, the tremor-band RMS removed) — a finding for the user.
+``external_acc_psd`` (σ_s, τ, τ_h, m, a_e's RMS, the PSD at 0 Hz, the tremor-band RMS removed) — a
+finding for the user; ``diagnostics["gyro_bias_drift"]`` the bias's random walk found.
 
 A session whose motion cannot tell the lever arm from S or G (posterior correlation above
 ``CONFOUND_CORRELATION``) is refused with the parameters named and the motion that separates them:

@@ -198,3 +198,81 @@ def test_bias_drift_recovers_a_random_walk_and_stays_silent_without_one():
         g, t, rests = _rests_with_walk(rng, 0.0, arw)
         fired += bias_drift(g, t, rests, arw).q_rad2_s3 > 0
     assert fired < 22, fired
+
+
+def test_kf_hand_models_a_drifting_gyro_bias_found_from_the_rests(kin):
+    """A consumer gyro's bias drifts during a session (mpu9250: warm-up, g-sensitivity; our simulator's
+    kf_hand diverged in 3/20 seeds without a model of it).  The independent generator adds a random-walk
+    bias (K = 3e-5 rad/s/√s, its own construction: an Euler sum per sample) to an ideal-hand session:
+    kf_hand must find the drift from the two rests (q̂ > 0, the rests' statistic above its χ²(3) 95 %
+    quantile), answer "ok", and be honest — the summed NEES of 4 sessions × 6 S, G is χ²(24): inside its
+    two-sided 99.9 % interval [7.0, 51.2].  The paper's filter, whose bias is a constant, must not say "ok"."""
+    total = 0.0
+    for seed in range(4):
+        d = ig.generate_arrays(seed=seed, kin=kin, **NOISE, bias_walk_rad_s_sqrt_s=3e-5)
+        rec = _rec(d)
+        cal = estimators.kf_hand(rec)
+        assert cal.status == "ok", cal.warnings
+        drift = cal.diagnostics["gyro_bias_drift"]
+        assert drift["q_rad2_s3"] > 0 and drift["chi2"] > drift["threshold_95"], drift
+        e, c = _err_cov(cal, d)
+        total += float(e @ np.linalg.solve(c, e))
+        assert estimators.kf(rec).status != "ok"
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], 24)
+    assert lo < total < hi, total
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_high_passed_gauss_markov_block_propagates_to_its_stationary_covariance(order):
+    """The kernel's a_e = x − z (− z₂) block without measurements: from P = 0 the covariance of (x, z, z₂)
+    after 40 s (≥ 40 τ_h) must equal the continuous Lyapunov solution (FilterConfig.ext_acc_stationary) —
+    the discrete steps Φ = e^{−Δt/τ}, z ← βz + (1 − β)x differ from the continuous model by O(Δt/τ) = 2 %
+    per element, so 5 % relative (of the largest element) — and for order 1 the closed form
+    Var z = Cov(x, z) = σ²τ/(τ + τ_h) holds to 1e-9."""
+    from calib.fastkf import run_filter
+    from calib.kalman import HAND, FilterConfig
+
+    cfg = FilterConfig(1e-4, 1e-3, ext_acc_rms_m_s2=0.03, ext_acc_tau_s=0.5, ext_acc_highpass_tau_s=1.0,
+                       ext_acc_highpass_order=order)
+    st = cfg.ext_acc_stationary()
+    assert st.shape == (order + 1, order + 1)
+    if order == 1:
+        c = 0.03**2 * 0.5 / 1.5
+        assert st[1, 1] == pytest.approx(c, rel=1e-9) and st[0, 1] == pytest.approx(c, rel=1e-9)
+    n = 4001
+    t = np.arange(n) / 100.0
+    acc = np.tile([0.0, 0.0, 9.80665], (n, 1))
+    out = run_filter(np.zeros((1, n, 3)), acc[None], t, np.array([1.0, 0, 0, 0]), np.zeros(18), np.zeros((HAND.n, HAND.n)),
+                     HAND, cfg, 100.0, update_mask=np.zeros(n, bool), lever_regressor=np.zeros((n, 3, 3)))
+    idx = [HAND.offset(b) for b in ("ext_acc", "ext_acc_lp", "ext_acc_lp2")][:order + 1]
+    for j in range(3):
+        got = out.p[0][np.ix_([i + j for i in idx], [i + j for i in idx])]
+        assert np.max(np.abs(got - st)) < 0.05 * np.max(np.abs(st)), (got, st)
+
+
+def test_hand_acceleration_fit_sees_the_missing_low_frequencies():
+    """_gm_from_residual on 180 s at 100 Hz.  A sway-like residual (sum of sines in 0.2–1 Hz, no power below:
+    a bounded translation) must get a high-pass whose model PSD at 0.05 Hz is at least 10× below its PSD at
+    0.5 Hz; a first-order Gauss–Markov residual (τ = 0.5 s, flat below 0.3 Hz) must keep its low band: model
+    PSD at 0.05 Hz within ×2 of the true 4σ²τ (a 40-s Welch estimate's log-PSD scatters ~0.4 per bin, the
+    fit averages ~100 bins)."""
+    from calib.handkf import _gm_from_residual
+
+    def psd(sx, tau, th, m, f):
+        w2 = (2 * np.pi * f) ** 2
+        hp = 1.0 if not np.isfinite(th) else (w2 * th**2 / (1 + w2 * th**2)) ** m
+        return 4 * sx**2 * tau / (1 + w2 * tau**2) * hp
+
+    rng = np.random.default_rng(3)
+    t = np.arange(18000) / 100.0
+    white = 1e-4
+    sway = ig.sum_of_sines(rng, t, (0.2, 1.0), 0.05)[:, 2] + rng.normal(size=t.size) * white
+    fit = _gm_from_residual(sway, 0.01, white**2, 2 * white**2 * 0.01)
+    assert psd(*fit, 0.05) < 0.1 * psd(*fit, 0.5), fit
+    al = np.exp(-0.01 / 0.5)
+    gm = np.zeros(t.size)
+    drive = rng.normal(size=t.size) * 0.03 * np.sqrt(1 - al**2)
+    for k in range(1, t.size):
+        gm[k] = al * gm[k - 1] + drive[k]
+    fit = _gm_from_residual(gm + rng.normal(size=t.size) * white, 0.01, white**2, 2 * white**2 * 0.01)
+    assert 0.5 < psd(*fit, 0.05) / (4 * 0.03**2 * 0.5) < 2.0, fit
