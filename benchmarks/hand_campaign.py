@@ -48,6 +48,14 @@ def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tupl
 def table(paths: list[str]) -> str:
     rows = ["| sensor | method | hand | S, G RMSE max | ÷ ideal-hand RMSE | eff. vs ideal bound (max S, G) | "
             "eff. vs hand bound (max S, G) | NEES (6) | 95 % band | NEES vs band | statuses |", "|" + "---|" * 11]
+    # the hand-aware bound needs kf_hand's PSD: a file without kf_hand borrows the bound of a file with it
+    # (same sensor and hand), else its column would be the hand-free bound
+    bounds = {}
+    for p in paths:
+        d = json.load(open(p))
+        if "kf_hand" in d["methods"]:
+            for hand, c in d["cells"].items():
+                bounds[(d["sensor"], hand)] = np.array(c["sqrt_crlb_hand"][3:9])
     for p in paths:
         d = json.load(open(p))
         for m in d["methods"]:
@@ -56,6 +64,8 @@ def table(paths: list[str]) -> str:
                 st = c["methods"][m]
                 rm = max(st["rmse"][3:9])
                 eh = max(st["efficiency_hand"][3:9]) if st["efficiency_hand"] else float("nan")
+                if "kf_hand" not in d["methods"] and (d["sensor"], hand) in bounds:
+                    eh = float(np.max(np.array(st["rmse"][3:9]) / bounds[(d["sensor"], hand)]))
                 rows.append(f"| {d['sensor']} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
                             f"{eh:.2f} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
                             f"{_where(st['nees_mean'], st['nees_band'])} | "

@@ -149,21 +149,33 @@ def test_montecarlo_takes_registered_methods_and_the_hand_bound_is_above_the_ide
         monte_carlo("zhou2020", "ideal", "zhou2020_sim", seeds=2, methods=("no_such_method",))
 
 
+# docs/hand.md's campaign (50 seeds per cell): where kf_hand's NEES sits against its 95 % band
+NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer", "steady"): "in",
+             ("zhou2020_sim_consumer", "typical"): "low", ("zhou2020_sim_consumer", "shaky"): "low",
+             ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
+             ("mpu9250", "shaky"): "low"}
+
+
 @pytest.mark.slow
+@pytest.mark.parametrize("sensor", ["zhou2020_sim_consumer", "mpu9250"])
 @pytest.mark.parametrize("hand", ["ideal", "steady", "typical", "shaky"])
-def test_kf_hand_nees_in_band_per_hand_preset(hand):
-    """The docs/hand.md claim for zhou2020_sim_consumer (accelerometer calibrated), 50 seeds: kf_hand's σ is
-    never optimistic — NEES over the 6 S, G below the top of its 95 % band χ²(300)/50 — and at most ×1.5
-    pessimistic (NEES above the band's bottom / 1.5²), no seed diverged.  The issue's target, NEES *inside*
-    the band, is not met on the low side with a hand (measured 3.0–4.5 against [5.08, 7.00]: the
-    Gauss–Markov sway model's power at 0 Hz; docs/hand.md, "What is not done")."""
+def test_kf_hand_nees_in_band_per_hand_preset(sensor, hand):
+    """The docs/hand.md claim (accelerometer calibrated, 50 seeds, the zhou2020 schedule): no seed diverged and
+    every seed "ok"-or-flagged-inconsistent at the rate of a false alarm (≤ 3 of 50, the windowed NIS test's
+    tail); kf_hand's NEES over the 6 S, G inside its 95 % band χ²(300)/50 where docs/hand.md says "in" (a
+    correct σ fails this 5 % of the time); where it says "low" (σ pessimistic), never optimistic and at most
+    ×1.5 pessimistic in σ (NEES above the band's bottom / 1.5²)."""
     from calib.montecarlo import monte_carlo
 
-    r = monte_carlo("zhou2020", hand, "zhou2020_sim_consumer", seeds=50, methods=("kf_hand",),
-                    calibrated_accelerometer=True)
+    r = monte_carlo("zhou2020", hand, sensor, seeds=50, methods=("kf_hand",), calibrated_accelerometer=True)
     st = r.methods["kf_hand"]
-    assert st.nees_band[0] / 1.5**2 < st.nees_mean < st.nees_band[1], st.nees_mean
-    assert "diverged" not in st.statuses
+    assert "diverged" not in st.statuses, st.statuses
+    assert st.statuses.get("ok", 0) >= 47, st.statuses
+    lo, hi = st.nees_band
+    if NEES_SIDE[(sensor, hand)] == "in":
+        assert lo < st.nees_mean < hi, st.nees_mean
+    else:
+        assert lo / 1.5**2 < st.nees_mean < hi, st.nees_mean
 
 
 def _rests_with_walk(rng, q_rad2_s3: float, arw: float, rate_hz: float = 100.0):
