@@ -157,8 +157,15 @@ def test_cli_writes_report_json_md_plots_and_rrd(tmp_path, typical_session):
     before = h5.read_bytes()
     assert main(["closeloop", str(h5), "--out", str(tmp_path / "cl")]) == 0
     data = json.loads((tmp_path / "cl" / "report.json").read_text())
-    for key in ("declared", "found", "unexplained", "error_before", "error_after"):
-        assert key in data
+    # report.json's keys are promises (add, don't rename): the whole set, in the order written
+    assert list(data) == ["reference", "reference_description", "notes", "declared", "declared_params", "found",
+                          "unexplained", "not_tested", "not_distinguished", "error_before", "error_after", "checks",
+                          "rounds", "metrics", "rejected", "disagreements", "tested", "identifiability", "recording"]
+    assert list(data["found"][0]["evidence"]) == [
+        "round", "criterion_gain", "added_parameters", "n_eff", "held_out_rms_before", "held_out_rms_after",
+        "explained_fraction", "follows", "rivals", "identifiability", "metrics", "summary"]
+    assert set(data["unexplained"]) == {"spectral_lines", "channel_correlations", "whiteness", "variance_growth",
+                                        "summary"}
     assert data["declared"] == ["bias", "scale_factor", "nonorthogonality"]
     f = data["found"][0]
     assert f["effect"] == "time_offset" and set(f) >= {"effect", "params", "evidence"}

@@ -51,6 +51,9 @@ def test_an_undeclared_magnetometer_effect_is_named_alone_within_4_sigma(case):
     assert res.reference.startswith("magnetometer/attitude")
     assert res.found_kinds == [case], (res.found_kinds, res.not_tested)
     assert _z(res, effect) < 4.0
+    assert list(res["found"][0]["evidence"]) == ["round", "criterion_gain", "held_out_rms_before_uT",
+                                                 "held_out_rms_after_uT", "identifiability", "metrics", "rivals",
+                                                 "summary"]   # report.json keys: promises
     assert not res.disturbances   # nothing local in a uniform field
     # the held-out field residual falls to the compass's own noise (0.6 µT RMS per component; ±10 %)
     assert res.error_after["held_out_field_residual_rms"] == pytest.approx(0.6, rel=0.1)
@@ -126,6 +129,12 @@ def test_closeloop_report_carries_the_magnetometer(tmp_path):
     paths = write_closeloop_report(tmp_path / "out", rec, res)
     data = json.loads(paths["json"].read_text())
     assert data["magnetometer"]["declared"] == ["hard_iron"] and "unexplained" in data["magnetometer"]
+    # its keys are promises too (add, don't rename)
+    assert list(data["magnetometer"]) == ["reference", "reference_description", "notes", "declared", "declared_params",
+                                          "found", "unexplained", "not_tested", "not_distinguished", "error_before",
+                                          "error_after", "metrics", "rejected", "rounds", "identifiability", "tested"]
+    assert set(data["magnetometer"]["unexplained"]) == {"disturbances", "disturbed_samples", "residual_rms_uT",
+                                                        "white_noise_uT", "ratio_to_noise", "tau_int_samples", "summary"}
     assert "## Magnetometer" in (tmp_path / "out" / "report.md").read_text()
     with pytest.raises(RecordingError, match="needs an attitude reference"):
         run_mag_loop(rec.with_signals(truth=None), ("frame_rotation",))

@@ -45,7 +45,8 @@ from .fit import HeldOutScore, UnionDesign, held_out_score
 from .jsonview import JsonView
 from .state import LoopSetup, ModelState
 
-__all__ = ["MemberEvidence", "ConfoundedGroup", "find_confounded", "RULE", "MIN_OVERLAP", "overlap_summary"]
+__all__ = ["MemberEvidence", "ConfoundedGroup", "find_confounded", "RULE", "MIN_OVERLAP", "overlap_summary", "overlap",
+           "contribution_correlation"]
 
 MIN_OVERLAP = 0.5
 RULE = ("a member that explains all another does and more first; else the physically direct channel first (the gyro's "
@@ -103,21 +104,31 @@ def _conditional(n_eff: float, rss_without: float, rss_with: float, dp: int) -> 
     return n_eff * math.log(rss_without / rss_with) - dp * math.log(n_eff)
 
 
+def overlap(rss0: float, rss_b: float, rss_c: float, rss_bc: float) -> float:
+    """The share of the smaller explanation the other explains too (module docstring):
+    (E_b − (RSS(c) − RSS(b, c))) / min(E_b, E_c), E_x = RSS₀ − RSS(x); 0 when either explains nothing."""
+    e_b, e_c = rss0 - rss_b, rss0 - rss_c
+    shared = e_b - (rss_c - rss_bc)
+    return shared / min(e_b, e_c) if min(e_b, e_c) > 0 else 0.0
+
+
+def contribution_correlation(residual0: np.ndarray, residual_b: np.ndarray, residual_c: np.ndarray) -> float:
+    """Correlation of what b and c each take out of the held-out residual r₀ (r₀ − r_b against r₀ − r_c)."""
+    d_b, d_c = (residual0 - residual_b).ravel(), (residual0 - residual_c).ravel()
+    den = float(np.linalg.norm(d_b) * np.linalg.norm(d_c))
+    return float(d_b @ d_c) / den if den > 0 else math.nan
+
+
 def _pair(setup: LoopSetup, state: ModelState, pool: dict[str, Candidate], scores: dict[str, HeldOutScore],
           best: str, k: str, tau: float | None, union: UnionDesign | None) -> _Pair:
     sb, sc = scores[best], scores[k]
     both = held_out_score(setup.ref, state.terms, state.fit, [pool[best], pool[k]], state.gyro_rad_s, tau, union)
     n_eff = both.n_eff
-    e_b, e_c = sb.rss_before - sb.rss_after, sc.rss_before - sc.rss_after
-    shared = e_b - (sc.rss_after - both.rss_after)
-    overlap = shared / min(e_b, e_c) if min(e_b, e_c) > 0 else 0.0
     g_cb = _conditional(n_eff, sb.rss_after, both.rss_after, both.fit.rank - sb.fit.rank)
     g_bc = _conditional(n_eff, sc.rss_after, both.rss_after, both.fit.rank - sc.fit.rank)
     h = setup.held_rows
-    d_b = state.fit.residual[h] - sb.fit.residual[h]
-    d_c = state.fit.residual[h] - sc.fit.residual[h]
-    den = float(np.linalg.norm(d_b) * np.linalg.norm(d_c))
-    return _Pair(k, overlap, g_cb, g_bc, float(d_b @ d_c) / den if den > 0 else math.nan)
+    return _Pair(k, overlap(sb.rss_before, sb.rss_after, sc.rss_after, both.rss_after), g_cb, g_bc,
+                 contribution_correlation(state.fit.residual[h], sb.fit.residual[h], sc.fit.residual[h]))
 
 
 def find_confounded(setup: LoopSetup, state: ModelState, pool: dict[str, Candidate],

@@ -1,21 +1,30 @@
-"""The model loop: fit the declared model, find what its residual lacks, add it, repeat — naming causes, not proxies.
+"""The gyro/accelerometer model loop: fit the declared model, find what its residual lacks, add it,
+repeat — naming causes, not proxies (docs/closeloop.md).
 
-Small named steps over typed values:
+Small named steps over typed, frozen values; the rounds are the driver's
+(:mod:`calib.closeloop.driver`, shared with the magnetometer loop :mod:`calib.closeloop.mag_loop`),
+the round's gyro steps are :class:`calib.closeloop.select.GyroSteps`:
 
 1. **reference** (:func:`~calib.closeloop.reference.build_reference`): truth rate > optical
-   orientation > at rest (zero rate) | gravity self-consistency; its rows are split into
-   alternating fit / held-out stretches (4 s by default).
-2. **residual of the declared model**: the vocabulary effects the user names (default bias,
-   scale factor, non-orthogonality: Zhou 2020 eq. 1), fitted by least squares on the fit rows
-   (:func:`~calib.closeloop.state.refit`).
-3. **candidates**: every other gyro effect of the vocabulary, built by its family
-   (:mod:`calib.closeloop.families`); one that cannot be built says why.
-4. **select** (:func:`~calib.closeloop.select.run_round`): identifiability gate → held-out gain →
-   confounding rule → acceptance on every held-out metric.
-5. **add**: the accepted term joins the model; repeat until no candidate is accepted.
-6. **report**: parameters on all rows, errors on held-out rows, the trace of each finding, what
-   could not be tested and why, confounded groups, refused additions and metric disagreements, and
-   the structure no candidate explains (:mod:`calib.closeloop.structure`).
+   orientation > at rest (zero rate) | gravity self-consistency; its rows r (rad/s, or weighted
+   pose-to-pose rows) are split into alternating fit / held-out stretches (4 s by default).  A
+   recording with none gives a report that says why (:class:`~calib.closeloop.reference.NoReferenceError`).
+2. **residual of the declared model** (:func:`_declared_residual`): the vocabulary effects the user
+   names (default bias, scale factor, non-orthogonality: y = (I + S + N) ω + b, Zhou et al. 2020
+   eq. 1), fitted by least squares on the fit rows, θ̂ = argmin ‖r − J θ‖² (:func:`~calib.closeloop.state.refit`).
+3. **candidates** (:func:`_candidates`): every other gyro effect of the vocabulary, its regressor
+   the effect's own sensitivity built by its family (:mod:`calib.closeloop.families`); one that
+   cannot be built says why (a :class:`~calib.closeloop.driver.NotTaken`).
+4. **select** (:class:`~calib.closeloop.select.GyroSteps`, :func:`~calib.closeloop.driver.select`):
+   identifiability gate → held-out gain G = n_eff ln(RSS₀/RSS₁) − Δp ln n_eff → confounding rule
+   → acceptance on every held-out metric (Wilcoxon signed-rank z per stretch).
+5. **add** (:func:`~calib.closeloop.driver.run_rounds`): the accepted term joins the model; repeat
+   until no candidate is accepted (at most ``max_rounds``).
+6. **report** (:func:`_report` → :class:`CloseloopResult`): parameters on all rows with σ the larger
+   of the τ_int-inflated and the cluster-robust covariance plus each term's own stochastic part
+   (:func:`_final_covariance`), errors on held-out rows, the trace of each finding, what could not
+   be tested and why, confounded groups, refused additions and metric disagreements, and the
+   structure no candidate explains (:mod:`calib.closeloop.structure`).
 """
 
 from __future__ import annotations
@@ -36,7 +45,8 @@ from gyrosim.units import G0, RAD2DEG
 
 from ..inputs import CLOSELOOP, check_recording
 from .candidates import BuildOptions, Candidate, FittedTerm, Untestable, build_candidate, candidate_kinds, family_for
-from .confounding import ConfoundedGroup, overlap_summary
+from .confounding import overlap_summary
+from .driver import LoopTrace, NotTaken, Round, run_rounds
 from .fit import FitResult, cluster_robust, design_rows, fit_model
 from .identify import Excitation
 from .jsonview import JsonView
@@ -44,47 +54,75 @@ from .mag_loop import MagLoopResult, reference_frame_note, run_mag_loop
 from .mag_terms import is_mag_kind
 from .metrics import MetricChange, compare_metrics, explain_disagreement
 from .reference import GravityReference, NoReferenceError, RateReference, Reference, build_reference
-from .select import Rejection, RoundOutcome, run_round
+from .result import Finding, LoopReport, trace_of
+from .select import GyroSteps
 from .state import LoopSetup, ModelState, refit
-from .structure import channel_correlations, spectral_lines, variance_growth, whiteness
+from .structure import ChannelCorrelation, JitterGrowth, SpectralLine, channel_correlations, spectral_lines, \
+    variance_growth, whiteness
 
-__all__ = ["Finding", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED"]
+__all__ = ["Finding", "RateEvidence", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED",
+           "JSON_KEYS"]
 
 DEFAULT_DECLARED = ("bias", "scale_factor", "nonorthogonality")
 
 
 @dataclass(frozen=True)
-class Finding:
-    """One effect the loop added: its fitted parameters (SI, with 1σ) and the evidence for it."""
+class RateEvidence(JsonView):
+    """Why a gyro effect was added (``report.json`` ``found[i].evidence``): its round, held-out gain G
+    for Δp added parameters, n_eff, the held-out residual RMS before → after (row units), the share
+    of the residual's power it explains (1 − (RMS₁/RMS₀)²), what its regressor follows, the rivals it
+    was confounded with, the gate's verdict and the held-out metrics' changes."""
 
-    effect: str
-    params: dict[str, dict[str, float]]
-    model: dict                      # the effect as gyrosim serialises it (SI): inject it with effect_from_dict
-    evidence: dict
-    trace: str
+    round: int
+    criterion_gain: float
+    added_parameters: int
+    n_eff: float
+    held_out_rms_before: float
+    held_out_rms_after: float
+    follows: str
+    rivals: list[str]
+    identifiability: Excitation | None
+    metrics: tuple[MetricChange, ...]
+    summary: str
+
+    @property
+    def explained_fraction(self) -> float:
+        return 1 - (self.held_out_rms_after / self.held_out_rms_before) ** 2
+
+    def to_json(self) -> dict:
+        return {"round": self.round, "criterion_gain": self.criterion_gain, "added_parameters": self.added_parameters,
+                "n_eff": self.n_eff, "held_out_rms_before": self.held_out_rms_before,
+                "held_out_rms_after": self.held_out_rms_after, "explained_fraction": self.explained_fraction,
+                "follows": self.follows, "rivals": self.rivals,
+                "identifiability": self.identifiability.to_json() if self.identifiability is not None else None,
+                "metrics": [m.to_json() for m in self.metrics], "summary": self.summary}
 
 
 @dataclass(frozen=True)
 class Unexplained(JsonView):
-    """Structure in the final residual that no candidate explains."""
+    """Structure in the final residual that no candidate explains (docs/closeloop.md §7): spectral
+    lines, correlations with every channel, the residual's whiteness per axis (τ_int, Ljung–Box Q)
+    and variance growing with (dω/dt)² as timing jitter would."""
 
-    spectral_lines: tuple = ()
-    channel_correlations: tuple = ()
-    whiteness: dict = field(default_factory=dict)
-    variance_growth: dict | None = None
+    spectral_lines: tuple[SpectralLine, ...] = ()
+    channel_correlations: tuple[ChannelCorrelation, ...] = ()
+    whiteness: dict[str, float] = field(default_factory=dict)
+    variance_growth: JitterGrowth | None = None
     summary: str = ""
 
     def to_json(self) -> dict:
         return {"spectral_lines": [asdict(x) for x in self.spectral_lines],
                 "channel_correlations": [asdict(x) for x in self.channel_correlations],
-                "whiteness": dict(self.whiteness), "variance_growth": self.variance_growth, "summary": self.summary}
+                "whiteness": dict(self.whiteness),
+                "variance_growth": None if self.variance_growth is None else self.variance_growth.to_json(),
+                "summary": self.summary}
 
 
 @dataclass(frozen=True)
 class Checks(JsonView):
     """What the output itself says: quantization step per axis (rad/s), saturated samples, input warnings."""
 
-    quantization_lsb: dict
+    quantization_lsb: dict[str, float | None]
     saturated_samples: int
     warnings: tuple[str, ...]
 
@@ -93,39 +131,19 @@ class Checks(JsonView):
                 "warnings": list(self.warnings)}
 
 
-@dataclass(frozen=True)
-class RoundRecord:
-    """A round as the report shows it: every candidate's score, the gate, what was added or refused."""
-
-    round: int
-    scores: tuple
-    excitations: tuple[Excitation, ...]
-    added: str | None
-    rejections: tuple[Rejection, ...]
-
-    def table(self) -> list[dict]:
-        return [s.to_json() for s in self.scores]
+#: report.json's keys, in the order ``calib closeloop`` writes them (promises: add, don't rename)
+JSON_KEYS = ("reference", "reference_description", "notes", "declared", "declared_params", "found", "unexplained",
+             "not_tested", "not_distinguished", "error_before", "error_after", "checks", "rounds", "metrics", "rejected",
+             "disagreements", "tested", "identifiability")
 
 
-@dataclass(frozen=True)
-class CloseloopResult:
-    reference: str
-    reference_description: str
-    notes: list[str]
-    declared: list[str]
-    declared_params: dict[str, dict[str, float]]
-    found: list[Finding]
-    unexplained: Unexplained
-    not_tested: dict[str, str]
-    not_distinguished: list[ConfoundedGroup]
-    error_before: dict[str, float]
-    error_after: dict[str, float]
+@dataclass(frozen=True, kw_only=True)
+class CloseloopResult(LoopReport):
+    """The gyro loop's report (and the magnetometer's, when the recording has one), plus the rows the
+    plots and the viewer draw."""
+
     checks: Checks
-    rounds: list[RoundRecord]
-    metrics: list[MetricChange] = field(default_factory=list)       # declared → after the loop, held out
-    rejected: list[Rejection] = field(default_factory=list)
     disagreements: list[str] = field(default_factory=list)
-    tested: list[str] = field(default_factory=list)                 # candidates that passed the gate
     row_time_s: np.ndarray | None = field(repr=False, default=None)
     row_axis: np.ndarray | None = field(repr=False, default=None)
     held_out_rows: np.ndarray | None = field(repr=False, default=None)
@@ -136,18 +154,10 @@ class CloseloopResult:
     magnetometer: MagLoopResult | None = None    # the loop on the magnetometer channel (None: no channel)
 
     def to_json_dict(self) -> dict:
-        return {
-            "reference": self.reference, "reference_description": self.reference_description, "notes": self.notes,
-            "declared": self.declared, "declared_params": self.declared_params,
-            "found": [asdict(f) for f in self.found], "unexplained": self.unexplained.to_json(),
-            "not_tested": self.not_tested, "not_distinguished": [g.to_json() for g in self.not_distinguished],
-            "error_before": self.error_before, "error_after": self.error_after, "checks": self.checks.to_json(),
-            "rounds": [r.table() for r in self.rounds],
-            "metrics": [m.to_json() for m in self.metrics], "rejected": [r.to_json() for r in self.rejected],
-            "disagreements": self.disagreements, "tested": self.tested,
-            "identifiability": [e.to_json() for r in self.rounds for e in r.excitations],
-            **({"magnetometer": self.magnetometer.to_json()} if self.magnetometer is not None else {}),
-        }
+        out = {k: self._json(k) for k in JSON_KEYS}
+        if self.magnetometer is not None:
+            out["magnetometer"] = self.magnetometer.to_json()
+        return out
 
 
 def _gyro_axes(res: "CloseloopResult") -> np.ndarray | None:
@@ -163,7 +173,7 @@ def _gyro_axes(res: "CloseloopResult") -> np.ndarray | None:
 
 
 # ================================================================ steps
-def _check_declared(declared) -> list[str]:
+def _check_declared(declared: list[str]) -> list[str]:
     declared = list(declared)
     unknown = [k for k in declared if k not in EFFECTS]
     if unknown:
@@ -172,6 +182,7 @@ def _check_declared(declared) -> list[str]:
 
 
 def _declared_terms(setup: LoopSetup, declared: list[str]) -> tuple[Candidate, ...]:
+    """The declared effects' regressors (each built by its family); one that cannot be built here is bad input."""
     terms = []
     for kind in declared:
         c = build_candidate(kind, setup.ref.ctx, setup.ref, setup.options)
@@ -181,7 +192,11 @@ def _declared_terms(setup: LoopSetup, declared: list[str]) -> tuple[Candidate, .
     return tuple(terms)
 
 
-def _fit_declared(setup: LoopSetup, terms: tuple[Candidate, ...]) -> ModelState:
+def _declared_residual(setup: LoopSetup, terms: tuple[Candidate, ...]) -> ModelState:
+    """Step 2 of the module docstring: the declared model fitted on the fit rows by least squares,
+    θ̂ = argmin ‖W (r − J θ)‖² (:func:`calib.closeloop.fit.fit_model`).  A gravity reference then
+    re-weights its pose-to-pose rows by the declared model's residual (each row's own scatter) and the
+    model is fitted again on those weights."""
     ref = setup.ref
     if setup.held_rows.sum() < 3 or setup.fit_rows.sum() < 3:
         raise RecordingError(
@@ -194,15 +209,18 @@ def _fit_declared(setup: LoopSetup, terms: tuple[Candidate, ...]) -> ModelState:
     return state
 
 
-def _pool(setup: LoopSetup, declared: list[str], kinds: list[str] | None) -> tuple[dict[str, Candidate], dict[str, str]]:
+def _candidates(setup: LoopSetup, declared: list[str], kinds: list[str] | None
+                ) -> tuple[dict[str, Candidate], dict[str, NotTaken]]:
+    """Step 3 of the module docstring: every gyro effect of the vocabulary not declared (or the
+    ``kinds`` asked for), built by its family on the reference; one that cannot be built says why."""
     pool: dict[str, Candidate] = {}
-    not_tested: dict[str, str] = {}
+    not_tested: dict[str, NotTaken] = {}
     for kind in kinds if kinds is not None else candidate_kinds():
         if kind in declared:
             continue
         c = build_candidate(kind, setup.ref.ctx, setup.ref, setup.options)
         if isinstance(c, Untestable):
-            not_tested[kind] = c.reason
+            not_tested[kind] = NotTaken("not_buildable", c.reason)
         else:
             pool[kind] = c
     return pool, not_tested
@@ -219,7 +237,9 @@ def run_closeloop(
     drift_knot_s: float = 20.0,
     progress: Callable[[str], None] | None = None,
 ) -> CloseloopResult:
-    """Run the loop on a recording (the input is not modified); see the module docstring.
+    """Run the loop on a recording (the input is not modified); see the module docstring.  Declared
+    and candidate kinds of the magnetometer go to its own loop (:func:`calib.closeloop.mag_loop.run_mag_loop`),
+    run when the recording has a magnetometer channel.
 
     BLAS runs single-threaded inside (the project's rule for many small factorizations, as in
     ``calib.mag``): a QR of 20 000 × 130 rows took 0.15 s on one thread and 7.5 s with OpenBLAS's
@@ -242,35 +262,25 @@ def run_closeloop(
         mag = run_mag_loop(rec, mag_declared, holdout_s=holdout_s, candidates=mag_cands, max_rounds=max_rounds)
     note = reference_frame_note(mag, _gyro_axes(res)) if res.reference in ("optical", "truth") else None
     if note:
-        mag.notes.append(note)
+        mag = replace(mag, notes=mag.notes + [note])
     return replace(res, magnetometer=mag)
 
 
-def _run(rec: Recording, declared, *, reference, holdout_s, candidates, max_rounds, drift_knot_s,
-         progress) -> CloseloopResult:
+def _run(rec: Recording, declared: list[str], *, reference: str | None, holdout_s: float,
+         candidates: list[str] | None, max_rounds: int, drift_knot_s: float,
+         progress: Callable[[str], None] | None) -> CloseloopResult:
+    """The gyro loop's steps in order: reference → residual → candidates → rounds (select, add) → report."""
     declared = _check_declared(declared)
     check = check_recording(rec, allow_gaps=True, requirements=CLOSELOOP)
     try:  # saturated samples carry no information about the rate: their rows are left out
         ref = build_reference(rec, holdout_s=holdout_s, prefer=reference, exclude=check.excluded)
     except NoReferenceError as err:
-        return _no_reference(rec, declared, str(err), check)
+        return _no_reference(rec, declared, err, check)
     setup = LoopSetup.of(rec, ref, BuildOptions(drift_knot_s=drift_knot_s), progress or (lambda s: None))
-    declared_state = _fit_declared(setup, _declared_terms(setup, declared))
-    pool, not_tested = _pool(setup, declared, candidates)
-    state = declared_state
-    outcomes: list[RoundOutcome] = []
-    for rnd in range(1, max_rounds + 1):
-        outcome, pool, gone = run_round(setup, state, declared_state, pool, rnd)
-        outcomes.append(outcome)
-        for e in outcome.excitations:       # tested this round: an earlier "not identifiable" no longer holds
-            if e.identifiable:
-                not_tested.pop(e.effect, None)
-        not_tested.update(gone)             # the latest reason of every candidate not (yet) taken
-        if outcome.added is None:
-            break
-        not_tested.pop(outcome.added, None)
-        state = outcome.state
-    return _report(setup, check, declared, declared_state, state, outcomes, not_tested)
+    declared_state = _declared_residual(setup, _declared_terms(setup, declared))
+    pool, not_tested = _candidates(setup, declared, candidates)
+    trace = run_rounds(GyroSteps(setup), declared_state, pool, not_tested, max_rounds)
+    return _report(setup, check, declared, trace)
 
 
 # ================================================================ report
@@ -314,11 +324,18 @@ def _attitude_rms(rec: Recording, corrected: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(err[ok] ** 2)) * RAD2DEG)
 
 
+def _row_display(ref: Reference) -> tuple[str, float]:
+    """How the residual rows are shown: (unit, factor from the rows' unit): rate rows in °/s,
+    self-consistency rows (weighted, dimensionless) as they are."""
+    return ("°/s", RAD2DEG) if ref.row_unit == "rad/s" else ("weighted", 1.0)
+
+
 def _errors(setup: LoopSetup, state: ModelState) -> dict[str, float]:
+    """Held-out errors of a model: residual RMS, the reference's own split (gravity: rest rate and tilt),
+    every held-out metric, and the strapdown orientation over the movement (not held out)."""
     ref = setup.ref
     held = setup.held_rows
-    unit = "°/s" if ref.row_unit == "rad/s" else "weighted"
-    scale = RAD2DEG if ref.row_unit == "rad/s" else 1.0
+    unit, scale = _row_display(ref)
     out: dict = {"held_out_residual_rms": _rms(state.fit.residual[held]) * scale, "unit": unit}
     if isinstance(ref, GravityReference):
         out.update(ref.split_rms(state.fit.residual, held))
@@ -341,8 +358,9 @@ def _residual_without(setup: LoopSetup, final: ModelState, index: int):
     return compute
 
 
-def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, outcome: RoundOutcome, scale: float,
-             unit: str) -> Finding:
+def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, rnd: Round[ModelState]) -> Finding:
+    """A term the loop added (``final.terms[index]``, added in round ``rnd``): its parameters and σ from
+    the fit on every row (``full``), its family's summary, the evidence and the trace that says why."""
     term = final.terms[index]
     fam = term.family
     sig = np.sqrt(np.maximum(np.diag(full.cov), 0.0))
@@ -351,23 +369,15 @@ def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, o
     fitted = FittedTerm(term.kind, term.param_names, vals, sigs, term.to_effect(vals), final.totals.get(term.kind),
                         _residual_without(setup, final, index), term)
     rep = fam.report(term.kind, fitted)
-    s = outcome.score
-    exc = next((e for e in outcome.excitations if e.effect == term.kind), None)
-    group = outcome.confounded
-    rivals = group.rivals if group is not None else []
-    evidence = {
-        "round": outcome.round, "criterion_gain": s.gain, "added_parameters": s.added_rank, "n_eff": s.n_eff,
-        "held_out_rms_before": s.rms_before, "held_out_rms_after": s.rms_after,
-        "explained_fraction": 1 - (s.rms_after / s.rms_before) ** 2, "follows": term.follows, "rivals": rivals,
-        "identifiability": exc.to_json() if exc is not None else None,
-        "metrics": [m.to_json() for m in outcome.metrics], "summary": rep.summary,
-    }
-    trace = (f"the residual follows {term.follows} → {rep.summary}; adding it cut the held-out residual from "
-             f"{s.rms_before * scale:.4g} to {s.rms_after * scale:.4g} {unit} (G = {s.gain:.0f} for {s.added_rank} "
-             f"parameter(s))")
-    others = [m for m in outcome.metrics if m.name != "held_out_residual_rms"]
-    if others:
-        trace += "; " + ", ".join(m.describe() for m in others)
+    s = rnd.score
+    group = rnd.confounded
+    metrics = rnd.pick.metrics
+    evidence = RateEvidence(rnd.round, s.gain, s.added_parameters, s.n_eff, s.held_out_rms_before,
+                            s.held_out_rms_after, term.follows, group.rivals if group is not None else [],
+                            rnd.excitation, metrics, rep.summary)
+    unit, scale = _row_display(setup.ref)
+    trace = trace_of(term.follows, rep.summary, "residual", s.held_out_rms_before * scale, s.held_out_rms_after * scale,
+                     unit, s.gain, s.added_parameters, metrics, "held_out_residual_rms")
     caveat = fam.caveat(term.kind, setup.ref.kind)
     if caveat:
         trace += f" — {caveat}"
@@ -378,9 +388,29 @@ def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, o
     return Finding(term.kind, rep.params, _jsonable(rep.effect.to_dict()), evidence, trace)
 
 
-def _report(setup: LoopSetup, check, declared: list[str], declared_state: ModelState, state: ModelState,
-            outcomes: list[RoundOutcome], not_tested: dict[str, str]) -> CloseloopResult:
+def _declared_params(terms: tuple[Candidate, ...], full: FitResult) -> dict[str, dict[str, float]]:
+    """The declared terms' parameters (value, σ) from the fit on every row."""
+    sig = np.sqrt(np.maximum(np.diag(full.cov), 0.0))
+    out: dict[str, dict[str, float]] = {}
+    i = 0
+    for t in terms:
+        for j, name in enumerate(t.param_names):
+            out[name] = {"value": float(full.theta[i + j]), "sigma": float(sig[i + j])}
+        i += t.n_params
+    return out
+
+
+def _weakly_determined(declared_params: dict[str, dict[str, float]]) -> list[str]:
+    """Dimensionless axis errors (the families with a finite fit box) whose σ exceeds 0.1 %."""
+    return [f"{k} ± {v['sigma'] * 100:.2g} %" for k, v in declared_params.items()
+            if math.isfinite(family_bound(k.split(".")[0])) and v["sigma"] > 1e-3]
+
+
+def _report(setup: LoopSetup, check, declared: list[str], trace: LoopTrace[ModelState]) -> CloseloopResult:
+    """Step 6 of the module docstring: parameters on all rows (σ: :func:`_final_covariance`), errors
+    and metrics on the held-out rows, declared → after the loop, and what the residual still holds."""
     ref = setup.ref
+    declared_state, state = trace.declared, trace.final
     notes = list(ref.notes) + list(check.warnings)
     p_decl = sum(t.n_params for t in declared_state.terms)
     if declared_state.fit.rank < p_decl:
@@ -388,51 +418,39 @@ def _report(setup: LoopSetup, check, declared: list[str], declared_state: ModelS
                      f"{declared_state.fit.rank}: the motion does not excite all of them")
     full_state = refit(setup, state.terms, base=state, theta0=state.fit.theta, rows=np.ones(ref.groups.size, bool))
     full = _final_covariance(setup, full_state)
-    sig = np.sqrt(np.maximum(np.diag(full.cov), 0.0))
     n_decl = len(declared)
-    declared_params = {}
-    i = 0
-    for t in full_state.terms[:n_decl]:
-        for j, name in enumerate(t.param_names):
-            declared_params[name] = {"value": float(full.theta[i + j]), "sigma": float(sig[i + j])}
-        i += t.n_params
-    # dimensionless axis errors (the families with a finite fit box) reported when σ > 0.1 %
-    weak = [f"{k} ± {v['sigma'] * 100:.2g} %" for k, v in declared_params.items()
-            if math.isfinite(family_bound(k.split(".")[0])) and v["sigma"] > 1e-3]
+    declared_params = _declared_params(full_state.terms[:n_decl], full)
+    weak = _weakly_determined(declared_params)
     if weak:
         notes.append("weakly determined (σ > 0.1 %: little motion excites them): " + ", ".join(weak))
-    unit = "°/s" if ref.row_unit == "rad/s" else "weighted"
-    scale = RAD2DEG if ref.row_unit == "rad/s" else 1.0
-    added = [o for o in outcomes if o.added is not None]
-    found = [_finding(setup, full_state, full, n_decl + k, o, scale, unit) for k, o in enumerate(added)]
+    added = trace.added
+    found = [_finding(setup, full_state, full, n_decl + k, r) for k, r in enumerate(added)]
 
     err_b, err_a = _errors(setup, declared_state), _errors(setup, state)
     raw = _attitude_rms(setup.rec, setup.measured_gyro)
     if raw is not None:
         err_b["strapdown_orientation_rms_deg_raw_gyro"] = raw
     metrics = compare_metrics(declared_state.metrics(setup), state.metrics(setup)) if added else []
-    rejected = [r for o in outcomes for r in o.rejections]
+    rejected = trace.rejected
     disagreements = [f"{r.effect} (round {r.round}): {r.disagreement}" for r in rejected if r.disagreement]
     final_dis = explain_disagreement(metrics, f"the {ref.kind} reference's residual rows", None)
     if final_dis:
         disagreements.append(f"after the loop: {final_dis}")
-    tested = sorted({e.effect for o in outcomes for e in o.excitations if e.identifiable})
+    tested = trace.tested
+    not_tested = trace.not_tested_text()
     if not tested and not found:
         notes.insert(0, "nothing could be tested on this recording: no candidate is identifiable here "
                         f"({len(not_tested)} reasons under not_tested)")
     follows = {t.kind: t.follows_series for t in full_state.terms[n_decl:] if t.follows_series is not None}
-    rate_ref = isinstance(ref, RateReference)
     return CloseloopResult(
         reference=ref.kind, reference_description=ref.description, notes=notes, declared=declared,
-        declared_params=declared_params, found=found, unexplained=_unexplained(ref, setup.rec, state.fit.residual,
-                                                                                setup.held_rows),
-        not_tested=not_tested, not_distinguished=[o.confounded for o in outcomes if o.confounded is not None],
-        error_before=err_b, error_after=err_a, checks=_checks(setup.rec, check),
-        rounds=[RoundRecord(o.round, o.scores, o.excitations, o.added, o.rejections) for o in outcomes],
-        metrics=metrics, rejected=rejected, disagreements=disagreements, tested=tested,
-        row_time_s=ref.row_time_s, row_axis=ref.row_axis, held_out_rows=setup.held_rows,
-        residual_before=declared_state.fit.residual, residual_after=state.fit.residual, follows_series=follows,
-        rows_of=ref.rows_of if rate_ref else None)
+        declared_params=declared_params, found=found,
+        unexplained=_unexplained(ref, setup.rec, state.fit.residual, setup.held_rows), not_tested=not_tested,
+        not_distinguished=trace.not_distinguished, error_before=err_b, error_after=err_a,
+        checks=_checks(setup.rec, check), rounds=list(trace.rounds), metrics=metrics, rejected=rejected,
+        disagreements=disagreements, tested=tested, row_time_s=ref.row_time_s, row_axis=ref.row_axis,
+        held_out_rows=setup.held_rows, residual_before=declared_state.fit.residual, residual_after=state.fit.residual,
+        follows_series=follows, rows_of=ref.rows_of if isinstance(ref, RateReference) else None)
 
 
 def _final_covariance(setup: LoopSetup, final: ModelState) -> FitResult:
@@ -459,14 +477,14 @@ def family_bound(kind: str) -> float:
     return math.inf if isinstance(fam, Untestable) else fam.bound
 
 
-def _no_reference(rec: Recording, declared: list[str], why: str, check) -> CloseloopResult:
+def _no_reference(rec: Recording, declared: list[str], err: NoReferenceError, check) -> CloseloopResult:
     """The report of a recording that cannot separate candidates: say why, guess nothing."""
     kinds = [k for k in candidate_kinds() if k not in declared]
     return CloseloopResult(
         reference="none", reference_description="no usable reference",
-        notes=[f"nothing could be tested on this recording: {why}"] + list(check.warnings), declared=declared,
+        notes=[f"nothing could be tested on this recording: {err}"] + list(check.warnings), declared=declared,
         declared_params={}, found=[], unexplained=Unexplained(summary="not analysed: no reference"),
-        not_tested={k: f"not distinguishable on this recording: {why}" for k in kinds}, not_distinguished=[],
+        not_tested={k: NotTaken("no_reference", str(err)).text for k in kinds}, not_distinguished=[],
         error_before={}, error_after={}, checks=_checks(rec, check), rounds=[])
 
 
@@ -527,8 +545,8 @@ def _unexplained(ref: Reference, rec: Recording, r: np.ndarray, held: np.ndarray
     dw = ref.rows_of(np.gradient(ref.ctx.omega_true_rad_s, ref.ctx.t_s, axis=0)).reshape(-1, 3)
     jitter = variance_growth(blocks, dw)
     if jitter:
-        parts.append(f"residual variance grows with (dω/dt)² as sampling-time jitter of {jitter['jitter_s'] * 1e3:.2f} ms "
-                     f"would ({jitter['z']:.1f}σ)")
+        parts.append(f"residual variance grows with (dω/dt)² as sampling-time jitter of {jitter.jitter_s * 1e3:.2f} ms "
+                     f"would ({jitter.z:.1f}σ)")
     taus = [white[f"tau_int_{a}"] for a in "xyz"]
     parts.append(f"residual autocorrelation time {min(taus):.1f}–{max(taus):.1f} samples (1 = white)")
     return Unexplained(tuple(lines), tuple(corr), white, jitter, "; ".join(parts))

@@ -11,20 +11,9 @@ Steps (each reusing the gyro loop's rule where it applies):
    a missing sensor term (which turns with the board, everywhere) is not taken for a local field;
    what remains local is a field that changes with where the board is.  The flagged samples are
    left out of every fit and metric: the anomaly is never absorbed, and it is reported.
-2. **gate** (:mod:`calib.closeloop.mag_identify`): every component of the candidate at its largest
-   plausible size must show at 3σ against the current model.
-3. **held-out gain**: G = n_eff ln(RSS₀/RSS₁) − Δp ln n_eff on the held-out stretches
-   (n_eff = rows / τ_int of the richest model's held-out residual, as the gyro loop counts it); a
-   positive G with a fitted size beyond the plausible one by 3σ is refused as a proxy.
-4. **confounding**: the best candidate and any other with G > 0 that explains the same part
-   (overlap ≥ ½, or one adds nothing beyond the other) form a group (the gyro loop's definition,
-   :mod:`calib.closeloop.confounding`); rule: the member that explains all another does and more,
-   else the larger gain (all magnetometer candidates read their cause through the same channel, the
-   reference field).
-5. **acceptance on every metric** (:mod:`calib.closeloop.mag_metrics`): the model with the pick
-   must leave no held-out metric worse beyond its noise against the current and the declared
-   model, else the pick is refused (with the metrics' disagreement) and the next is tried.
-6. **report**: parameters (fitted on every stretch, block-sandwich σ), the trace of each finding,
+2. **rounds** (:mod:`calib.closeloop.mag_select`, run by :mod:`calib.closeloop.driver`): gate →
+   held-out gain → confounding → acceptance on every metric → add, until a round adds nothing.
+3. **report**: parameters (fitted on every stretch, block-sandwich σ), the trace of each finding,
    what could not be tested and why, and the unexplained structure: disturbances (time, size,
    position when known) and the residual's level against the magnetometer's own noise.
 """
@@ -32,124 +21,112 @@ Steps (each reusing the gyro loop's rule where it applies):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 
-from .confounding import ConfoundedGroup, MemberEvidence
+from .driver import LoopTrace, NotTaken, Round, run_rounds
 from .fit import integrated_time
 from .identify import Excitation
 from .jsonview import JsonView
 from .mag_fit import MagFit, fit_mag
 from .mag_identify import mag_excitation
-from .mag_metrics import detect_disturbances, mag_metrics
+from .mag_metrics import detect_disturbances
 from .mag_reference import MagReference, build_mag_reference
+from .mag_select import MAG_RULE, MagSetup, MagSteps, noise_of
 from .mag_terms import MAG_TERMS, mag_term
 from .metrics import MetricChange, compare_metrics, explain_disagreement
-from .select import CandidateScore, Rejection
+from .result import Finding, LoopReport, trace_of
 
-__all__ = ["MagFinding", "MagLoopResult", "run_mag_loop", "MAG_RULE", "reference_frame_note", "not_analysed"]
+__all__ = ["MagFinding", "MagEvidence", "MagUnexplained", "MagLoopResult", "run_mag_loop", "MAG_RULE",
+           "reference_frame_note", "not_analysed"]
 
-MIN_OVERLAP = 0.5
-MAG_RULE = ("a member that explains all another does and more first; else the larger held-out gain (every magnetometer "
-            "candidate reads its cause through the same channel: the reference field)")
+#: a magnetometer finding is a :class:`~calib.closeloop.result.Finding` (µT, rad)
+MagFinding = Finding
 
-
-@dataclass(frozen=True)
-class MagFinding:
-    effect: str
-    params: dict[str, dict[str, float]]
-    model: dict                  # the magnetometer effect as gyrosim serialises it (µT, rad)
-    evidence: dict
-    trace: str
+#: the magnetometer part of report.json, in the order it is written
+JSON_KEYS = ("reference", "reference_description", "notes", "declared", "declared_params", "found", "unexplained",
+             "not_tested", "not_distinguished", "error_before", "error_after", "metrics", "rejected", "rounds",
+             "identifiability", "tested")
 
 
 @dataclass(frozen=True)
-class MagLoopResult(JsonView):
-    reference: str
-    reference_description: str
-    notes: list[str]
-    declared: list[str]
-    declared_params: dict[str, dict[str, float]]
-    found: list[MagFinding]
-    unexplained: dict
-    not_tested: dict[str, str]
-    not_distinguished: list[ConfoundedGroup]
-    error_before: dict[str, float]
-    error_after: dict[str, float]
-    metrics: list[MetricChange] = field(default_factory=list)
-    rejected: list[Rejection] = field(default_factory=list)
-    rounds: list[list[CandidateScore]] = field(default_factory=list)   # held-out RMS in µT
-    identifiability: list[Excitation] = field(default_factory=list)
-    tested: list[str] = field(default_factory=list)
+class MagEvidence(JsonView):
+    """Why a magnetometer effect was added: its round, held-out gain G, the held-out field residual RMS
+    before → after (µT), the gate's verdict, the metrics' changes, the rivals it was confounded with."""
+
+    round: int
+    criterion_gain: float
+    held_out_rms_before_uT: float
+    held_out_rms_after_uT: float
+    identifiability: Excitation
+    metrics: tuple[MetricChange, ...]
+    rivals: list[str]
+    summary: str
+
+    def to_json(self) -> dict:
+        return {"round": self.round, "criterion_gain": self.criterion_gain,
+                "held_out_rms_before_uT": self.held_out_rms_before_uT,
+                "held_out_rms_after_uT": self.held_out_rms_after_uT, "identifiability": self.identifiability.to_json(),
+                "metrics": [m.to_json() for m in self.metrics], "rivals": self.rivals, "summary": self.summary}
+
+
+@dataclass(frozen=True)
+class MagUnexplained(JsonView):
+    """What the final field residual still holds: local disturbances (excluded from every fit) and the
+    residual's level against the magnetometer's white noise (µT).  ``analysed=False``: the channel
+    was not analysed, and ``report.json`` shows ``{}``."""
+
+    disturbances: tuple[dict, ...] = ()
+    disturbed_samples: int = 0
+    residual_rms_uT: float = math.nan
+    white_noise_uT: float = math.nan
+    ratio_to_noise: float = math.nan
+    tau_int_samples: float = math.nan
+    summary: str = ""
+    analysed: bool = True
+
+    def to_json(self) -> dict:
+        if not self.analysed:
+            return {}
+        return {"disturbances": list(self.disturbances), "disturbed_samples": self.disturbed_samples,
+                "residual_rms_uT": self.residual_rms_uT, "white_noise_uT": self.white_noise_uT,
+                "ratio_to_noise": self.ratio_to_noise, "tau_int_samples": self.tau_int_samples,
+                "summary": self.summary}
+
+
+@dataclass(frozen=True, kw_only=True)
+class MagLoopResult(LoopReport, JsonView):
+    """The magnetometer loop's report (rounds' held-out RMS in µT)."""
+
+    unexplained: MagUnexplained
 
     @property
-    def found_kinds(self) -> list[str]:
-        return [f.effect for f in self.found]
+    def identifiability(self) -> list[Excitation]:
+        return [e for r in self.rounds for e in r.excitations]
 
     @property
     def disturbances(self) -> list[dict]:
-        return list(self.unexplained.get("disturbances", []))
+        return list(self.unexplained.disturbances)
 
     def to_json(self) -> dict:
-        return {"reference": self.reference, "reference_description": self.reference_description, "notes": self.notes,
-                "declared": self.declared, "declared_params": self.declared_params,
-                "found": [asdict(f) for f in self.found], "unexplained": self.unexplained,
-                "not_tested": self.not_tested, "not_distinguished": [g.to_json() for g in self.not_distinguished],
-                "error_before": self.error_before, "error_after": self.error_after,
-                "metrics": [m.to_json() for m in self.metrics], "rejected": [r.to_json() for r in self.rejected],
-                "rounds": [[s.to_json() for s in r] for r in self.rounds],
-                "identifiability": [e.to_json() for e in self.identifiability], "tested": self.tested}
+        return {k: self._json(k) for k in JSON_KEYS}
 
 
 def not_analysed(why: str) -> MagLoopResult:
     """The magnetometer part of a report when the channel cannot be used (said, nothing guessed)."""
-    return MagLoopResult("none", "not analysed", [f"magnetometer not analysed: {why}"], [], {}, [], {},
-                         {k: f"not analysed: {why}" for k in MAG_TERMS}, [], {}, {})
+    return MagLoopResult(reference="none", reference_description="not analysed",
+                         notes=[f"magnetometer not analysed: {why}"], declared=[], declared_params={}, found=[],
+                         unexplained=MagUnexplained(analysed=False),
+                         not_tested={k: NotTaken("not_analysed", why).text for k in MAG_TERMS}, not_distinguished=[],
+                         error_before={}, error_after={})
 
 
-# ================================================================ helpers
-@dataclass(frozen=True)
-class _Ctx:
-    ref: MagReference
-    exclude: np.ndarray
-    n_eff: float
-    noise_ut: float        # σ_w of the gate (calib.closeloop.mag_identify)
-
-    @property
-    def fit_rows(self) -> np.ndarray:
-        return self.ref.rows(held=False, exclude=self.exclude)
-
-    @property
-    def held_rows(self) -> np.ndarray:
-        return self.ref.rows(held=True, exclude=self.exclude)
-
-    def fit(self, kinds: tuple[str, ...], start: MagFit | None = None, rows: np.ndarray | None = None) -> MagFit:
-        theta0 = None
-        if start is not None:
-            extra = sum(mag_term(k).n_params for k in kinds[len(start.kinds):])
-            theta0 = np.concatenate([start.theta, np.zeros(extra)])
-        return fit_mag(self.ref, kinds, self.fit_rows if rows is None else rows, theta0)
-
-    def gain(self, before: MagFit, after: MagFit) -> float:
-        rss0, rss1 = before.rss(self.held_rows), after.rss(self.held_rows)
-        dp = after.rank - before.rank
-        if dp <= 0 or rss1 <= 0:
-            return -math.inf
-        return self.n_eff * math.log(rss0 / rss1) - dp * math.log(self.n_eff)
-
-    def rms(self, f: MagFit) -> float:
-        r = f.residual[self.held_rows]
-        return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
-
-    def metrics(self, f: MagFit) -> dict:
-        return mag_metrics(self.ref, f, self.exclude)
-
-
-def _mask(ref: MagReference, kinds: tuple[str, ...]) -> tuple[np.ndarray, MagFit]:
+# ================================================================ steps
+def _disturbance_mask(ref: MagReference, kinds: tuple[str, ...]) -> tuple[np.ndarray, MagFit]:
     """Step 1 of the module docstring: the disturbance mask of the richest model."""
     exclude = np.zeros(ref.t_s.size, bool)
     f = fit_mag(ref, kinds, ref.rows(held=False))
@@ -160,80 +137,6 @@ def _mask(ref: MagReference, kinds: tuple[str, ...]) -> tuple[np.ndarray, MagFit
         exclude = new
         f = fit_mag(ref, kinds, ref.rows(held=False, exclude=exclude), f.theta)
     return exclude, f
-
-
-def _noise(ref: MagReference, f: MagFit, exclude: np.ndarray) -> tuple[float, float]:
-    """(n_eff of the held-out rows, σ_w of the gate) from the richest model's held-out residual."""
-    held = ref.rows(held=True, exclude=exclude)
-    r = f.residual[held]
-    tau = max(float(np.mean([integrated_time(r[:, a]) for a in range(r.shape[1])])), 1.0)
-    sigma = float(np.sqrt(np.mean(r**2))) * math.sqrt(tau)
-    return max(r.size / tau, 2.0), max(ref.noise_ut, sigma)
-
-
-def _implausible(kind: str, f: MagFit) -> str | None:
-    term = mag_term(kind)
-    th = f.theta[-term.n_params:]
-    sig = np.sqrt(np.maximum(np.diag(f.cov), 0.0))[-term.n_params:]
-    over = np.abs(th) - 3 * sig > term.plausible_max
-    if not np.any(over):
-        return None
-    j = int(np.argmax(np.abs(th)))
-    fac, unit = term.display
-    return (f"fitted {kind} reaches {th[j] * fac:.3g} {unit}, beyond the largest plausible size "
-            f"({term.plausible_max * fac:.3g} {unit}) by more than 3σ: a proxy for something else, not this effect")
-
-
-def _confounded(c: _Ctx, cur: MagFit, fits: dict[str, MagFit], gains: dict[str, float], best: str,
-                rnd: int) -> tuple[str, ConfoundedGroup | None]:
-    rss0 = cur.rss(c.held_rows)
-    members, wider = [], []
-    for k, fk in fits.items():
-        if k == best or gains[k] <= 0:
-            continue
-        both = c.fit(cur.kinds + (best, k), cur)
-        rb, rc, rbc = fits[best].rss(c.held_rows), fk.rss(c.held_rows), both.rss(c.held_rows)
-        e_b, e_c = rss0 - rb, rss0 - rc
-        overlap = (e_b - (rc - rbc)) / min(e_b, e_c) if min(e_b, e_c) > 0 else 0.0
-        g_cb, g_bc = c.gain(fits[best], both), c.gain(fk, both)
-        if overlap >= MIN_OVERLAP or g_cb <= 0 or g_bc <= 0:
-            h = c.held_rows
-            d_b, d_c = (cur.residual[h] - fits[best].residual[h]).ravel(), (cur.residual[h] - fk.residual[h]).ravel()
-            den = float(np.linalg.norm(d_b) * np.linalg.norm(d_c))
-            members.append(MemberEvidence(k, "reference_field", gains[k], 1 - rc / rss0, float(overlap), float(g_cb),
-                                          float(g_bc), float(d_b @ d_c) / den if den > 0 else math.nan,
-                                          mag_term(k).separated_by))
-            if g_bc <= 0 < g_cb:
-                wider.append(k)
-    if not members:
-        return best, None
-    chosen = max(wider, key=lambda k: gains[k]) if wider else best
-    own = MemberEvidence(best, "reference_field", gains[best], 1 - fits[best].rss(c.held_rows) / rss0, 1.0,
-                         gains[best], gains[best], 1.0, mag_term(best).separated_by)
-    ev = (own,) + tuple(members)
-    names = [m.effect for m in ev]
-    seps = "; or ".join(dict.fromkeys(m.separated_by for m in ev))
-    why = (f"{', '.join(names)} explain the same part of the held-out field residual on this recording; chosen "
-           f"{chosen} by the rule: {MAG_RULE}")
-    return chosen, ConfoundedGroup(rnd, chosen, ev, MAG_RULE, seps, why)
-
-
-def _accept(c: _Ctx, cur: MagFit, declared: MagFit, new: MagFit, kind: str, rnd: int
-            ) -> tuple[list[MetricChange], Rejection | None]:
-    current = compare_metrics(c.metrics(cur), c.metrics(new))
-    checks = [("the current model", current)]
-    if cur is not declared:
-        checks.append(("the declared model", compare_metrics(c.metrics(declared), c.metrics(new))))
-    caveat = "the reference attitude's own frame and errors" if c.ref.source == "optical" else None
-    for against, changes in checks:
-        worse = [m for m in changes if m.verdict == "worse"]
-        if worse:
-            why = (f"adding {kind} makes {', '.join(m.describe() for m in worse)} worse than {against} beyond its "
-                   f"noise (z > {worse[0].threshold:.2f})")
-            return current, Rejection(rnd, kind, against, tuple(changes),
-                                      explain_disagreement(list(changes), "the magnetometer's residual rows", caveat),
-                                      why)
-    return current, None
 
 
 def _params(ref: MagReference, f: MagFit, kind: str) -> tuple[np.ndarray, np.ndarray]:
@@ -287,76 +190,60 @@ def run_mag_loop(rec: Recording, declared: tuple[str, ...] | list[str] = (), *, 
     except RecordingError as err:
         return not_analysed(str(err))
     declared = tuple(declared)
-    not_tested: dict[str, str] = {}
     for k in declared:
         if mag_term(k).needs_attitude and not ref.has_attitude:
             raise RecordingError(f"declared magnetometer effect {k!r} needs an attitude reference, which this "
                                  "recording lacks")
-    pool = [k for k in (candidates if candidates is not None else MAG_TERMS) if k not in declared]
-    for k in list(pool):
+    pool, not_tested = _candidates(ref, declared, candidates)
+    exclude, rich = _disturbance_mask(ref, declared + tuple(pool))
+    setup = MagSetup(ref, exclude, *noise_of(ref, rich, exclude))
+    trace = run_rounds(MagSteps(setup), setup.fit(declared), pool, not_tested, max_rounds)
+    return _report(setup, declared, trace)
+
+
+def _candidates(ref: MagReference, declared: tuple[str, ...], kinds: list[str] | None
+                ) -> tuple[dict[str, str], dict[str, NotTaken]]:
+    """The magnetometer kinds not declared (or ``kinds``); one that needs an attitude the recording
+    lacks is left out with the gate's reason."""
+    pool: dict[str, str] = {}
+    not_tested: dict[str, NotTaken] = {}
+    for k in kinds if kinds is not None else MAG_TERMS:
+        if k in declared:
+            continue
         if mag_term(k).needs_attitude and not ref.has_attitude:
-            not_tested[k] = mag_excitation(ref, fit_mag(ref, declared, ref.rows(held=False)), k, ref.valid,
-                                           ref.noise_ut).reason
-            pool.remove(k)
-    exclude, rich = _mask(ref, declared + tuple(pool))
-    c = _Ctx(ref, exclude, *_noise(ref, rich, exclude))
-    declared_fit = c.fit(declared)
-    cur = declared_fit
-    rounds: list[list[CandidateScore]] = []
-    excitations: list[Excitation] = []
-    rejected: list[Rejection] = []
-    added: list[dict] = []
-    groups: list[ConfoundedGroup] = []
-    for rnd in range(1, max_rounds + 1):
-        if not pool:
-            break
-        fits, gains, table, live = {}, {}, [], {}
-        for k in pool:
-            exc = mag_excitation(ref, cur, k, c.fit_rows, c.noise_ut)
-            excitations.append(exc)
-            if not exc.identifiable:
-                not_tested[k] = f"not identifiable on this recording: {exc.reason}"
-                continue
-            not_tested.pop(k, None)
-            f = c.fit(cur.kinds + (k,), cur)
-            fits[k], gains[k] = f, c.gain(cur, f)
-            why = _implausible(k, f) if gains[k] > 0 else None
-            table.append(CandidateScore(k, gains[k] if math.isfinite(gains[k]) else None, f.rank - cur.rank,
-                                        c.rms(cur), c.rms(f), c.n_eff, why))
-            if gains[k] > 0 and not why:
-                live[k] = gains[k]
-            elif why:
-                not_tested[k] = f"refused: {why}"
-        table.sort(key=lambda s: -(s.gain if s.gain is not None else -math.inf))
-        rounds.append(table)
-        pick = None
-        while live:
-            best = max(live, key=live.get)
-            chosen, group = _confounded(c, cur, {k: fits[k] for k in live}, gains, best, rnd)
-            changes, rej = _accept(c, cur, declared_fit, fits[chosen], chosen, rnd)
-            if rej is None:
-                pick = chosen
-                added.append({"round": rnd, "effect": chosen, "gain": gains[chosen], "rms_before": c.rms(cur),
-                              "rms_after": c.rms(fits[chosen]), "metrics": changes, "group": group,
-                              "excitation": next(e for e in reversed(excitations) if e.effect == chosen)})
-                if group is not None:
-                    groups.append(group)
-                break
-            rejected.append(rej)
-            not_tested[chosen] = f"refused by the acceptance on every metric: {rej.why}"
-            live.pop(chosen)
-            pool.remove(chosen)
-        if pick is None:
-            break
-        pool.remove(pick)
-        not_tested.pop(pick, None)
-        cur = fits[pick]
-    return _report(rec, c, declared, declared_fit, cur, added, not_tested, groups, rounds, excitations, rejected)
+            exc = mag_excitation(ref, fit_mag(ref, declared, ref.rows(held=False)), k, ref.valid, ref.noise_ut)
+            not_tested[k] = NotTaken("not_buildable", exc.reason)
+        else:
+            pool[k] = k
+    return pool, not_tested
 
 
-def _report(rec, c: _Ctx, declared, declared_fit: MagFit, cur: MagFit, added, not_tested, groups, rounds,
-            excitations, rejected) -> MagLoopResult:
+def _finding(ref: MagReference, final: MagFit, rnd: Round[MagFit]) -> Finding:
+    """The term added in round ``rnd``: parameters from the fit on every stretch, evidence and trace."""
+    k = rnd.added
+    term = mag_term(k)
+    v, s = _params(ref, final, k)
+    summ = term.summary(v, s)
+    score, changes, g = rnd.score, rnd.pick.metrics, rnd.confounded
+    trace = trace_of(term.driver, summ, "field residual", score.held_out_rms_before, score.held_out_rms_after, "µT",
+                     score.gain, term.n_params, changes, "held_out_field_residual_rms")
+    if k == "frame_rotation" and ref.source == "optical":
+        trace += (" — against an optical reference, a rotation between the optical body frame and the IMU frame "
+                  "looks exactly like this; a misalignment the gyro loop finds against the same reference points "
+                  "to the reference frame, not the magnetometer")
+    if g is not None:
+        trace += f". Confounded with {', '.join(g.rivals)} (under not_distinguished); separated by: {g.separate_by}"
+    params = {n: {"value": float(x), "sigma": float(y)} for n, x, y in zip(term.param_names, v, s)}
+    evidence = MagEvidence(rnd.round, score.gain, score.held_out_rms_before, score.held_out_rms_after, rnd.excitation,
+                           changes, g.rivals if g is not None else [], summ)
+    return Finding(k, params, _jsonable_effect(term.to_effect(v)), evidence, trace)
+
+
+def _report(c: MagSetup, declared: tuple[str, ...], trace: LoopTrace[MagFit]) -> MagLoopResult:
+    """Step 3 of the module docstring: parameters fitted on every stretch (block-sandwich σ), held-out
+    metrics declared → after the loop, and the structure the final residual still holds."""
     ref = c.ref
+    declared_fit, cur = trace.declared, trace.final
     final = c.fit(cur.kinds, cur, rows=ref.valid & ~c.exclude)        # parameters on every stretch
     declared_params = {}
     for k in declared:
@@ -364,55 +251,37 @@ def _report(rec, c: _Ctx, declared, declared_fit: MagFit, cur: MagFit, added, no
         for n, a, b in zip(mag_term(k).param_names, v, s):
             declared_params[f"{k}.{n}"] = {"value": float(a), "sigma": float(b)}
     base = final.theta[: 3 if ref.has_attitude else 1]
-    found = []
-    for a in added:
-        k = a["effect"]
-        term = mag_term(k)
-        v, s = _params(ref, final, k)
-        summ = term.summary(v, s)
-        changes = a["metrics"]
-        trace = (f"the residual follows {term.driver} → {summ}; adding it cut the held-out field residual from "
-                 f"{a['rms_before']:.4g} to {a['rms_after']:.4g} µT (G = {a['gain']:.0f} for {term.n_params} parameter(s))")
-        others = [m for m in changes if m.name != "held_out_field_residual_rms"]
-        if others:
-            trace += "; " + ", ".join(m.describe() for m in others)
-        if k == "frame_rotation" and ref.source == "optical":
-            trace += (" — against an optical reference, a rotation between the optical body frame and the IMU frame "
-                      "looks exactly like this; a misalignment the gyro loop finds against the same reference points "
-                      "to the reference frame, not the magnetometer")
-        g = a["group"]
-        if g is not None:
-            trace += f". Confounded with {', '.join(g.rivals)} (under not_distinguished); separated by: {g.separate_by}"
-        params = {n: {"value": float(x), "sigma": float(y)} for n, x, y in zip(term.param_names, v, s)}
-        evidence = {"round": a["round"], "criterion_gain": a["gain"], "held_out_rms_before_uT": a["rms_before"],
-                    "held_out_rms_after_uT": a["rms_after"], "identifiability": a["excitation"].to_json(),
-                    "metrics": [m.to_json() for m in changes], "rivals": g.rivals if g is not None else [],
-                    "summary": summ}
-        found.append(MagFinding(k, params, _jsonable_effect(term.to_effect(v)), evidence, trace))
+    found = [_finding(ref, final, r) for r in trace.added]
     m_before, m_after = c.metrics(declared_fit), c.metrics(cur)
-    metrics = compare_metrics(m_before, m_after) if added else []
+    metrics = compare_metrics(m_before, m_after) if found else []
     err_b = {k: v.value for k, v in m_before.items()}
     err_a = {k: v.value for k, v in m_after.items()}
     notes = list(ref.warnings)
     if ref.saturated:
         notes.append(f"{ref.saturated} saturated magnetometer samples excluded")
     dis = explain_disagreement(metrics, "the magnetometer's residual rows", None)
-    tested = sorted({e.effect for e in excitations if e.identifiable})
+    tested = trace.tested
+    not_tested = trace.not_tested_text()
     if not tested and not found:
         notes.insert(0, f"nothing could be tested on the magnetometer: no candidate is identifiable here "
                         f"({len(not_tested)} reasons under not_tested)")
-    unexplained = _unexplained(c, final, base, not_tested)
+    unexplained = _unexplained(c, final, base, list(not_tested))
     if dis:
         notes.append(f"after the loop: {dis}")
-    return MagLoopResult(f"magnetometer/{ref.kind} ({ref.source})", ref.description, notes, list(declared),
-                         declared_params, found, unexplained, not_tested, groups, err_b, err_a, metrics, rejected,
-                         rounds, excitations, tested)
+    return MagLoopResult(reference=f"magnetometer/{ref.kind} ({ref.source})", reference_description=ref.description,
+                         notes=notes, declared=list(declared), declared_params=declared_params, found=found,
+                         unexplained=unexplained, not_tested=not_tested, not_distinguished=trace.not_distinguished,
+                         error_before=err_b, error_after=err_a, metrics=metrics, rejected=trace.rejected,
+                         rounds=list(trace.rounds), tested=tested)
 
 
-def _unexplained(c: _Ctx, final: MagFit, base: np.ndarray, not_tested: dict[str, str]) -> dict:
+def _unexplained(c: MagSetup, final: MagFit, base: np.ndarray, untested: list[str]) -> MagUnexplained:
+    """Local disturbances of the final model's residual (:func:`calib.mag.disturbance.find_disturbances`)
+    and the held-out residual outside them against the magnetometer's white noise σ_w: its RMS, the
+    ratio RMS / σ_w and the autocorrelation time τ_int (1 sample = white)."""
     ref = c.ref
     mask, dist = detect_disturbances(ref, final)
-    parts, out = [], {}
+    parts = []
     for d in dist:
         where = (f" near ({', '.join(f'{x:.2f}' for x in d.position_nav_m)}) m ENU"
                  if d.position_nav_m is not None else "")
@@ -422,22 +291,19 @@ def _unexplained(c: _Ctx, final: MagFit, base: np.ndarray, not_tested: dict[str,
                         if math.isfinite(d.max_inclination_deviation_deg) else "") + where
                      + " — a field that changes with where the board is (or when: a magnet brought near, attached, "
                        "taken off): excluded from the fit, not absorbed")
-    out["disturbances"] = [d.to_dict() for d in dist]
-    out["disturbed_samples"] = int(mask.sum())
     held = ref.rows(held=True, exclude=mask | c.exclude)
     r = final.residual[held]
     rms = float(np.sqrt(np.mean(r**2))) if r.size else math.nan
     ratio = rms / ref.noise_ut
     tau = float(np.mean([integrated_time(r[:, a]) for a in range(r.shape[1])])) if r.size else math.nan
-    out.update(residual_rms_uT=rms, white_noise_uT=ref.noise_ut, ratio_to_noise=ratio, tau_int_samples=tau)
     if ref.noise_ut < 0.01:
         parts.append(f"residual {rms:.3g} µT with autocorrelation time {tau:.0f} samples; the field samples have no "
                      "white noise to compare with (read slower than the log and interpolated, or filtered)")
     elif ratio > 2.0:
         causes = ["the reference attitude's own error", "a time offset between reference and magnetometer"] \
             if ref.has_attitude else []
-        if not_tested:
-            causes.append(f"the candidates that could not be tested here ({', '.join(not_tested)})")
+        if untested:
+            causes.append(f"the candidates that could not be tested here ({', '.join(untested)})")
         causes.append("a field that varies over the room")
         parts.append(f"the residual outside disturbances is {ratio:.1f}× the magnetometer's white noise "
                      f"({ref.noise_ut:.2f} µT) with autocorrelation time {tau:.0f} samples: structure no candidate "
@@ -445,5 +311,5 @@ def _unexplained(c: _Ctx, final: MagFit, base: np.ndarray, not_tested: dict[str,
     else:
         parts.append(f"residual {rms:.3g} µT = {ratio:.2f}× the magnetometer's white noise ({ref.noise_ut:.2f} µT), "
                      f"autocorrelation time {tau:.1f} samples")
-    out["summary"] = "; ".join(parts)
-    return out
+    return MagUnexplained(tuple(d.to_dict() for d in dist), int(mask.sum()), rms, ref.noise_ut, ratio, tau,
+                          "; ".join(parts))

@@ -26,6 +26,7 @@ from gyrosim.recording import Recording
 from gyrosim.units import RAD2DEG
 
 from .loop import CloseloopResult
+from .mag_loop import MagLoopResult
 
 __all__ = ["write_closeloop_report"]
 
@@ -140,7 +141,7 @@ def write_closeloop_report(out: str | Path, rec: Recording, res: CloseloopResult
     return paths
 
 
-def mag_markdown(m) -> list[str]:
+def mag_markdown(m: MagLoopResult) -> list[str]:
     """The magnetometer section of report.md (:class:`calib.closeloop.mag_loop.MagLoopResult`)."""
     lines = ["", "## Magnetometer", "", f"Reference: **{m.reference}** — {m.reference_description}.",
              f"Declared magnetometer model: {', '.join(m.declared) or 'none (the output taken as calibrated)'}.", ""]
@@ -149,7 +150,7 @@ def mag_markdown(m) -> list[str]:
     if m.error_before:
         lines += ["", "| held-out metric | declared | after the loop |", "|---|---|---|"]
         lines += [f"| {k} | {v:.4g} | {m.error_after.get(k, float('nan')):.4g} |" for k, v in m.error_before.items()]
-    lines += ["", f"Unexplained structure: {m.unexplained.get('summary', '—')}"]
+    lines += ["", f"Unexplained structure: {m.unexplained.summary if m.unexplained.analysed else '—'}"]
     lines += [f"- not tested: {k}: {v}" for k, v in m.not_tested.items()]
     lines += [f"- refused: round {r.round}: {r.effect} — {r.why}" for r in m.rejected]
     lines += [f"- confounded: round {g.round}: {g.chosen} vs {', '.join(g.rivals)} — {g.why}" for g in m.not_distinguished]
@@ -182,12 +183,12 @@ def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
         fb = f"{b:.4g}" if isinstance(b, float) else str(b)
         fa = f"{a:.4g}" if isinstance(a, float) else str(a)
         lines.append(f"| {k} | {fb} | {fa} |")
-    lines += ["", "## Structure no candidate explains", "", res.unexplained.get("summary", "—"), ""]
-    for l in res.unexplained.get("spectral_lines", [])[:5]:
-        lines.append(f"- line at {l['frequency_hz']:.2f} Hz on {l['axis']}: amplitude {l['amplitude_rad_s'] * RAD2DEG:.3g} °/s "
-                     f"({l['ratio']:.1f}× background, threshold {l['threshold']:.1f})")
-    for c in res.unexplained.get("channel_correlations", [])[:5]:
-        lines.append(f"- residual {c['axis']} vs {c['channel']}: ρ = {c['rho']:.3f} ({c['z']:.1f}σ, threshold {c['threshold']:.1f})")
+    lines += ["", "## Structure no candidate explains", "", res.unexplained.summary, ""]
+    for l in res.unexplained.spectral_lines[:5]:
+        lines.append(f"- line at {l.frequency_hz:.2f} Hz on {l.axis}: amplitude {l.amplitude_rad_s * RAD2DEG:.3g} °/s "
+                     f"({l.ratio:.1f}× background, threshold {l.threshold:.1f})")
+    for c in res.unexplained.channel_correlations[:5]:
+        lines.append(f"- residual {c.axis} vs {c.channel}: ρ = {c.rho:.3f} ({c.z:.1f}σ, threshold {c.threshold:.1f})")
     if res.metrics:
         lines += ["", "## Every held-out metric, declared → after the loop", "",
                   "| metric | declared | after | change | z (noise) | verdict |", "|---|---|---|---|---|---|"]
@@ -208,13 +209,12 @@ def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
                       for m in g.members]
     lines += ["", "## Not tested", ""] + [f"- {k}: {v}" for k, v in res.not_tested.items()]
     lines += ["", "## Candidate scores (round 1)", "", "| effect | held-out gain G | added parameters |", "|---|---|---|"]
-    for r in (res.rounds[0].table() if res.rounds else []):
-        g = r["gain"]
-        lines.append(f"| {r['effect']} | {g:.1f} | {r['added_parameters']} |" if g is not None
-                     else f"| {r['effect']} | — | {r['added_parameters']} |")
+    for r in (res.rounds[0].scores if res.rounds else ()):
+        lines.append(f"| {r.effect} | {r.gain:.1f} | {r.added_parameters} |" if r.gain is not None
+                     else f"| {r.effect} | — | {r.added_parameters} |")
     lines += ["", "## Notes", ""] + [f"- {n}" for n in res.notes]
-    q = res.checks.get("quantization_lsb", {})
-    lines.append(f"- quantization step per axis (rad/s): {q}; saturated samples: {res.checks.get('saturated_samples', 0)}")
+    lines.append(f"- quantization step per axis (rad/s): {res.checks.quantization_lsb}; saturated samples: "
+                 f"{res.checks.saturated_samples}")
     if res.magnetometer is not None:
         lines += mag_markdown(res.magnetometer)
     if plots:

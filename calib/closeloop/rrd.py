@@ -105,7 +105,7 @@ def closeloop_story(res: CloseloopResult) -> str:
     lines = [head, ""]
     if not _has_rows(res):
         lines.append("**Nothing analysed:** this recording has no reference the residual could be computed against, so "
-                     "there is no before/after to show. " + (res.unexplained.get("summary", "") or ""))
+                     "there is no before/after to show. " + res.unexplained.summary)
         return "\n".join(lines)
     if res.found:
         lines.append("**Found:** " + " ".join(f"({i + 1}) {_short(f.trace)}." for i, f in enumerate(res.found)) +
@@ -120,7 +120,7 @@ def closeloop_story(res: CloseloopResult) -> str:
     if isinstance(b, float) and isinstance(a, float):
         lines.append(f"Held-out residual RMS {b:.4g} → {a:.4g} {res.error_before.get('unit', '')} "
                      "(grey: declared model, blue: after the loop; dots on top: held-out rows).")
-    lines.append("Unexplained: " + (res.unexplained.get("summary", "") or "nothing significant") + ".")
+    lines.append("Unexplained: " + (res.unexplained.summary or "nothing significant") + ".")
     mag = getattr(res, "magnetometer", None)
     if mag is not None:  # the magnetometer's own loop (report.json "magnetometer"): its findings in words
         lines.append("Magnetometer: " + (" ".join(f"({i + 1}) {_short(f.trace)}." for i, f in enumerate(mag.found))

@@ -17,7 +17,7 @@ Three tests on the final rate residual r (body frame, rad/s, one series per axis
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy import ndimage, stats
@@ -25,7 +25,7 @@ from scipy import signal as sp_signal
 
 from .fit import integrated_time
 
-__all__ = ["SpectralLine", "ChannelCorrelation", "spectral_lines", "channel_correlations", "whiteness",
+__all__ = ["SpectralLine", "ChannelCorrelation", "JitterGrowth", "spectral_lines", "channel_correlations", "whiteness",
            "variance_growth"]
 
 AXES = "xyz"
@@ -116,11 +116,24 @@ def whiteness(r: np.ndarray, lags: int = 20) -> dict[str, float]:
     return out
 
 
-def variance_growth(r: np.ndarray, domega_dt: np.ndarray, *, alpha: float = 1e-3) -> dict | None:
+@dataclass(frozen=True)
+class JitterGrowth:
+    """Residual variance growing with (dω/dt)² as sampling-time jitter of σ_j = ``jitter_s`` would
+    (``report.json`` ``unexplained.variance_growth``)."""
+
+    jitter_s: float
+    z: float                  # the slope's z
+    threshold: float          # the one-sided normal quantile it exceeds
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def variance_growth(r: np.ndarray, domega_dt: np.ndarray, *, alpha: float = 1e-3) -> JitterGrowth | None:
     """Sampling-time jitter σ_j makes the residual variance grow with the angular acceleration:
     E[r_a²] = σ_a² + σ_j² (dω_a/dt)².  Regress r_a² on (dω_a/dt)² pooled over axes; significant
-    when the slope's z exceeds the normal quantile at ``alpha`` (one-sided).  Returns
-    {"jitter_s", "z", "threshold"} when significant, else None."""
+    when the slope's z exceeds the normal quantile at ``alpha`` (one-sided).  Returns σ_j = √slope
+    when significant, else None."""
     x = (domega_dt**2).ravel()
     y = (r**2).ravel()
     x = x - x.mean()
@@ -134,5 +147,5 @@ def variance_growth(r: np.ndarray, domega_dt: np.ndarray, *, alpha: float = 1e-3
     z = slope / se if se > 0 else 0.0
     thr = float(stats.norm.ppf(1 - alpha))
     if z > thr and slope > 0:
-        return {"jitter_s": math.sqrt(slope), "z": z, "threshold": thr}
+        return JitterGrowth(math.sqrt(slope), z, thr)
     return None
