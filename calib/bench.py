@@ -9,7 +9,7 @@ best of ``repeats``:
   accelerometer states (the baseline, 1.00);
 * ``calib run`` now — 21 states (gyro bias, the accelerometer's 9 parameters), the |f| = g stage,
   observability and consistency checks, compiled;
-* the same with ``--method iterated`` and with ``--accelerometer calibrated`` (these include the hand
+* the same with ``--method iterated_session`` and with ``--accelerometer calibrated`` (these include the hand
   cross-check, which runs ``kf_hand`` once);
 * the paper's ``kf`` compiled without the hand cross-check, and ``kf_hand`` (its speed
   target is ≤ 1 s for this 3-minute session on one core, read beside ``kf`` in the same run);
@@ -22,10 +22,11 @@ printed too (max |Δθ|).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["run_bench"]
+__all__ = ["run_bench", "ClosedLoopTiming", "closeloop_bench"]
 
 
 def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[str, float, float]]:
@@ -41,12 +42,12 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
     prep = prepare(rec, accelerometer="estimate")
     a = prep.start
     n = rec.n - a
-    calibrate(rec, "kf")  # compile and warm every path once
+    calibrate(rec, "kf_session")  # compile and warm every path once
     cases = {
-        "today's kf (paper, 9 states, filterpy)": lambda: calibrate(rec, "kf", accelerometer="calibrated", engine="filterpy"),
-        "calib run (21 states, compiled)": lambda: calibrate(rec, "kf"),
-        "calib run --method iterated": lambda: calibrate(rec, "iterated"),
-        "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf", accelerometer="calibrated"),
+        "today's kf (paper, 9 states, filterpy)": lambda: calibrate(rec, "kf_session", accelerometer="calibrated", engine="filterpy"),
+        "calib run (21 states, compiled)": lambda: calibrate(rec, "kf_session"),
+        "calib run --method iterated_session": lambda: calibrate(rec, "iterated_session"),
+        "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session", accelerometer="calibrated"),
         "kf (paper, 9 states, compiled, no hand check)": lambda: _paper(rec, name="kf", check_hand=False),
         "kf_hand (24 states, 3 passes, compiled)": lambda: kf_hand(rec),
     }
@@ -81,3 +82,44 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
         rows.append((name, sec, sec / base))
         print(f"{name:<44} {sec:8.3f} {sec / base:13.3f} {sec / (n * b) * 1e6:10.2f}")
     return rows
+
+
+@dataclass(frozen=True)
+class ClosedLoopTiming:
+    """``calib closeloop`` against ``calib run``'s filter on one recording (wall s, same run)."""
+
+    recording: str
+    samples: int
+    closeloop_s: float
+    filter_s: float
+
+    @property
+    def ratio(self) -> float:
+        return self.closeloop_s / self.filter_s
+
+
+def closeloop_bench() -> list[ClosedLoopTiming]:
+    """``calib closeloop-bench``: closeloop wall time on ~3-minute recordings against the Zhou filter
+    (``calibrate(rec, "kf_session")``) on the same data, in the same run; the simulated zhou2020
+    session always, BROAD 07 when the dataset is present.  Each closeloop is run once first to warm
+    caches (numba, FFT plans), so both timings are steady state."""
+    from gyrosim.loaders import available_datasets, load_dataset
+    from gyrosim.simulate import simulate
+
+    from .calibrate import calibrate
+    from .closeloop import run_closeloop
+    from .closeloop.suite import BASE_SENSOR
+
+    cases = [("zhou2020, typical hand, 100 Hz (simulated)", simulate("zhou2020", "typical", BASE_SENSOR, 100.0, seed=0))]
+    if "broad/07_undisturbed_fast_rotation_B" in available_datasets():
+        cases.append(("BROAD 07 fast rotation, 285.7 Hz (measured)", load_dataset("broad/07_undisturbed_fast_rotation_B")))
+    out = []
+    for name, rec in cases:
+        run_closeloop(rec)
+        t0 = time.perf_counter()
+        run_closeloop(rec)
+        t_cl = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        calibrate(rec, "kf_session")
+        out.append(ClosedLoopTiming(name, int(rec.t_s.size), t_cl, time.perf_counter() - t0))
+    return out

@@ -36,8 +36,8 @@ assumes a calibrated accelerometer), today's behaviour.
 5. external-acceleration allowance a_ext, unless given: the larger of the accelerometer's rest
    variance beyond its white noise and √(3 (⟨(|f̂| − g)²⟩ − σ_f²)) over the session (|f| − g sees only
    the component of the external acceleration along gravity, a third of an isotropic one's variance);
-6. the filter (compiled, :func:`calib.fastkf.run_filter`): ``kf`` one pass, ``iterated`` three, each
-   re-linearised at the previous pass's estimate with the prior kept where it was (the prior mean
+6. the filter (compiled, :func:`calib.fastkf.run_filter`): ``kf_session`` one pass, ``iterated_session``
+   three, each re-linearised at the previous pass's estimate with the prior kept where it was (the prior mean
    enters as the initial error state x₀ = θ_prior − θ̂: Gauss–Newton on the batch posterior);
 7. observability from the filter's own information (:func:`calib.observability.joint_observability`):
    gyro combinations the motion left undetermined are named in ``warnings``; an accelerometer that
@@ -45,11 +45,20 @@ assumes a calibrated accelerometer), today's behaviour.
    poses to add;
 8. the verdict (:mod:`calib.consistency`): ``status`` ok / diverged / inconsistent, with warnings
    saying what to try.
+
+**Names.** One name per algorithm, the same in ``calib run``, campaigns and Monte Carlo: this
+function's filter, with its session-wide external-acceleration allowance (step 5), is ``kf_session``
+(``iterated_session``: three passes), and its result is labelled with the registered estimator that
+runs it (:data:`REGISTERED_NAME`: ``kf_joint``, ``iterated_joint`` with the accelerometer estimated;
+``kf_session_r``, ``iterated_session_r`` with it calibrated).  ``kf`` is the paper's filter (R from the
+accelerometer noise alone, :func:`calib.estimators.kf`), which this function does not run; the former
+spellings ``calibrate(rec, "kf")`` / ``"iterated"`` still work and warn (DeprecationWarning).
 """
 
 from __future__ import annotations
 
 import math
+from warnings import warn
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,11 +80,32 @@ from .noiselevels import NoiseLevels, estimate_noise
 from .observability import JointObservability, joint_observability, missing_poses
 from .rest import BiasEstimate, RestSegments, detect_rest, static_bias
 
-__all__ = ["calibrate", "prepare", "Prepared", "METHODS", "ACCELEROMETER_MODES", "true_gyro_parameters"]
+__all__ = ["calibrate", "prepare", "Prepared", "METHODS", "ACCELEROMETER_MODES", "REGISTERED_NAME", "resolve_method",
+           "true_gyro_parameters"]
 
-METHODS = ("kf", "iterated")
+METHODS = ("kf_session", "iterated_session")
 ACCELEROMETER_MODES = ("estimate", "calibrated")
 ENGINES = ("compiled", "filterpy")
+# the former spellings: "kf" now names the paper's filter everywhere (registered ``kf``: R from the
+# accelerometer noise only), which this function never ran; accepted here with a DeprecationWarning
+DEPRECATED_METHODS = {"kf": "kf_session", "iterated": "iterated_session"}
+# the registered estimator name (``gyrosim.estimators``) of each (method, accelerometer) pair: the
+# label a result carries, the same in ``calib run``, a campaign and a Monte Carlo
+REGISTERED_NAME = {("kf_session", "estimate"): "kf_joint", ("iterated_session", "estimate"): "iterated_joint",
+                   ("kf_session", "calibrated"): "kf_session_r", ("iterated_session", "calibrated"): "iterated_session_r"}
+
+
+def resolve_method(method: str, *, stacklevel: int = 3) -> str:
+    """``method`` as one of :data:`METHODS`; a deprecated spelling warns (DeprecationWarning) and maps."""
+    if method in DEPRECATED_METHODS:
+        new = DEPRECATED_METHODS[method]
+        warn(f"method {method!r} is deprecated: this filter (session-wide external-acceleration "
+                      f"allowance) is {new!r}; 'kf' names the paper's filter (R from the accelerometer noise "
+                      "only) in every command", DeprecationWarning, stacklevel=stacklevel)
+        return new
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
+    return method
 
 
 @dataclass(frozen=True)
@@ -262,7 +292,7 @@ def _label(name: str) -> str:
 
 def calibrate(
     rec: Recording,
-    method: str = "kf",
+    method: str = "kf_session",
     *,
     accelerometer: str = "estimate",
     external_acc_allowance_m_s2: float | None = None,
@@ -285,8 +315,7 @@ def calibrate(
     differ beyond both σ (:func:`calib.handkf.hand_cross_check`: a lever arm's error hides from the
     innovations).
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
+    method = resolve_method(method)
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; use one of {', '.join(ENGINES)}")
     prep = prepare(rec, accelerometer=accelerometer, external_acc_allowance_m_s2=external_acc_allowance_m_s2,
@@ -294,7 +323,7 @@ def calibrate(
                    min_rest_s=min_rest_s)
     warnings = list(prep.warnings)
     a, b = prep.bias.index_range
-    passes = 1 if method == "kf" else max(1, iterations)
+    passes = 1 if method == "kf_session" else max(1, iterations)
     theta0, q0, p0 = prep.theta0, prep.quat0_nb, prep.p0
     obs = None
     for i in range(passes):
@@ -309,7 +338,7 @@ def calibrate(
                 q0, f0, mi_a = _initial_attitude(rec, theta0, a, b)
                 p0 = initial_covariance(prep.layout, prep.config, q0, f0, mi_a, prep.gravity_fit.covariance,
                                         _tilt_sigma(rec, a, b, prep.config.gravity_m_s2))
-    return _result(prep, rec, run, obs, warnings, method, passes, hand_check)
+    return _result(prep, rec, run, obs, warnings, REGISTERED_NAME[method, prep.accelerometer], passes, hand_check)
 
 
 def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list[str]) -> None:

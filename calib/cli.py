@@ -58,42 +58,27 @@ def _rms(x: np.ndarray) -> float:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """The main job: simulate the hand-held session, calibrate it, write recording, report and .rrd."""
+    """The main job: simulate the hand-held session, calibrate it, write recording, report and .rrd
+    (:func:`calib.demo.run_demo`)."""
     from tqdm import tqdm
 
-    from gyrosim.hand import load_hand
-    from gyrosim.recording import save_hdf5
     from gyrosim.schedule import load_schedule
-    from gyrosim.sensor_model import load_sensor
-    from gyrosim.simulate import simulate, simulation_grid
+    from gyrosim.simulate import simulation_grid
 
-    from .calibrate import calibrate, true_gyro_parameters
-    from .report import write_session_report
-    from .viz_rerun import save_calibration_rrd
+    from .demo import DEMO_FILES, run_demo
 
-    out = Path(args.out)
-    check_output_paths({"--out": out}, [args.schedule, args.hand, args.sensor], folders=["--out"],
-                       folder_files={"--out": ("session.h5", "report.json", "report.md", "convergence.png", "session.rrd")})
-    out.mkdir(parents=True, exist_ok=True)
-    schedule = load_schedule(args.schedule)
-    hand = load_hand(args.hand)
-    sensor = load_sensor(args.sensor)
-    grid = simulation_grid(schedule.duration_s, args.rate)
+    check_output_paths({"--out": args.out}, [args.schedule, args.hand, args.sensor], folders=["--out"],
+                       folder_files={"--out": DEMO_FILES})
+    grid = simulation_grid(load_schedule(args.schedule).duration_s, args.rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating session", leave=False) as bar:
-        rec = simulate(schedule, hand, sensor, args.rate, seed=args.seed, progress=bar.update)
-    rec_path = save_hdf5(rec, out / "session.h5")
-    print(f"calibrating {rec.n} samples (Zhou 2020 filter) …", flush=True)
-    result = calibrate(rec, "kf", accelerometer=args.accelerometer)
-    truth = true_gyro_parameters(rec)
-    from .validation import validate_attitude
+        def log(msg: str) -> None:
+            bar.close()   # the simulation is over once the stages start
+            print(msg, flush=True)
 
-    print("validating the attitude on a free-style session of the same device …", flush=True)
-    validation = validate_attitude(rec, result, hand=hand.name, seed=args.seed + 1000)
-    report = write_session_report(out, rec, result, truth, schedule=schedule, hand=hand, sensor=sensor, seed=args.seed,
-                                  validation=validation)
-    rrd = save_calibration_rrd(out / "session.rrd", rec, result, truth)
-    print(f"wrote {rec_path}, {report}, {out / 'report.json'} and {rrd}")
-    print(f"open the recording with:  rerun {rrd}")
+        res = run_demo(args.out, schedule=args.schedule, hand=args.hand, sensor=args.sensor, rate_hz=args.rate,
+                       seed=args.seed, accelerometer=args.accelerometer, progress=bar.update, log=log)
+    print(f"wrote {res.recording}, {res.report}, {res.report_json} and {res.rrd}")
+    print(f"open the recording with:  rerun {res.rrd}")
     return 0
 
 
@@ -128,10 +113,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     check (status inconsistent/diverged), 2 on bad input (calib.inputs: nothing is written)."""
     from gyrosim.calibration import truth_calibration
 
-    from .calibrate import calibrate
+    from .calibrate import DEPRECATED_METHODS, calibrate
     from .inputs import KF
 
     check_output_paths({"--json": args.json, "--rrd": args.rrd}, _files(args.recording))
+    method = args.method
+    if method in DEPRECATED_METHODS:  # the former spellings: still run, with a note
+        method = DEPRECATED_METHODS[method]
+        print(f"warning: --method {args.method} is deprecated: use --method {method} (the same filter; 'kf' names "
+              "the paper's filter in campaigns and Monte Carlo, which calib run does not run)", file=sys.stderr)
     loaded = _open(args, KF)
     rec = loaded.recording
     if args.method == "hand":
@@ -143,7 +133,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         result = kf_hand(rec)
     else:
-        result = calibrate(rec, args.method, accelerometer=args.accelerometer,
+        result = calibrate(rec, method, accelerometer=args.accelerometer,
                            external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity)
     d = result.to_dict()
     from .calibrate import prepare
@@ -490,30 +480,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 def cmd_inspect(args: argparse.Namespace) -> int:
     """Summarise a recording (any file ``calib run`` reads): format, length, rate, channels, truth,
-    what the input boundary did to it and what a method would refuse."""
+    what the input boundary did to it and what a method would refuse (:mod:`calib.recording_summary`)."""
     from .inputs import INSPECT
+    from .recording_summary import summarise_recording
 
     loaded = _open(args, INSPECT)
-    rec, rep = loaded.recording, loaded.report
-    dt = np.diff(rec.t_s)
-    print(f"{args.recording}: {rec.n} samples, {rec.duration_s:.2f} s, rate {rec.rate_hz:g} Hz "
-          f"(Δt {dt.min() * 1e3:.3f}–{dt.max() * 1e3:.3f} ms)")
-    print(f"  gyro |ω| max {np.linalg.norm(rec.gyro_rad_s, axis=1).max():.3f} rad/s, "
-          f"acc |f| mean {np.linalg.norm(rec.acc_m_s2, axis=1).mean():.4f} m/s²")
-    print(f"  temperature: {'yes' if rec.temp_c is not None else 'no'}, "
-          f"magnetometer: {'yes' if rec.mag_ut is not None else 'no'}, "
-          f"truth: {', '.join(rec.truth.channels()) if rec.truth else 'none'}")
-    for key in ("schedule", "hand", "sensor", "seed", "source", "version"):
-        if key in rec.meta:
-            v = rec.meta[key]
-            print(f"  {key}: {v['name'] if isinstance(v, dict) and 'name' in v else v}")
-    print(f"  format: {rep.format}" + (f", {rep.encoding}" if rep.encoding else "")
-          + (f", separator {rep.separator}" if rep.separator else "") + f"; time unit {rep.time_unit} ({rep.time_unit_how})")
-    if rep.ignored_columns:
-        print(f"  ignored columns: {', '.join(rep.ignored_columns)}")
-    print(f"  saturated samples: {rep.saturated_samples}")
-    _print_input_warnings(rep)
-    for p in rep.problems:
+    summary = summarise_recording(args.recording, loaded.recording, loaded.report)
+    for line in summary.lines():
+        print(line)
+    _print_input_warnings(loaded.report)
+    for p in loaded.report.problems:
         print(f"  problem: {p}")
     return 0
 
@@ -563,28 +539,11 @@ def cmd_closeloop(args: argparse.Namespace) -> int:
 
 def cmd_closeloop_bench(args: argparse.Namespace) -> int:
     """closeloop wall time on ~3-minute recordings against the Zhou filter on the same data, same run."""
-    import time
+    from .bench import closeloop_bench
 
-    from gyrosim.loaders import available_datasets, load_dataset
-    from gyrosim.simulate import simulate
-
-    from .calibrate import calibrate
-    from .closeloop import run_closeloop
-    from .closeloop.suite import BASE_SENSOR
-
-    cases = [("zhou2020, typical hand, 100 Hz (simulated)", simulate("zhou2020", "typical", BASE_SENSOR, 100.0, seed=0))]
-    if "broad/07_undisturbed_fast_rotation_B" in available_datasets():
-        cases.append(("BROAD 07 fast rotation, 285.7 Hz (measured)", load_dataset("broad/07_undisturbed_fast_rotation_B")))
     print(f"{'recording':<46} {'samples':>8} {'closeloop s':>12} {'Zhou filter s':>14} {'ratio':>7}")
-    for name, rec in cases:
-        run_closeloop(rec)  # warm caches (numba, FFT plans) so both timings are steady-state
-        t0 = time.perf_counter()
-        run_closeloop(rec)
-        t_cl = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        calibrate(rec, "kf")
-        t_kf = time.perf_counter() - t0
-        print(f"{name:<46} {rec.t_s.size:8d} {t_cl:12.2f} {t_kf:14.2f} {t_cl / t_kf:7.2f}")
+    for r in closeloop_bench():
+        print(f"{r.recording:<46} {r.samples:8d} {r.closeloop_s:12.2f} {r.filter_s:14.2f} {r.ratio:7.2f}")
     return 0
 
 
@@ -1068,10 +1027,13 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="calibrate a recording (HDF5 or CSV): gyro and accelerometer bias, scale factor, "
                                    "non-orthogonality; exit 1 when the result fails its own check (status inconsistent/diverged)")
     r.add_argument("recording", help=RECORDING_HELP)
-    r.add_argument("--method", default="kf", choices=("kf", "iterated", "hand"),
-                   help="kf: one filter pass; iterated: re-linearised passes (Gauss–Newton on the batch posterior); "
-                        "hand: kf_hand, the hand's lever arm and coloured external acceleration in the model "
-                        "(with --accelerometer calibrated; docs/hand.md)")
+    r.add_argument("--method", default="kf_session", choices=("kf_session", "iterated_session", "hand", "kf", "iterated"),
+                   help="kf_session: one filter pass with a session-wide external-acceleration allowance (the result "
+                        "is labelled kf_joint, or kf_session_r with --accelerometer calibrated: the registered "
+                        "estimators it equals); iterated_session: re-linearised passes (Gauss–Newton on the batch "
+                        "posterior; iterated_joint / iterated_session_r); hand: kf_hand, the hand's lever arm and "
+                        "coloured external acceleration in the model (with --accelerometer calibrated; docs/hand.md); "
+                        "kf, iterated: former spellings of kf_session, iterated_session (deprecated)")
     r.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
                    help="estimate: the accelerometer's bias, scale factor and non-orthogonality with the gyro's (default); "
                         "calibrated: assume it calibrated (Zhou 2020 §3.3.2, the paper's 9-state filter)")
@@ -1112,9 +1074,10 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("--sensor", default="zhou2020_sim", help="sensor preset or TOML path (default zhou2020_sim: Zhou 2020 Table 7)")
     mc.add_argument("--seeds", type=integer(2, 100_000), default=50, help="sessions, 2 … 1e5 (default 50)")
     mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] (default 100)")
-    mc.add_argument("--methods", default="kf,iterated",
-                    help="comma-separated: any registered estimator (kf = the paper's filter, kf_hand, kf_lever_arm, "
-                         "kf_session_r, …, or package.module:attribute) and iterated (calib run --method iterated)")
+    mc.add_argument("--methods", default="kf,iterated_session",
+                    help="comma-separated: any registered estimator (kf = the paper's filter, iterated = it in three "
+                         "passes, kf_hand, kf_lever_arm, kf_session_r, …, or package.module:attribute) and kf_session, "
+                         "iterated_session (calib run's filter, with the --accelerometer mode asked)")
     mc.add_argument("--calibrated-accelerometer", action="store_true",
                     help="simulate a calibrated accelerometer: keep only its white noise (Zhou §3.3.2's assumption)")
     mc.add_argument("--accelerometer", default="calibrated", choices=("estimate", "calibrated"),

@@ -3,7 +3,9 @@
 Each returns a :class:`gyrosim.calibration.Calibration` (effects, covariance, status, warnings).
 ``kf_joint`` is ``calib run``'s default: the gyro and the accelerometer from one session
 (:func:`calib.calibrate.calibrate`, 21 states, session allowance); ``iterated_joint`` its
-re-linearised form.  The others run Zhou 2020's 9-state filter (the compiled kernel
+re-linearised form.  ``kf_session_r`` and ``iterated_session_r`` are what ``calib run
+--accelerometer calibrated`` runs (the same filter and verdict as :func:`calib.calibrate.calibrate`;
+a test holds them equal), so a name means one algorithm wherever it is used.  The others run Zhou 2020's 9-state filter (the compiled kernel
 :func:`calib.fastkf.run_batch`, equal to the filterpy filter to rounding) after the static bias
 (§3.2), assuming a calibrated accelerometer; they differ only in how the accelerometer's gravity
 measurement is trusted when the hand adds external acceleration a_e:
@@ -11,8 +13,9 @@ measurement is trusted when the hand adds external acceleration a_e:
 | name | measurement variance R per axis (m/s²)² | gating |
 |---|---|---|
 | ``kf`` | σ_f² = VRW²·f_s (the paper: only gravity is sensed) | — |
-| ``smoother`` | as ``kf``; three passes, each re-linearised at the previous pass's estimate | — |
+| ``iterated`` | as ``kf``; three passes, each re-linearised at the previous pass's estimate | — |
 | ``kf_session_r`` | σ_f² + max(rest excess, 3⟨(|f| − g)²⟩): one constant for the session | — |
+| ``iterated_session_r`` | as ``kf_session_r``; three passes as ``iterated`` | — |
 | ``kf_adaptive`` | σ_f² + 3·LP₀.₂ₛ[(|f| − g)²] per sample | — |
 | ``kf_gated`` | σ_f² | skip an update with NIS > χ²₂(0.999) = 13.8 |
 | ``kf_adaptive_gated`` | as ``kf_adaptive`` | as ``kf_gated`` |
@@ -29,7 +32,8 @@ result whose σ had to grow more than ×1.5 is ``inconsistent``, and an ``ok`` r
 ``kf_hand`` beyond both σ becomes ``inconsistent`` with the factor its σ is understated by
 (:func:`calib.consistency.innovation_inflation`, :func:`calib.handkf.hand_cross_check`).
 
-``smoother``: the parameters are constants, so a Rauch–Tung–Striebel pass leaves their final
+``iterated`` (formerly ``smoother``, still accepted with a DeprecationWarning: it is the same
+three-pass algorithm as ``calib run --method iterated_session``, not a smoother): the parameters are constants, so a Rauch–Tung–Striebel pass leaves their final
 filtered estimate unchanged (the smoothed estimate of a constant state equals the filtered one at
 the last sample); what a smoother can still improve is the linearisation, which these passes do
 (an iterated-linearisation smoother in the parameters).
@@ -52,7 +56,7 @@ from .fastkf import run_filter
 from .handkf import kf_hand  # noqa: F401  (registered: the hand-aware method)
 from .kalman import PAPER, initial_covariance, theta_slice
 
-__all__ = ["kf", "smoother", "kf_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
+__all__ = ["kf", "iterated", "smoother", "kf_session_r", "iterated_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
            "kf_joint", "iterated_joint", "kf_hand"]
 
 GATE_NIS = float(stats.chi2.ppf(0.999, 2))
@@ -115,14 +119,31 @@ def kf(rec: Recording) -> Calibration:
     return _run(rec, name="kf")
 
 
+def iterated(rec: Recording) -> Calibration:
+    """The paper's filter in three passes, each linearised at the previous estimate (module docstring)."""
+    return _run(rec, passes=3, name="iterated")
+
+
 def smoother(rec: Recording) -> Calibration:
-    """Three passes, each linearised at the previous estimate (see the module docstring)."""
-    return _run(rec, passes=3, name="smoother")
+    """Deprecated name of :func:`iterated` (the same three passes; no smoothing pass is involved)."""
+    import warnings
+
+    warnings.warn("estimator 'smoother' is deprecated: it is the three-pass iterated filter, registered as "
+                  "'iterated'", DeprecationWarning, stacklevel=2)
+    return iterated(rec)
+
+
+smoother.deprecated_alias_of = "iterated"  # type: ignore[attr-defined]  (gyrosim.estimator warns on load)
 
 
 def kf_session_r(rec: Recording) -> Calibration:
     """One R for the session from its (|f| − g)² (``calib run --accelerometer calibrated``)."""
     return _run(rec, session_r=True, name="kf_session_r")
+
+
+def iterated_session_r(rec: Recording) -> Calibration:
+    """``calib run --method iterated_session --accelerometer calibrated``: three passes with the session R."""
+    return calibrate(rec, "iterated_session", accelerometer="calibrated", keep_history=False)
 
 
 def kf_adaptive(rec: Recording) -> Calibration:
@@ -141,12 +162,12 @@ def kf_adaptive_gated(rec: Recording) -> Calibration:
 
 def kf_joint(rec: Recording) -> Calibration:
     """``calib run``'s default: gyro and accelerometer from one session (21 states, session allowance)."""
-    return calibrate(rec, "kf", accelerometer="estimate", keep_history=False)
+    return calibrate(rec, "kf_session", accelerometer="estimate", keep_history=False)
 
 
 def iterated_joint(rec: Recording) -> Calibration:
-    """``calib run --method iterated``: the joint filter re-linearised three times."""
-    return calibrate(rec, "iterated", accelerometer="estimate", keep_history=False)
+    """``calib run --method iterated_session``: the joint filter re-linearised three times."""
+    return calibrate(rec, "iterated_session", accelerometer="estimate", keep_history=False)
 
 
 def kf_lever_arm(rec: Recording) -> Calibration:

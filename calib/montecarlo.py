@@ -18,9 +18,10 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
   of the full model); for the static bias σ²/n of the rest average.  With the accelerometer
   calibrated the layout is the paper's and the bias is the static average.
 * Methods: every registered estimator (:data:`gyrosim.estimator.BUILTIN_ESTIMATORS`: ``kf`` is the
-  paper's filter, ``kf_hand`` the hand-aware one, …, or ``package.module:attribute``) and
-  ``iterated`` (``calib run --method iterated``: :func:`calib.calibrate.calibrate`, with the
-  ``accelerometer`` mode asked).  Each sees only the recording, as a user's file would be
+  paper's filter, ``iterated`` it in three re-linearised passes, ``kf_hand`` the hand-aware one, …,
+  or ``package.module:attribute``) and ``kf_session`` / ``iterated_session`` (``calib run``'s filter,
+  :func:`calib.calibrate.calibrate`, with the ``accelerometer`` mode asked).  A name means the same
+  algorithm here, in ``calib run`` and in a campaign.  Each sees only the recording, as a user's file would be
   (:func:`as_user_file`: samples and rate; no truth, no sensor model, no hand).
 * The hand-aware bound, with the accelerometer calibrated: the same Riccati recursion with
   the :data:`calib.kalman.HAND` layout — the lever arm as three nuisance parameters with a vague
@@ -41,16 +42,15 @@ import numpy as np
 from scipy import stats
 
 from gyrosim.calibration import truth_calibration
-from gyrosim.estimator import load_estimator
+from gyrosim.estimator import as_user_file, load_estimator
 from gyrosim.hand import load_hand
-from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.schedule import load_schedule
 from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
 from gyrosim.strapdown import integrate_gyro
 
-from .calibrate import calibrate, prepare
+from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
 from .handkf import white_density
 from .kalman import HAND, HAND_BIAS, JOINT, PAPER, FilterConfig, initial_covariance
@@ -147,16 +147,10 @@ class MonteCarloResult:
                                 "statuses": st.statuses} for m, st in self.methods.items()}}
 
 
-def as_user_file(rec: Recording) -> Recording:
-    """What a user's file carries: times, gyro, accelerometer (and temperature, field) with the rate —
-    no truth, no sensor model, no hand, no seed (the estimators under test see nothing else)."""
-    return Recording(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, None, {"rate_hz": rec.rate_hz})
-
-
 def _estimator(method: str, accelerometer: str) -> Callable:
     """The callable behind a method name (module docstring, "Methods")."""
-    if method == "iterated":
-        return lambda rec: calibrate(rec, "iterated", accelerometer=accelerometer, keep_history=False)
+    if method in METHODS:   # calib run's filter, in the accelerometer mode asked
+        return lambda rec: calibrate(rec, method, accelerometer=accelerometer, keep_history=False)
     return load_estimator(method)
 
 
@@ -222,7 +216,7 @@ def monte_carlo(
     sensor: str = "zhou2020_sim",
     seeds: int = 50,
     rate_hz: float = 100.0,
-    methods: tuple[str, ...] = ("kf", "iterated"),
+    methods: tuple[str, ...] = ("kf", "iterated_session"),
     first_seed: int = 0,
     progress: Callable[[int], None] | None = None,
     calibrated_accelerometer: bool = False,

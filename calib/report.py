@@ -15,10 +15,6 @@ from gyrosim.recording import Recording
 __all__ = ["write_session_report", "plot_convergence"]
 
 
-def _rms(x: np.ndarray) -> float:
-    return math.sqrt(float(np.mean(np.sum(np.asarray(x) ** 2, axis=1))))
-
-
 def plot_convergence(result, truth: dict | None, path: Path) -> Path:
     """Estimates and ±√P of S and G over time (PNG): the picture of Zhou 2020 Figs. 2–3."""
     import matplotlib
@@ -54,8 +50,7 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
     """Write ``report.md``, ``report.json`` and ``convergence.png`` into ``out``."""
     expected = hand.expected_disturbance(schedule)
     t = rec.truth
-    ext = _rms(t.extra["external_acc"]) if t is not None and "external_acc" in t.extra else float("nan")
-    rate = _rms(t.omega_body_rad_s - t.extra["omega_schedule"]) if t is not None and "omega_schedule" in t.extra else float("nan")
+    ext, rate = t.disturbance_rms() if t is not None else (float("nan"), float("nan"))
     cal = result.to_dict()
     report: dict[str, Any] = {
         "recording": "session.h5",

@@ -47,8 +47,8 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
     truth = rec.truth
     if truth is None or truth.quat_nb is None:
         return
-    if "external_acc" in truth.extra:
-        _series(stream, "truth/external_acc", t, truth.extra["external_acc"])
+    if truth.external_acc_m_s2 is not None:
+        _series(stream, "truth/external_acc", t, truth.external_acc_m_s2)
     step = max(1, int(round(rec.rate_hz / pose_rate_hz)))
     sel = np.arange(0, rec.n, step)
     q = truth.quat_nb[sel]

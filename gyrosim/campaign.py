@@ -48,13 +48,93 @@ import numpy as np
 
 from .errors import GyrosimError
 
-__all__ = ["CampaignSpec", "Task", "load_campaign", "make_tasks", "run_task", "run_campaign", "summarise",
-           "RESULT_COLUMNS"]
+__all__ = ["CampaignSpec", "CampaignRow", "Task", "load_campaign", "make_tasks", "run_task", "run_campaign", "summarise",
+           "RESULT_COLUMNS", "read_rows", "write_rows"]
 
 PARAMS = [f"err_bias_{a}_deg_s" for a in "xyz"] + [f"err_S_{a}_pct" for a in "xyz"] + [f"err_G_{a}_pct" for a in "xyz"]
 RESULT_COLUMNS = (["task_id", "hand", "severity", "seed", "sensor", "schedule", "rate_hz", "estimator", "status",
                    "error", "ext_acc_rms_m_s2", "rate_disturbance_rms_deg_s", "task_seconds"] + PARAMS
                   + [f"sd_{p}" for p in PARAMS] + ["calibration_status"])
+
+
+
+@dataclass(frozen=True)
+class CampaignRow:
+    """One row of ``results.csv``: a task × estimator.  The CSV's columns (:data:`RESULT_COLUMNS`) are
+    a promise; this is their typed form for the code that writes and reads them.
+
+    ``status``: "ok" (the estimator ran) or "failed" (``error`` says why; the scores are then None).
+    ``err`` and ``sd``: the estimate's error against the truth and its reported σ, in :data:`PARAMS`
+    order and units (°/s for the bias, % for S and G).  ``calibration_status``: the estimate's own
+    verdict (ok / inconsistent / diverged).
+    """
+
+    task_id: str
+    hand: str
+    severity: float
+    seed: int
+    sensor: str
+    schedule: str
+    rate_hz: float
+    estimator: str
+    status: str
+    error: str = ""
+    ext_acc_rms_m_s2: float | None = None
+    rate_disturbance_rms_deg_s: float | None = None
+    task_seconds: float | None = None
+    err: tuple[float, ...] | None = None
+    sd: tuple[float, ...] | None = None
+    calibration_status: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def to_csv(self) -> dict[str, object]:
+        """The row keyed by :data:`RESULT_COLUMNS` ("" for what a failed row lacks)."""
+        d: dict[str, object] = {f: getattr(self, f) for f in _SCALAR_FIELDS}
+        for prefix, values in (("", self.err), ("sd_", self.sd)):
+            d.update({f"{prefix}{p}": v for p, v in zip(PARAMS, values)} if values is not None else {})
+        return {k: ("" if d.get(k) is None else d[k]) for k in RESULT_COLUMNS}
+
+    @classmethod
+    def from_csv(cls, r: dict[str, str]) -> "CampaignRow":
+        """Parse a ``results.csv`` row (:func:`csv.DictReader`); ``to_csv`` writes it back unchanged."""
+        def num(k: str) -> float | None:
+            return float(r[k]) if r.get(k, "") != "" else None
+
+        def vec(prefix: str) -> tuple[float, ...] | None:
+            return tuple(float(r[prefix + p]) for p in PARAMS) if r.get(prefix + PARAMS[0], "") != "" else None
+
+        return cls(r["task_id"], r["hand"], float(r["severity"]), int(r["seed"]), r["sensor"], r["schedule"],
+                   float(r["rate_hz"]), r["estimator"], r["status"], r.get("error", ""), num("ext_acc_rms_m_s2"),
+                   num("rate_disturbance_rms_deg_s"), num("task_seconds"), vec(""), vec("sd_"),
+                   r.get("calibration_status", ""))
+
+
+_SCALAR_FIELDS = ("task_id", "hand", "severity", "seed", "sensor", "schedule", "rate_hz", "estimator", "status",
+                  "error", "ext_acc_rms_m_s2", "rate_disturbance_rms_deg_s", "task_seconds", "calibration_status")
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    """The rows of a campaign's CSV (empty when the file does not exist yet)."""
+    if not path.is_file():
+        return []
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def write_rows(path: Path, rows: list[dict], columns: list[str]) -> None:
+    """Rewrite a campaign's results CSV atomically (``.csv.part`` then rename): an interrupted run
+    keeps the previous complete file.  Keys missing from a row are written as ""."""
+    tmp = path.with_suffix(".csv.part")
+    with tmp.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in columns})
+    tmp.replace(path)
+
 
 _SPEC_KEYS = {"name", "schedule", "hands", "seeds", "first_seed", "sensor", "estimators", "rate_hz",
               "calibrated_accelerometer", "severity"}
@@ -69,7 +149,7 @@ class CampaignSpec:
     seeds: int = 10
     first_seed: int = 0
     sensor: str = "mpu9250"
-    estimators: tuple[str, ...] = ("kf", "smoother")
+    estimators: tuple[str, ...] = ("kf", "iterated")
     schedule: str = "zhou2020"
     rate_hz: float = 100.0
     calibrated_accelerometer: bool = False
@@ -163,9 +243,9 @@ def _sensor(task: Task):
     return s
 
 
-def run_task(task: Task) -> list[dict]:
+def run_task(task: Task) -> list[CampaignRow]:
     """Simulate, estimate with every estimator, score; a failure becomes rows with its error."""
-    from .estimator import load_estimator
+    from .estimator import as_user_file, load_estimator
     from .simulate import simulate
 
     t0 = time.perf_counter()
@@ -177,54 +257,49 @@ def run_task(task: Task) -> list[dict]:
         rec = simulate(task.schedule, _scaled_hand(task.hand, task.severity), _sensor(task), task.rate_hz,
                        seed=task.seed, pipeline=False)
     except Exception as exc:  # noqa: BLE001 - a failed task is recorded, not lost
-        return [{**base, "estimator": e, "status": "failed", "error": f"simulation: {type(exc).__name__}: {exc}"}
+        return [CampaignRow(**base, estimator=e, status="failed", error=f"simulation: {type(exc).__name__}: {exc}")
                 for e in task.estimators]
     from .calibration import truth_calibration
 
     truth = truth_calibration(rec)
-    ext = rec.truth.extra["external_acc"]
-    dw = rec.truth.omega_body_rad_s - rec.truth.extra["omega_schedule"]
-    common = {**base, "ext_acc_rms_m_s2": float(np.sqrt(np.mean(np.sum(ext**2, axis=1)))),
-              "rate_disturbance_rms_deg_s": math.degrees(float(np.sqrt(np.mean(np.sum(dw**2, axis=1)))))}
+    ext_rms, dw_rms = rec.truth.disturbance_rms()
+    common = {**base, "ext_acc_rms_m_s2": ext_rms, "rate_disturbance_rms_deg_s": math.degrees(dw_rms)}
     true_vec = truth.vector("gyro")
     units = np.array([180 / math.pi] * 3 + [100.0] * 6)
     rows = []
+    user = as_user_file(rec)  # what the estimators see: samples and rate, as a user's file
     for name in task.estimators:
         t1 = time.perf_counter()
         try:
-            est = load_estimator(name)(rec)
+            est = load_estimator(name)(user)
             err = (est.vector("gyro") - true_vec) * units
             sd = np.sqrt(np.clip(np.diag(est.linear_covariance("gyro")), 0, None)) * units
-            row = {**common, "estimator": name, "status": "ok", "error": "", "calibration_status": est.status}
-            row.update({p: float(v) for p, v in zip(PARAMS, err)})
-            row.update({f"sd_{p}": float(v) for p, v in zip(PARAMS, sd)})
+            row = {**common, "estimator": name, "status": "ok", "calibration_status": est.status,
+                   "err": tuple(float(v) for v in err), "sd": tuple(float(v) for v in sd)}
         except Exception as exc:  # noqa: BLE001
             row = {**common, "estimator": name, "status": "failed",
                    "error": f"{type(exc).__name__}: {exc}".replace("\n", " ")[:500]}
-        row["task_seconds"] = time.perf_counter() - t1 + (t1 - t0) / len(task.estimators)
-        rows.append(row)
+        rows.append(CampaignRow(**row, task_seconds=time.perf_counter() - t1 + (t1 - t0) / len(task.estimators)))
     return rows
 
 
-def _read_done(path: Path) -> dict[str, list[dict]]:
+def _read_done(path: Path) -> dict[str, list[CampaignRow]]:
     """The successful rows already in results.csv, by task (failed rows are dropped: retried)."""
-    if not path.is_file():
-        return {}
-    with path.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    done: dict[str, list[dict]] = {}
-    for r in rows:
-        if r["status"] == "ok":
-            done.setdefault(r["task_id"], []).append(r)
+    done: dict[str, list[CampaignRow]] = {}
+    for r in map(CampaignRow.from_csv, read_rows(path)):
+        if r.ok:
+            done.setdefault(r.task_id, []).append(r)
     return done
 
 
 # Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536 so that freed memory goes back to the OS at
-# once; a session allocates and frees many large temporary arrays, and with that setting each
-# one is an mmap/munmap pair with fresh page faults: measured 2.6–2.8 s of CPU per session in a
-# worker against 1.65 s in-process.  glibc's own default (dynamic, up to 32 MiB) is restored.
+# once.  Setting that variable at all (any value) also switches off glibc's dynamic mmap threshold:
+# every array above 128 KiB is then a fresh mmap/munmap with its page faults.  A session allocates
+# and frees many such temporaries: measured 240 000 minor page faults and 2.07 s CPU per session in
+# a worker with the variable set (even to 32 MiB), 8 000 and 1.3–1.7 s with it unset — the same as
+# in-process.  ``None`` unsets it (Dask's documented way), so workers run with glibc's own defaults.
 # The statistical profiler (a GIL-taking stack sample every 10 ms) is off: uniform long tasks.
-DASK_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 32 * 1024 * 1024,
+DASK_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
                "distributed.worker.profile.enabled": False}
 
 
@@ -262,7 +337,7 @@ def run_campaign(spec: CampaignSpec, out: str | Path, *, scheduler: str | None =
     done = _read_done(path)
     tasks = []
     for t in make_tasks(spec):  # a task runs only the estimators it has no successful row for
-        have = {r["estimator"] for r in done.get(t.task_id, [])}
+        have = {r.estimator for r in done.get(t.task_id, [])}
         missing = tuple(e for e in t.estimators if e not in have)
         if missing:
             tasks.append(replace(t, estimators=missing))
@@ -271,22 +346,16 @@ def run_campaign(spec: CampaignSpec, out: str | Path, *, scheduler: str | None =
 
     def flush() -> None:
         order = {t.task_id: i for i, t in enumerate(make_tasks(spec))}
-        rows_all.sort(key=lambda r: (order.get(r["task_id"], 1 << 30), r["task_id"], spec.estimators.index(r["estimator"])
-                                     if r["estimator"] in spec.estimators else 99))
-        tmp = path.with_suffix(".csv.part")
-        with tmp.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=RESULT_COLUMNS)
-            w.writeheader()
-            for r in rows_all:
-                w.writerow({k: r.get(k, "") for k in RESULT_COLUMNS})
-        tmp.replace(path)
+        rows_all.sort(key=lambda r: (order.get(r.task_id, 1 << 30), r.task_id, spec.estimators.index(r.estimator)
+                                     if r.estimator in spec.estimators else 99))
+        write_rows(path, [r.to_csv() for r in rows_all], RESULT_COLUMNS)
 
     run_tasks(tasks, run_task, rows_all, flush, scheduler=scheduler, workers=workers,
               connect_timeout_s=connect_timeout_s, progress=progress, key_prefix="task")
     return path
 
 
-def run_tasks(tasks: list, run: Callable[[object], list[dict]], rows: list[dict], flush: Callable[[], None], *,
+def run_tasks(tasks: list, run: Callable[[object], list], rows: list, flush: Callable[[], None], *,
               scheduler: str | None, workers: int | None, connect_timeout_s: float,
               progress: Callable[[int, int], None] | None, key_prefix: str) -> None:
     """Run ``run(task)`` for every task, in-process (``scheduler`` None/"none") or on Dask, appending
@@ -369,23 +438,21 @@ def summarise(results: str | Path, out: str | Path | None = None) -> list[dict]:
     failure rate (Wilson 95 %; a failure = a crashed task or a diverged estimate, any S or G error
     > 50 %), mean external-acceleration RMS; writes summary.csv and plots."""
     results = Path(results)
-    with results.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    groups: dict[tuple, list[dict]] = {}
-    for r in rows:
-        groups.setdefault((r["hand"], float(r["severity"]), r["estimator"]), []).append(r)
+    groups: dict[tuple, list[CampaignRow]] = {}
+    for r in map(CampaignRow.from_csv, read_rows(results)):
+        groups.setdefault((r.hand, r.severity, r.estimator), []).append(r)
     summary = []
     for (hand, sev, est), rs in groups.items():
-        ok = [r for r in rs if r["status"] == "ok"]
-        diverged = [r for r in ok if max(abs(float(r[c])) for c in PARAMS[3:]) > DIVERGED_PCT]
+        ok = [r for r in rs if r.ok]
+        diverged = [r for r in ok if max(abs(v) for v in r.err[3:]) > DIVERGED_PCT]
         bad = len(rs) - len(ok) + len(diverged)
         row = {"hand": hand, "severity": sev, "estimator": est, "n": len(rs), "failed": bad,
                "crashed": len(rs) - len(ok), "diverged": len(diverged)}
         row["failure_rate_lo"], row["failure_rate_hi"] = _wilson(bad, len(rs))
         if ok:
-            row["ext_acc_rms_m_s2"] = float(np.mean([float(r["ext_acc_rms_m_s2"]) for r in ok]))
-            for group, cols in (("bias_deg_s", PARAMS[:3]), ("S_pct", PARAMS[3:6]), ("G_pct", PARAMS[6:])):
-                x = np.array([[float(r[c]) for c in cols] for r in ok]).ravel()
+            row["ext_acc_rms_m_s2"] = float(np.mean([r.ext_acc_rms_m_s2 for r in ok]))
+            for group, cols in (("bias_deg_s", slice(0, 3)), ("S_pct", slice(3, 6)), ("G_pct", slice(6, 9))):
+                x = np.array([r.err[cols] for r in ok]).ravel()
                 row[f"rms_{group}"], row[f"rms_{group}_lo"], row[f"rms_{group}_hi"] = _rms_ci(x)
         summary.append(row)
     if out is not None:
@@ -529,7 +596,7 @@ def bench_scaling(sessions: int = 12, spec: CampaignSpec | None = None) -> list[
     t0 = time.perf_counter()
     local_rows = [run_task(t) for t in tasks]
     t_local = time.perf_counter() - t0
-    compute = sum(r[0]["task_seconds"] for r in local_rows)
+    compute = sum(r[0].task_seconds for r in local_rows)
     out = [{"runner": "in-process (no Dask)", "workers": 1, "seconds": t_local, "sessions_per_s": len(tasks) / t_local}]
     for n in (1, 2):
         with _local_cluster(n) as cluster, Client(cluster) as client:

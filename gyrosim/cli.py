@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -48,14 +49,13 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         )
     save_hdf5(rec, out)
     if not args.quiet:
-        ext = rec.truth.extra["external_acc"]
-        dw = rec.truth.omega_body_rad_s - rec.truth.extra["omega_schedule"]
+        ext_rms, dw_rms = rec.truth.disturbance_rms()
         print(
             f"wrote {out}: {rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s), "
             f"schedule {schedule.name}, hand {hand.name}, sensor {sensor.name if sensor else 'none (truth)'}, "
             f"seed {args.seed}; "
-            f"external acc RMS {math.sqrt(np.mean(np.sum(ext**2, 1))):.4f} m/s², "
-            f"rate disturbance RMS {math.degrees(math.sqrt(np.mean(np.sum(dw**2, 1)))):.3f} °/s"
+            f"external acc RMS {ext_rms:.4f} m/s², "
+            f"rate disturbance RMS {math.degrees(dw_rms):.3f} °/s"
         )
     return 0
 
@@ -204,10 +204,24 @@ def _csv_list(v: str | None) -> tuple[str, ...] | None:
     return tuple(x.strip() for x in v.split(",") if x.strip()) if v else None
 
 
-def cmd_orientation_campaign(args: argparse.Namespace) -> int:
-    """Orientation estimators × hands × raw/calibrated, scored against the truth (gyrosim.orientation_campaign)."""
+@contextlib.contextmanager
+def session_progress(desc: str):
+    """A tqdm bar over a campaign's sessions; yields the ``progress(done, total)`` callback the
+    campaign runners call as tasks finish (the total is known only once the runner has read what
+    is already done)."""
     from tqdm import tqdm
 
+    with tqdm(total=1, unit="session", desc=desc) as bar:
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        yield progress
+
+
+def cmd_orientation_campaign(args: argparse.Namespace) -> int:
+    """Orientation estimators × hands × raw/calibrated, scored against the truth (gyrosim.orientation_campaign)."""
     from .orientation_campaign import OrientationSpec, replace_spec, run_orientation_campaign, summarise_orientation
 
     if args.campaign:
@@ -221,12 +235,7 @@ def cmd_orientation_campaign(args: argparse.Namespace) -> int:
                         sensor=args.sensor, estimators=_csv_list(args.orientation), schedule=args.schedule,
                         rate_hz=args.rate, severity=args.severity, variants=_csv_list(args.variants),
                         calibration=args.calibration)
-    with tqdm(total=1, unit="session", desc="orientation campaign") as bar:
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with session_progress("orientation campaign") as progress:
         path = run_orientation_campaign(spec, args.out, scheduler=args.scheduler, workers=args.workers,
                                         connect_timeout_s=args.timeout, progress=progress)
     summary = summarise_orientation(path, args.out)
@@ -276,8 +285,6 @@ def cmd_orientation_view(args: argparse.Namespace) -> int:
 
 def cmd_campaign(args: argparse.Namespace) -> int:
     """Simulate × calibrate × score many sessions on Dask (gyrosim.campaign)."""
-    from tqdm import tqdm
-
     if args.orientation:
         return cmd_orientation_campaign(args)
 
@@ -292,12 +299,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
             "severity": args.severity}
     spec = load_campaign(args.campaign, **over) if args.campaign else CampaignSpec(
         **{k: v for k, v in over.items() if v is not None})
-    with tqdm(total=1, unit="session", desc="campaign") as bar:
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-
+    with session_progress("campaign") as progress:
         path = run_campaign(spec, args.out, scheduler=args.scheduler, workers=args.workers,
                             connect_timeout_s=args.timeout, progress=progress)
     summary = summarise(path, args.out)
@@ -440,7 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--first-seed", type=seed, help="seed of the first session, 0 … 2³²−1")
     cp.add_argument("--sensor", help="sensor preset (default mpu9250)")
     cp.add_argument("--method", help="comma-separated estimators: names registered in the gyrosim.estimators entry points (calib's kf, "
-                         "smoother, kf_adaptive, ...) or import paths package.module:attribute")
+                         "iterated, kf_hand, kf_adaptive, ...) or import paths package.module:attribute")
     cp.add_argument("--schedule", help="schedule of every session: built-in name or TOML path (default zhou2020)")
     cp.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), help="sample rate, Hz, in (0, 1e6]")
     cp.add_argument("--severity", type=positive_list(),

@@ -3,9 +3,9 @@
 An *estimator* is any callable ``estimator(rec: Recording) -> Calibration``:
 
 * it receives a :class:`~gyrosim.recording.Recording` — gyro (rad/s) and accelerometer (m/s²) in
-  the body frame RFU, times (s), optional temperature/field; in a campaign the recording is the
-  corrupted simulation, and its truth (and the simulator's sensor model in its metadata) is *not*
-  for the estimator to use (the campaign scores against it afterwards);
+  the body frame RFU, times (s), optional temperature/field; in a campaign that is
+  :func:`as_user_file` of the corrupted simulation: no truth, no sensor model, no hand (the
+  campaign scores against them afterwards);
 * it returns a :class:`gyrosim.calibration.Calibration`: the estimated effects of the vocabulary
   (the gyro's bias, scale factor and non-orthogonality at least — Zhou 2020 eq. 1:
   ω̃ = (I + diag(S) + N(G)) ω + b), their covariance, a status and warnings.  :func:`Estimate`
@@ -13,7 +13,7 @@ An *estimator* is any callable ``estimator(rec: Recording) -> Calibration``:
 
 Estimators are found by name through the entry-point group ``gyrosim.estimators``
 (:mod:`gyrosim.plugins`), so gyrosim never imports the package that provides them: calib registers
-its own there (``kf``, ``smoother``, ``kf_session_r``, ... in its ``pyproject.toml``), and a user's
+its own there (``kf``, ``iterated``, ``kf_session_r``, ... in its ``pyproject.toml``), and a user's
 installed package can register more the same way.  Any estimator can also be named by import path
 ``package.module:attribute``.  Either names an estimator, or a class/factory called with no
 arguments that returns one.  ``examples/own_estimator.py`` plugs one in.
@@ -21,6 +21,7 @@ arguments that returns one.  ``examples/own_estimator.py`` plugs one in.
 
 from __future__ import annotations
 
+import warnings
 from typing import Callable, Protocol
 
 import numpy as np
@@ -30,7 +31,7 @@ from .errors import GyrosimError
 from .plugins import load, registered
 from .recording import Recording
 
-__all__ = ["Estimate", "Estimator", "load_estimator", "registered_estimators", "ENTRY_POINT_GROUP"]
+__all__ = ["Estimate", "Estimator", "load_estimator", "registered_estimators", "as_user_file", "ENTRY_POINT_GROUP"]
 
 ENTRY_POINT_GROUP = "gyrosim.estimators"
 
@@ -63,14 +64,28 @@ def Estimate(bias_rad_s: np.ndarray, scale_factor: np.ndarray, nonorthogonality:
     return Calibration.from_linear(gyro=arrays, covariance=covariance, warnings=tuple(warnings), method=method)
 
 
+def as_user_file(rec: Recording) -> Recording:
+    """What a user's file carries: times, gyro, accelerometer (and temperature, field) with the rate —
+    no truth, no sensor model, no hand, no seed.  Campaigns hand estimators this view of a simulated
+    session, so an estimator cannot lean on the simulator's knowledge (an oracle that needs the
+    truth is asked for by name and reads the full recording itself)."""
+    return Recording(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, None, {"rate_hz": rec.rate_hz})
+
+
 class Estimator(Protocol):
     def __call__(self, rec: Recording) -> Calibration: ...
 
 
 def load_estimator(spec: str) -> Callable[[Recording], Calibration]:
     """A registered name (entry-point group ``gyrosim.estimators``) or ``package.module:attribute``;
-    raises :class:`GyrosimError` before any work if it cannot be loaded."""
+    raises :class:`GyrosimError` before any work if it cannot be loaded.  An estimator whose
+    ``deprecated_alias_of`` attribute names another (a former name kept working) loads with a
+    FutureWarning naming the current one."""
     obj = load(ENTRY_POINT_GROUP, spec, what="estimator")
+    alias = getattr(obj, "deprecated_alias_of", None)
+    if alias:  # a former name kept working; FutureWarning: shown to command-line users by default
+        warnings.warn(f"estimator {spec!r} is deprecated: use {alias!r} (the same algorithm under its one name)",
+                      FutureWarning, stacklevel=2)
     if isinstance(obj, type):
         obj = obj()
     if not callable(obj):

@@ -107,9 +107,9 @@ def make_tasks(spec: OrientationSpec) -> list[OrientationTask]:
 
 def _calibrated(rec, spec: OrientationSpec):
     """The recording compensated by calib's estimate from it (and the magnetometer's, 9-axis)."""
-    from .estimator import load_estimator
+    from .estimator import as_user_file, load_estimator
 
-    cal = load_estimator(spec.calibration)(rec)
+    cal = load_estimator(spec.calibration)(as_user_file(rec))  # the estimator sees a user's file
     out = cal.compensate(rec)
     if rec.mag_ut is not None:  # calib's ellipsoid fit, found by entry point (gyrosim does not import calib)
         from .plugins import load
@@ -175,8 +175,7 @@ def run_task(task: OrientationTask) -> list[dict]:
     from .calibration import truth_calibration
 
     truth = truth_calibration(rec)
-    ext = rec.truth.extra["external_acc"]
-    base["ext_acc_rms_m_s2"] = float(np.sqrt(np.mean(np.sum(ext**2, axis=1))))
+    base["ext_acc_rms_m_s2"] = rec.truth.disturbance_rms()[0]
     base["gyro_bias_max_deg_s"] = math.degrees(float(np.max(np.abs(truth.bias_rad_s)))) if truth is not None else ""
     inputs: dict[str, tuple] = {}
     for v in spec.variants:
@@ -214,12 +213,10 @@ def run_task(task: OrientationTask) -> list[dict]:
 
 def _read_done(path: Path) -> dict[str, list[dict]]:
     """Tasks whose rows are all in results (failed estimator rows count: they are results)."""
-    if not path.is_file():
-        return {}
-    with path.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    from .campaign import read_rows
+
     done: dict[str, list[dict]] = {}
-    for r in rows:
+    for r in read_rows(path):
         done.setdefault(r["task_id"], []).append(r)
     return {k: v for k, v in done.items() if not any(r["error"].startswith("simulation:") for r in v)}
 
@@ -228,7 +225,7 @@ def run_orientation_campaign(spec: OrientationSpec, out: str | Path, *, schedule
                              workers: int | None = None, connect_timeout_s: float = 10.0,
                              progress: Callable[[int, int], None] | None = None) -> Path:
     """Run every task not yet in ``out/orientation_results.csv``; returns its path."""
-    from .campaign import run_tasks
+    from .campaign import run_tasks, write_rows
 
     spec.validate()
     out = Path(out)
@@ -243,13 +240,7 @@ def run_orientation_campaign(spec: OrientationSpec, out: str | Path, *, schedule
 
     def flush() -> None:
         rows_all.sort(key=lambda r: (order.get(r["task_id"], 1 << 30), r["variant"], r["estimator"]))
-        tmp = path.with_suffix(".csv.part")
-        with tmp.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=ORIENTATION_COLUMNS)
-            w.writeheader()
-            for r in rows_all:
-                w.writerow({k: r.get(k, "") for k in ORIENTATION_COLUMNS})
-        tmp.replace(path)
+        write_rows(path, rows_all, ORIENTATION_COLUMNS)
 
     run_tasks(tasks, run_task, rows_all, flush, scheduler=scheduler, workers=workers,
               connect_timeout_s=connect_timeout_s, progress=progress, key_prefix="orientation")

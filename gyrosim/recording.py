@@ -23,6 +23,7 @@ write leaves nothing half-written; the same content always gives the same bytes 
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from dataclasses import dataclass, field, replace
@@ -54,6 +55,13 @@ def _readonly(a: np.ndarray | None) -> np.ndarray | None:
     return a
 
 
+def vector_rms(x: np.ndarray | None) -> float:
+    """√(mean_k |x_k|²) of an (N, 3) series (NaN for None): the RMS of a vector's magnitude."""
+    if x is None:
+        return float("nan")
+    return math.sqrt(float(np.mean(np.sum(np.asarray(x) ** 2, axis=1))))
+
+
 @dataclass(frozen=True)
 class Truth:
     """Ground truth of a recording. Frames and units are in the field names.
@@ -73,6 +81,25 @@ class Truth:
         for name in _TRUTH_CORE.values():
             object.__setattr__(self, name, _readonly(getattr(self, name)))
         object.__setattr__(self, "extra", {k: _readonly(v) for k, v in self.extra.items()})
+
+    @property
+    def external_acc_m_s2(self) -> np.ndarray | None:
+        """Non-gravity acceleration at the accelerometer site, body frame (m/s²), a_e = f − g_b: what the
+        hand adds to gravity (``extra['external_acc']``, written by the simulator); None when absent."""
+        return self.extra.get("external_acc")
+
+    @property
+    def rate_disturbance_rad_s(self) -> np.ndarray | None:
+        """True body rate minus the schedule's commanded rate, body frame (rad/s): the hand's rotational
+        disturbance ω − ω_schedule (wobble, tremor); None without ``extra['omega_schedule']``."""
+        if self.omega_body_rad_s is None or "omega_schedule" not in self.extra:
+            return None
+        return self.omega_body_rad_s - self.extra["omega_schedule"]
+
+    def disturbance_rms(self) -> tuple[float, float]:
+        """(RMS of |a_e| in m/s², RMS of |ω − ω_schedule| in rad/s) over the session, NaN where absent:
+        √(mean_k |x_k|²), the severity axes of the campaigns."""
+        return vector_rms(self.external_acc_m_s2), vector_rms(self.rate_disturbance_rad_s)
 
     def channels(self) -> dict[str, np.ndarray]:
         """All present truth channels by their HDF5 name (``omega``, ``quat``, ..., extras)."""

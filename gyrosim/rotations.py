@@ -46,15 +46,12 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     pw, px, py, pz = np.moveaxis(p, -1, 0)
     qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ],
-        axis=-1,
-    )
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))  # written per component: no np.stack copy
+    out[..., 0] = pw * qw - px * qx - py * qy - pz * qz
+    out[..., 1] = pw * qx + px * qw + py * qz - pz * qy
+    out[..., 2] = pw * qy - px * qz + py * qw + pz * qx
+    out[..., 3] = pw * qz + px * qy - py * qx + pz * qw
+    return out
 
 
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
@@ -132,16 +129,17 @@ def quat_angle_between(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 def quat_cumulative_product(steps: np.ndarray) -> np.ndarray:
     """Running product out[k] = steps[0] ⊗ steps[1] ⊗ … ⊗ steps[k] along axis 0.
 
-    Evaluated as a Hillis–Steele parallel prefix scan (⌈log2 N⌉ vectorised passes) instead of a
-    per-sample Python loop; quaternion multiplication is associative, so the result equals the
-    sequential product up to rounding (renormalised at the end).
+    Evaluated as a Hillis–Steele parallel prefix scan (⌈log2 N⌉ passes, pass s: out[i] ←
+    out[i − s] ⊗ out[i]); quaternion multiplication is associative, so the result equals the
+    sequential product up to rounding (renormalised at the end).  The passes run compiled and in
+    place (:func:`gyrosim._rotation_kernels.prefix_product_inplace`, the same products in the same
+    order as :func:`quat_multiply`, so bit-identical to the whole-array numpy passes).
     """
-    out = np.array(steps, dtype=float, copy=True)
-    n = out.shape[0]
-    shift = 1
-    while shift < n:
-        out[shift:] = quat_multiply(out[:-shift], out[shift:])
-        shift *= 2
+    from ._rotation_kernels import prefix_product_inplace
+
+    out = np.array(steps, dtype=float, copy=True, order="C")
+    if out.shape[0] > 1:
+        prefix_product_inplace(out.reshape(out.shape[0], -1, 4))
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 

@@ -90,6 +90,14 @@ class ArmPose:
     shoulder_elevation_rad: np.ndarray
 
 
+def _block_view(rows: np.ndarray, columns: slice, shape: tuple[int, ...]) -> np.ndarray:
+    """``rows[:, columns]`` seen as (n, *shape), writable into ``rows`` (never a copy)."""
+    view = rows[:, columns].reshape(rows.shape[0], *shape)
+    if not np.shares_memory(view, rows):
+        raise RuntimeError("control block is not a view of the control rows")
+    return view
+
+
 class HandScene:
     """A loaded ``handheld.xml`` with the ids, inertia and arm geometry gyrosim needs."""
 
@@ -97,6 +105,10 @@ class HandScene:
         self.model_path = Path(model_path) if model_path else default_model_path()
         self.model = mujoco.MjModel.from_xml_path(str(self.model_path))
         self.model.opt.timestep = timestep_s
+        # One free body and one weld: a single constraint island, so MuJoCo's per-step island
+        # discovery only costs time (~15 % of a step); the solver then sees the same system and
+        # the sensor data are bit-identical (tests/test_simulation_speed.py).
+        self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
         self.data = mujoco.MjData(self.model)
         m = self.model
 
@@ -260,18 +272,18 @@ class HandScene:
         acc_com = motion.pivot_acceleration_m_s2 + cross3(a_n, r_c) + cross3(w_n, cross3(w_n, r_c))
         ib = self.inertia_body_kg_m2
         torque_b = wd_b @ ib.T + cross3(w_b, w_b @ ib.T)
+        # the rows are written in place through views of ``ctrl`` (no per-block temporaries)
         ctrl = np.zeros((n, self.ncontrol))
-        xfrc = np.zeros((n, m.nbody, 6))
+        xfrc = _block_view(ctrl, self._xfrc, (m.nbody, 6))
         xfrc[:, self.hand_id, :3] = self.mass_kg * acc_com
         xfrc[:, self.hand_id, 3:] = quat_rotate(quat, torque_b)
-        ctrl[:, self._xfrc] = xfrc.reshape(n, -1)
 
         origin = self.body_origin_m(motion, pivot_start_m)
         r_o = -quat_rotate(quat, p_b)  # body origin relative to the pivot, world
         a_origin = motion.pivot_acceleration_m_s2 + cross3(a_n, r_o) + cross3(w_n, cross3(w_n, r_o))
         c_v, c_a = self.weld_offsets()
-        mpos = np.zeros((n, m.nmocap, 3))
-        mquat = np.zeros((n, m.nmocap, 4))
+        mpos = _block_view(ctrl, self._mpos, (m.nmocap, 3))
+        mquat = _block_view(ctrl, self._mquat, (m.nmocap, 4))
         mpos[:, self.target_mocap] = origin + c_v * v_origin + c_a * a_origin
         mquat[:, self.target_mocap] = quat_multiply(quat, quat_from_rotvec(c_v * w_b + c_a * wd_b))
         z = np.array([0.0, 0.0, 1.0])
@@ -279,8 +291,6 @@ class HandScene:
         mquat[:, self.upper_mocap] = quat_from_two_vectors(z, arm.elbow_m - arm.shoulder_m)
         mpos[:, self.forearm_mocap] = arm.elbow_m
         mquat[:, self.forearm_mocap] = quat_from_two_vectors(z, arm.wrist_m - arm.elbow_m)
-        ctrl[:, self._mpos] = mpos.reshape(n, -1)
-        ctrl[:, self._mquat] = mquat.reshape(n, -1)
         return ctrl
 
     def _staggered_velocities(self, motion: HandMotion) -> tuple[np.ndarray, np.ndarray]:

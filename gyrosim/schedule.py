@@ -200,9 +200,17 @@ class Schedule:
             step = np.asarray(seg.displacement_m) if seg.kind == "translate" else 0.0
             p_start.append(p_start[-1] + step)
         q0 = np.empty((n, 4))
+        # times in order (the simulator's chunks): each segment is one slice of rows, and only the
+        # segments the times reach are visited; otherwise a mask per segment
+        ordered = n > 0 and bool(np.all(idx[1:] >= idx[:-1]))
         for i, seg in enumerate(self.segments):
-            sel = idx == i
-            if not np.any(sel):
+            if ordered:
+                if i < idx[0] or i > idx[-1]:
+                    continue
+                sel = slice(int(np.searchsorted(idx, i, "left")), int(np.searchsorted(idx, i, "right")))
+            else:
+                sel = idx == i
+            if not np.any(idx[sel] == i):
                 continue
             q0[sel] = q_start[i]
             trans[sel] = p_start[i]

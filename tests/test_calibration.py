@@ -75,7 +75,7 @@ def test_data_from_an_independent_generator(independent_csv, tmp_path):
         est, std = np.asarray(g[key]), np.asarray(g["std"][key])
         # errors within 4σ of the filter's own standard deviation (and σ is small: < 1e-3 rel.)
         assert np.all(np.abs(est - truth[key]) < 4 * std + 1e-12), (key, est, truth[key], std)
-    assert d["method"] == "kf" and d["warnings"] == []
+    assert d["method"] == "kf_joint" and d["warnings"] == []
     assert d["rest_segments"][0][0] == 0.0 and 7.0 < d["rest_segments"][0][1] < 8.5  # 8 s initial rest
     # the .rrd holds √P per state: its last S_x value is the JSON's std
     last = None

@@ -21,8 +21,8 @@ def test_fast_path_equals_filterpy_to_1e_9(tmp_path):
     generate(path, seed=5, acc_bias_g=(0.05, -0.04, 0.06), acc_scale=(0.02, -0.01, 0.015))
     rec = load_recording(path, "deg/s", "g")
     for mode in ("calibrated", "estimate"):
-        ref = calibrate(rec, "kf", accelerometer=mode, engine="filterpy")
-        fast = calibrate(rec, "kf", accelerometer=mode)
+        ref = calibrate(rec, "kf_session", accelerometer=mode, engine="filterpy")
+        fast = calibrate(rec, "kf_session", accelerometer=mode)
         assert np.abs(fast.parameters() - ref.parameters()).max() < 1e-9, mode
         assert np.abs(fast.covariance - ref.covariance).max() < 1e-9 * np.abs(ref.covariance).max(), mode
         np.testing.assert_allclose(fast.history.nis, ref.history.nis, rtol=1e-6, atol=1e-9)

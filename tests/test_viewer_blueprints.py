@@ -39,7 +39,7 @@ def calibrated():
     from gyrosim.simulate import apply_sensor
 
     rec = apply_sensor(session("typical"), load_sensor("mpu9250"), np.random.default_rng(4))
-    return rec, calibrate(rec, "kf"), true_gyro_parameters(rec)
+    return rec, calibrate(rec, "kf_session"), true_gyro_parameters(rec)
 
 
 @pytest.fixture(scope="module")
