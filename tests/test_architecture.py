@@ -324,11 +324,10 @@ def test_one_meaning_per_unit_constant():
     assert not redefined, "unit constants are defined once, in gyrosim/units.py:\n" + "\n".join(redefined)
 
 
-# Places that still compare against an effect kind's literal name, and how many times: the closed
-# loop's own steps (being restructured separately) and the magnetometer fit's model assembly.  The
+# Places that still compare against an effect kind's literal name, and how many times: the
+# magnetometer fit's model assembly.  The
 # count may only go down; a new switch anywhere else fails here, naming the line.
-_KIND_SWITCH_ALLOWANCE = {"calib/closeloop/loop.py": 1, "calib/closeloop/mag_loop.py": 2,
-                          "calib/closeloop/mag_fit.py": 6}
+_KIND_SWITCH_ALLOWANCE = {"calib/closeloop/mag_fit.py": 6}
 
 
 def test_no_module_outside_the_effects_package_switches_on_effect_names():

@@ -36,7 +36,7 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from gyrosim.effects import EFFECTS
+from gyrosim.effects import EFFECTS, effect_from_dict
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_angle_between
@@ -161,14 +161,15 @@ class CloseloopResult(LoopReport):
 
 
 def _gyro_axes(res: "CloseloopResult") -> np.ndarray | None:
-    """The gyro's fitted off-diagonal axis matrix: declared non-orthogonality plus a misalignment found."""
+    """The gyro's fitted off-diagonal axis matrix: declared non-orthogonality plus any term found that turns
+    the axes (the effect class's ``axis_rotation``: the misalignment)."""
     total = np.zeros((3, 3))
     vals = [res.declared_params.get(f"nonorthogonality.value[{i}]", {}).get("value") for i in range(3)]
     if all(v is not None for v in vals):
         total += EFFECTS["nonorthogonality"](value=vals).affine()[0]
-    mis = next((f.model for f in res.found if f.effect == "misalignment"), None)
-    if mis is not None:
-        total += EFFECTS["misalignment"](value=mis["value"]).affine()[0]
+    for f in res.found:
+        if getattr(EFFECTS.get(f.effect), "axis_rotation", False):   # a family's own kind has no class
+            total += effect_from_dict(f.model).affine()[0]
     return total if np.any(total) else None
 
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrosim.effects import EFFECTS
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 
@@ -160,7 +161,7 @@ def reference_frame_note(mag: MagLoopResult, gyro_axes: np.ndarray | None) -> st
     antisymmetric part [a]×).  A rotation of the reference's body frame against the IMU frame acts on
     both sensors alike: m ≈ (I − [θ]×) b and y ≈ (I + [a]×) ω with a = −θ.  Agreement points to the
     reference frame, not to the magnetometer."""
-    f = next((x for x in mag.found if x.effect == "frame_rotation"), None)
+    f = next((x for x in mag.found if EFFECTS[x.effect].axis_rotation), None)
     if f is None or gyro_axes is None:
         return None
     theta = np.array([v["value"] for v in f.params.values()])
@@ -227,7 +228,7 @@ def _finding(ref: MagReference, final: MagFit, rnd: Round[MagFit]) -> Finding:
     score, changes, g = rnd.score, rnd.pick.metrics, rnd.confounded
     trace = trace_of(term.driver, summ, "field residual", score.held_out_rms_before, score.held_out_rms_after, "µT",
                      score.gain, term.n_params, changes, "held_out_field_residual_rms")
-    if k == "frame_rotation" and ref.source == "optical":
+    if EFFECTS[k].axis_rotation and ref.source == "optical":
         trace += (" — against an optical reference, a rotation between the optical body frame and the IMU frame "
                   "looks exactly like this; a misalignment the gyro loop finds against the same reference points "
                   "to the reference frame, not the magnetometer")

@@ -105,6 +105,9 @@ class Effect:
     candidate: ClassVar[bool | None] = None
     # a non-candidate: why the loop fits no term for it and how it is covered instead ("" → a general reason)
     closeloop_reason: ClassVar[str] = ""
+    # the effect turns the sensor's axes (its axis matrix has a rotation part): a rotation of the
+    # reference's body frame against the IMU frame looks like it, on every sensor alike
+    axis_rotation: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """Derive ``triads`` and ``candidate``, and register a class that declares its own ``kind``."""

@@ -131,6 +131,7 @@ class Misalignment(VectorEffect):
     quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
     pointwise: ClassVar[bool] = True
     labels: ClassVar[tuple[str, str]] = ("misalignment", "misalignment sigma")
+    axis_rotation: ClassVar[bool] = True   # M general: its antisymmetric part is a rotation
     size: ClassVar[int] = 6
     value: np.ndarray = zeros_field(6)
     value_sigma: np.ndarray = zeros_field(6)

@@ -100,6 +100,7 @@ class FrameRotation(Effect):
     """
 
     kind: ClassVar[str] = "frame_rotation"
+    axis_rotation: ClassVar[bool] = True
     display_units: ClassVar[dict[str, tuple[float, str]]] = {"magnetometer": (RAD2DEG, "°")}
     quantities: ClassVar[dict[str, str]] = {"magnetometer": "angle"}
     pointwise: ClassVar[bool] = True
