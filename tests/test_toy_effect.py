@@ -142,3 +142,42 @@ def test_the_registry_is_filled_by_definition_and_refuses_a_kind_defined_twice()
     assert EFFECTS == before and EFFECTS["bias"] is Bias
     # derived declarations: a deterministic error-stage gyro effect is a loop candidate, a random one is not
     assert Bias.candidate and not EFFECTS["white_noise"].candidate and EFFECTS["white_noise"].closeloop_reason
+
+
+def test_build_candidate_raises_the_reason_a_kind_is_no_candidate():
+    """build_candidate returns a Candidate or raises Untestable carrying the report's reason (the
+    loop's "Not tested" text), never a value to test with isinstance."""
+    from calib.closeloop.candidates import Untestable, build_candidate, family_for
+
+    for kind, part in (("white_noise", ""), ("hard_iron", "not an effect of the gyro triad"),
+                       ("no_such_effect", "not in the effect vocabulary")):
+        with pytest.raises(Untestable) as err:
+            build_candidate(kind, None, None)   # refused before the context is read
+        assert err.value.kind == kind and part in err.value.reason
+        assert err.value.reason == family_for(kind).reason
+    assert EFFECTS["misalignment"].axis_rotation and EFFECTS["frame_rotation"].axis_rotation
+    assert not EFFECTS["nonorthogonality"].axis_rotation   # symmetric: no rotation part
+
+
+def test_the_gyro_axes_take_a_found_misalignment_by_its_class_flag():
+    """_gyro_axes (the reference-frame note's gyro side) adds a found term whose class turns the axes
+    (Misalignment.axis_rotation) from its reported model, and ignores the other found terms."""
+    from types import SimpleNamespace
+
+    from calib.closeloop.loop import _gyro_axes
+    from calib.closeloop.mag_loop import reference_frame_note
+
+    v = [1e-3, -2e-3, 3e-3, 4e-3, -5e-3, 6e-3]
+    mis = EFFECTS["misalignment"](value=v)
+    model = {k: (x.tolist() if isinstance(x, np.ndarray) else x) for k, x in mis.to_dict().items()}
+    bias = {k: (x.tolist() if isinstance(x, np.ndarray) else x)
+            for k, x in EFFECTS["bias"](value=[1e-3, 0, 0]).to_dict().items()}
+    res = SimpleNamespace(declared_params={}, found=[SimpleNamespace(effect="bias", model=bias),
+                                                     SimpleNamespace(effect="misalignment", model=model)])
+    np.testing.assert_array_equal(_gyro_axes(res), mis.affine()[0])
+    assert _gyro_axes(SimpleNamespace(declared_params={}, found=res.found[:1])) is None
+    m = mis.affine()[0]
+    a = 0.5 * np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    mag = SimpleNamespace(found=[SimpleNamespace(effect="frame_rotation", params={
+        n: {"value": float(-x)} for n, x in zip(("theta_x", "theta_y", "theta_z"), a)})])
+    assert "the same rotation seen by both sensors" in reference_frame_note(mag, m)

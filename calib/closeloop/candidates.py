@@ -65,12 +65,16 @@ class Channel(enum.IntEnum):
                 Channel.TIME: "time only (nothing measured)"}[self]
 
 
-@dataclass(frozen=True)
-class Untestable:
-    """A candidate that cannot be built on this recording, and why (said in the report's "Not tested")."""
+class Untestable(Exception):
+    """A candidate that cannot be built on this recording, and why (said in the report's "Not tested").
 
-    kind: str
-    reason: str
+    :func:`build_candidate` raises it; a family's ``build`` and :func:`family_for` may return it as a
+    value, which :func:`build_candidate` then raises."""
+
+    def __init__(self, kind: str, reason: str) -> None:
+        super().__init__(f"{kind}: {reason}")
+        self.kind = kind
+        self.reason = reason
 
 
 @dataclass(frozen=True)
@@ -320,13 +324,17 @@ def candidate_kinds() -> list[str]:
 
 
 def build_candidate(kind: str, ctx: SignalContext, ref: "Reference", options: BuildOptions | None = None
-                    ) -> Candidate | Untestable:
-    """The candidate for ``kind`` on this reference (design rows computed for a linear one), or why not."""
+                    ) -> Candidate:
+    """The candidate for ``kind`` on this reference (design rows computed for a linear one).
+
+    Raises :class:`Untestable` (its ``reason``) when ``kind`` is no candidate or cannot be built here."""
     fam = family_for(kind)
     if isinstance(fam, Untestable):
-        return fam
+        raise fam
     cand = fam.build(kind, ctx, ref, options or BuildOptions())
-    if isinstance(cand, Untestable) or cand.rows is not None or not ref.linear:
+    if isinstance(cand, Untestable):
+        raise cand
+    if cand.rows is not None or not ref.linear:
         return cand
     return Candidate(cand.family, cand.kind, cand.param_names, cand.to_effect, cand.follows, cand.follows_series,
                      cand.regressors, ref.jacobian(cand.sample_regressors()), cand.lazy, cand.apply, cand._cache)

@@ -186,10 +186,10 @@ def _declared_terms(setup: LoopSetup, declared: list[str]) -> tuple[Candidate, .
     """The declared effects' regressors (each built by its family); one that cannot be built here is bad input."""
     terms = []
     for kind in declared:
-        c = build_candidate(kind, setup.ref.ctx, setup.ref, setup.options)
-        if isinstance(c, Untestable):
-            raise RecordingError(f"declared effect {kind!r} cannot be fitted here: {c.reason}")
-        terms.append(c)
+        try:
+            terms.append(build_candidate(kind, setup.ref.ctx, setup.ref, setup.options))
+        except Untestable as why:
+            raise RecordingError(f"declared effect {kind!r} cannot be fitted here: {why.reason}") from None
     return tuple(terms)
 
 
@@ -219,11 +219,10 @@ def _candidates(setup: LoopSetup, declared: list[str], kinds: list[str] | None
     for kind in kinds if kinds is not None else candidate_kinds():
         if kind in declared:
             continue
-        c = build_candidate(kind, setup.ref.ctx, setup.ref, setup.options)
-        if isinstance(c, Untestable):
-            not_tested[kind] = NotTaken("not_buildable", c.reason)
-        else:
-            pool[kind] = c
+        try:
+            pool[kind] = build_candidate(kind, setup.ref.ctx, setup.ref, setup.options)
+        except Untestable as why:
+            not_tested[kind] = NotTaken("not_buildable", why.reason)
     return pool, not_tested
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from gyrosim.recording import Recording
 
-from .candidates import BuildOptions, Candidate, Untestable, build_candidate
+from .candidates import BuildOptions, Candidate, build_candidate
 from .fit import FitResult, fit_model, held_out_split
 from .metrics import MetricContext, MetricSums, held_out_metrics
 from .reference import Reference
@@ -98,10 +98,8 @@ def error_stage_rate(ref: Reference, terms: tuple[Candidate, ...], thetas: list[
 
 def rebuild(setup: LoopSetup, cand: Candidate, modelled_rate: np.ndarray) -> Candidate:
     """An output-stage candidate rebuilt on the error-stage output of the current model."""
-    new = build_candidate(cand.kind, setup.ref.ctx, setup.ref, replace(setup.options, modelled_rate=modelled_rate))
-    if isinstance(new, Untestable):  # pragma: no cover - it was buildable a moment ago on the same context
-        raise RuntimeError(new.reason)
-    return new
+    # it was buildable a moment ago on the same context: an Untestable here is a bug, raised as it is
+    return build_candidate(cand.kind, setup.ref.ctx, setup.ref, replace(setup.options, modelled_rate=modelled_rate))
 
 
 def refit(setup: LoopSetup, terms: tuple[Candidate, ...], *, base: ModelState | None = None,
