@@ -1,4 +1,4 @@
-"""Magnetometer calibration (issue 17): accuracy and honest σ over seeds, misalignment, the heading
+"""Magnetometer calibration: accuracy and honest σ over seeds, misalignment, the heading
 noise floor, disturbances, bad input, the result type and the CLI.
 
 Cheap path for the statistics (TEAM.md): one simulated truth per schedule, many magnetometer
@@ -193,7 +193,7 @@ def test_a_room_anomaly_is_reported_as_a_disturbance_not_absorbed(tmp_path):
     assert np.all(err / res.hard_iron_std_ut < 4.0), err / res.hard_iron_std_ut
     absorbed = calibrate_magnetometer(rec, "ellipsoid", detect_disturbances=False)
     assert absorbed.diagnostics["residual_field_rms_uT"] >= 2 * res.diagnostics["residual_field_rms_uT"]
-    # its recording (issue 15) opens on |B| raw and calibrated in one view over the whole walk, the
+    # its recording opens on |B| raw and calibrated in one view over the whole walk, the
     # disturbance marked inside that view, and a story that names it
     from calib.viz_rerun import save_magnetometer_rrd
     from gyrosim.viewer import read_blueprint, read_texts
