@@ -290,7 +290,7 @@ def cmd_observability(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    """Speed of ``calib run``'s calibration against the paper's filterpy filter (today's ``kf``), on one
+    """Speed of ``calib run``'s calibration against its former 9-state filter in filterpy (``kf_session_r``), on one
     3-minute 100 Hz session with a raw accelerometer; runs interleaved, best of ``--repeats``, same run."""
     from .bench import run_bench
 
