@@ -132,11 +132,11 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=False)
 def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
-            kreg, hand0, gm_tau, gm_var):  # pragma: no cover
+            kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
-    hand = hand0.copy()                                        # nominal lever arm (0:3) and external acceleration (3:6)
+    hand = hand0.copy()                                        # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
     P = P0.copy()
     qout = np.zeros((B, 4))
     nis_out = np.full((B, N - 1), np.nan)
@@ -146,14 +146,15 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     hsd = np.zeros((B, nk, n))
     hth = np.zeros((B, nk, 18))
     o_sg, o_gg, o_bg, o_ba, o_sa, o_ga = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6]
-    o_lv, o_ea = offs[7], offs[8]
+    o_lv, o_ea, o_el = offs[7], offs[8], offs[9]
+    o_e2 = offs[10] if hp_order >= 2 else -1
     acc_states = o_ba >= 0
     E = np.zeros((3, 9))
     ecols = np.zeros(9, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, 17))
-    hcols = np.zeros(17, dtype=np.int64)
+    Hc = np.zeros((3, 23))
+    hcols = np.zeros(23, dtype=np.int64)
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -194,8 +195,25 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 ne = _nb_put(E, ecols, ne, CM, o_bg)           # bias
             if o_ea >= 0:                                      # Gauss–Markov a_e: Φ = diag(e^{−Δt/τ}), Q = σ²(1 − Φ²)
                 al = math.exp(-dt / gm_tau)
+                be = math.exp(-dt / hp_tau)                    # z ← β z + (1 − β) x: z the low-pass of x (τ_h)
                 for j in range(3):
                     c = o_ea + j
+                    if o_e2 >= 0:                              # z₂ ← β z₂ + (1 − β)(x − z), old x and z
+                        c2, cz = o_e2 + j, o_el + j
+                        hd[9 + j] = be * hd[9 + j] + (1.0 - be) * (hd[3 + j] - hd[6 + j])
+                        xs[c2] = be * xs[c2] + (1.0 - be) * (xs[c] - xs[cz])
+                        for r in range(n):
+                            Pb[c2, r] = be * Pb[c2, r] + (1.0 - be) * (Pb[c, r] - Pb[cz, r])
+                        for r in range(n):
+                            Pb[r, c2] = be * Pb[r, c2] + (1.0 - be) * (Pb[r, c] - Pb[r, cz])
+                    if o_el >= 0:
+                        cz = o_el + j
+                        hd[6 + j] = be * hd[6 + j] + (1.0 - be) * hd[3 + j]
+                        xs[cz] = be * xs[cz] + (1.0 - be) * xs[c]
+                        for r in range(n):                     # P ← A P Aᵀ, A the z row (x before its decay)
+                            Pb[cz, r] = be * Pb[cz, r] + (1.0 - be) * Pb[c, r]
+                        for r in range(n):
+                            Pb[r, cz] = be * Pb[r, cz] + (1.0 - be) * Pb[r, c]
                     hd[3 + j] *= al
                     xs[c] *= al
                     for r in range(n):
@@ -234,6 +252,9 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
             Pb[0, 0] += qd
             Pb[1, 1] += qd
             Pb[2, 2] += qd
+            if o_bg >= 0 and bias_rw2 > 0.0:                   # the bias's random walk: Q_bb = q_b Δt
+                for j in range(3):
+                    Pb[o_bg + j, o_bg + j] += bias_rw2 * dt
             # ---- update with the accelerometer sample
             if upd[b, k]:
                 C = _nb_qmat(q)
@@ -256,6 +277,10 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 if o_ea >= 0:                                  # minus the external acceleration's nominal (nav)
                     for i in range(3):
                         z[i] -= hd[3 + i]
+                        if o_el >= 0:
+                            z[i] += hd[6 + i]                  # a_e = x − z
+                        if o_e2 >= 0:
+                            z[i] += hd[9 + i]                  # a_e = x − z − z₂
                 m = m_rows
                 for i in range(3):
                     for e in range(11):
@@ -274,6 +299,10 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     nh = _nb_put(Hc, hcols, nh, C @ kreg[b, k], o_lv)   # Ĉ K(ω, ω̇)
                 if o_ea >= 0:
                     nh = _nb_put(Hc, hcols, nh, np.eye(3), o_ea)       # I (nav)
+                if o_el >= 0:
+                    nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_el)      # −I (nav): a_e = x − z
+                if o_e2 >= 0:
+                    nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_e2)      # −I (nav): a_e = x − z − z₂
                 r_var = r_vars[b, k]
                 _nb_times_ht(Pb, Hc, hcols, nh, m, PHt)        # P Hᵀ
                 for i in range(m):                             # S = H P Hᵀ + R
@@ -359,6 +388,10 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             hd[j] += x[o_lv + j]
                         if o_ea >= 0:
                             hd[3 + j] += x[o_ea + j]
+                        if o_el >= 0:
+                            hd[6 + j] += x[o_el + j]
+                        if o_e2 >= 0:
+                            hd[9 + j] += x[o_e2 + j]
                     q = _nb_qmul(_nb_qexp(x[0:3]), q)
                     q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
             if keep:
@@ -374,8 +407,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
 class FilterRun:
     """B filter runs: final nominal parameters θ̂ (B, 18, ``THETA`` order) and covariance (B, n, n),
     final attitude (B, 4), per-step NIS and innovations (B, N−1[, 3]; NaN where no update), and when
-    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, 6: lever arm r
-    (m, body), last external acceleration (m/s², nav)) and the whitened innovations L⁻¹ν of the two
+    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, 12: lever arm r
+    (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂)) and the whitened innovations L⁻¹ν of the two
     levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model)."""
 
     layout: StateLayout
@@ -416,8 +449,9 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     ``rows`` = 3 adds the vertical row (the |f| = g information) — for bounds computed at the truth
     (:func:`crlb_joint`), not for estimation, where the gravity fit carries it.
     ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] + [ω×]² per sample (body), needed by a
-    layout with ``lever_arm``; ``hand0`` (6,) or (B, 6): the nominal lever arm and external acceleration
-    (a layout with ``ext_acc`` takes the Gauss–Markov σ and τ from ``config``).
+    layout with ``lever_arm``; ``hand0`` (≤ 12,) or (B, ≤ 12): the nominal lever arm, external acceleration
+    x and its low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the Gauss–Markov σ, τ and
+    the high-pass τ_h from ``config``).
     """
     if rows not in (2, 3):
         raise ValueError(f"rows must be 2 or 3, got {rows}")
@@ -453,11 +487,16 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         kreg = arr(np.broadcast_to(np.asarray(lever_regressor, float), (B, N, 3, 3)))
     else:
         kreg = np.zeros((B, 1, 3, 3))
-    hand0 = np.zeros((B, 6)) if hand0 is None else arr(np.broadcast_to(np.asarray(hand0, float), (B, 6)))
+    h = np.zeros(12) if hand0 is None else np.asarray(hand0, float)
+    if h.shape[-1] < 12:                                   # lever arm and x (and z) only: the low-passes start at 0
+        h = np.concatenate([h, np.zeros(h.shape[:-1] + (12 - h.shape[-1],))], axis=-1)
+    hand0 = arr(np.broadcast_to(h, (B, 12)))
     theta, p, q, nis, inn, hsd, hth, hand, wht = _kernel(
         g, a, arr(greg), arr(still, np.bool_), arr(t_s), arr(q0), arr(theta0), arr(x0), arr(p0), layout.offsets(),
         config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
-        float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2))
+        float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
+        float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
+        int(config.ext_acc_highpass_order))
     return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
                      hand if layout.models_hand else None, wht)
 

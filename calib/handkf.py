@@ -16,28 +16,36 @@ nav ENU; f the specific force, g_b gravity in the body):
   wobble the gyro also sees, is what is smoothed) and rotated back — a whitening pre-filter — and the
   filter updates every D-th sample with R = σ_f²/D (the white noise averaged over D samples: the
   information per second of the raw samples, not more), D = ⌊1/ρ⌋ where ρ = Σh² is the low-pass's
-  white-noise variance ratio.  The slow rest (sway) is a first-order Gauss–Markov process per nav
-  axis, three states, stationary σ_s and time constant τ estimated from the data (the PSD
-  2σ_s²τ/(1 + (2πfτ)²) is reported);
-* axis wobble is real rotation: the gyro sees it, nothing to remove.
+  white-noise variance ratio.  The slow rest (sway) is a shaping filter per nav axis: a first-order
+  Gauss–Markov x (σ_s, τ) high-passed (τ_h, order m ∈ {1, 2}): a_e = x − z (− z₂), z the low-pass of
+  x, z₂ that of x − z — a hand's translation is bounded, so its acceleration has no power at 0 Hz (the
+  one-sided PSD 4σ_s²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m, estimated from the data, is
+  reported); three to nine states;
+* axis wobble is real rotation: the gyro sees it, nothing to remove;
+* the gyro bias b_g drifts during a session (a consumer gyro's warm-up, its g-sensitivity after a change
+  of attitude, bias instability): a random-walk state, ḃ_g = w, E w² = q_b, q_b from the rests' own
+  bias change (:func:`bias_drift`; 0 when the rests agree within their white noise), prior the first
+  rest's average.  The filter starts after that rest (its gyro samples would otherwise inform the bias
+  twice), the tilt prior the rest's accelerometer mean's σ.
 
 Noise levels from the data, as every estimator here (:mod:`calib.noiselevels`), but from the first
 rest's spectrum *above* the tremor band (:func:`white_density`): a hand's rest is not still, and its
 standard deviation would count the tremor as sensor noise (and make σ pessimistic by that much).
 
 Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
-:func:`calib.fastkf.run_filter` with the :data:`calib.kalman.HAND` layout, 15 states):
+:func:`calib.fastkf.run_filter` with the :data:`calib.kalman.HAND_BIAS` layout: attitude, S, G, gyro
+bias, lever arm, x, z, z₂ — 24 states, the unused z₂ (m = 1) or z (no high-pass) inert):
 
-1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, r̂ = 0;
-2. σ_s and τ from the previous pass's lever arm: e = |f_lp − K r̂| − g is the component of a_e along
-   gravity (attitude-free, so the gyro's own errors do not enter; for an isotropic a_e its variance is
-   the per-axis σ_s²): σ_s² = var e − ρσ_f², τ such that the model's PSD at low frequency 4σ_s²τ is
-   e's below 0.2 Hz (:func:`_gm_from_residual`); passes 2 and 3 with them.
+1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, no high-pass, r̂ = 0;
+2. passes 2 and 3: (σ_s, τ, τ_h, m) from the previous pass's lever arm: e = |f_lp − K r̂| − g is the
+   component of a_e along gravity (attitude-free, so the gyro's own errors do not enter; for an
+   isotropic a_e its variance is one axis's), fitted to e's spectrum (:func:`_gm_from_residual`).
 
 The result's σ is the filter's P, inflated from the innovations when they still carry more
 low-frequency power than the model (:func:`calib.consistency.innovation_inflation`).  The hand's
 parameters go to ``diagnostics["hand"]``: ``lever_arm_m`` with ``lever_arm_std_m``,
-``external_acc_psd`` (σ_s, τ, the PSD at 0 Hz, the tremor-band RMS removed) — a finding for the user.
+``external_acc_psd`` (σ_s, τ, τ_h, m, a_e's RMS, the PSD at 0 Hz, the tremor-band RMS removed) — a
+finding for the user; ``diagnostics["gyro_bias_drift"]`` the bias's random walk found.
 
 A session whose motion cannot tell the lever arm from S or G (posterior correlation above
 ``CONFOUND_CORRELATION``) is refused with the parameters named and the motion that separates them:
@@ -52,6 +60,7 @@ coloured measurement noise: Gelb, *Applied Optimal Estimation* (1974), §4.5; Br
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import signal as sp_signal
@@ -62,12 +71,13 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
-from .calibrate import prepare, rest_mask
+from .calibrate import _tilt_sigma, prepare, rest_mask
 from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
 from .fastkf import run_filter
-from .kalman import HAND, initial_covariance, m_matrix, theta_slice
+from .kalman import HAND_BIAS, initial_covariance, m_matrix, theta_slice
 
-__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density"]
+__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
+           "bias_drift"]
 
 CUTOFF_HZ = 4.0            # below the tremor band (8–12 Hz), above the schedule's rotations (< 1 Hz)
 ORDER = 4
@@ -75,6 +85,8 @@ CONFOUND_CORRELATION = 0.98
 LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
 WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)
 PASSES = 3
+LAYOUT = HAND_BIAS
+DRIFT_QUANTILE = 0.95      # the rests' bias differences must exceed their white-noise χ² quantile to be drift
 
 
 def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -99,23 +111,125 @@ def _variance_ratio(rate_hz: float) -> float:
     return float(np.sum(_lowpass(imp, rate_hz) ** 2))
 
 
-def _gm_from_residual(e: np.ndarray, dt_s: float, white_var: float, white_psd: float) -> tuple[float, float]:
-    """(σ_s, τ) of a first-order Gauss–Markov fit to a residual ``e`` (N,): σ_s² its variance beyond
-    ``white_var``; τ such that the model's one-sided PSD at low frequency, 4σ_s²τ, equals the residual's
-    below ``LOW_BAND_HZ`` beyond the white ``white_psd`` (Welch) — the band the rotations' information
-    lives in.  A hand's translation is bounded (mm), so its acceleration has little power there; a τ
-    fitted to the autocorrelation's 1/e lag instead would put the sway band's power at 0 Hz and make σ
-    several times pessimistic (measured)."""
+def _gm_from_residual(e: np.ndarray, dt_s: float, white_var: float,
+                      white_psd: float) -> tuple[float, float, float, int]:
+    """(σ_x, τ, τ_h, m) of the high-passed Gauss–Markov a_e (:class:`calib.kalman.FilterConfig`) fitted to a
+    residual ``e`` (N,), whose one-sided PSD is
+
+        S_a(f) = 4σ_x²τ / (1 + (2πfτ)²) · [(2πfτ_h)² / (1 + (2πfτ_h)²)]^m,    m ∈ {1, 2}.
+
+    A hand's translation is bounded (mm), so its acceleration's PSD falls towards 0 Hz — as f⁴ times the
+    displacement's, the second-order high-pass (m = 2); a first-order Gauss–Markov process (τ_h = ∞) stays
+    flat there and over-weights the band the rotations' information lives in (< 0.2 Hz): σ of S was
+    pessimistic ×2–3 with a hand (measured).  The fit: Var a = ∫S_a df = var e − ``white_var`` fixes σ_x
+    for each (τ, τ_h, m) of a log grid (τ_h = ∞ included; the integral numerically on a log frequency
+    grid); the triple minimising Σ_f w_f (ln(S_a + W) − ln Ŝ_e)², Ŝ_e Welch's estimate with 40-s segments
+    over 0.02–2.5 Hz (below the 4-Hz pre-filter), W = ``white_psd``, w_f = 1/f (each octave weighs the
+    same, rather than the many high bins), is kept.  (0, 1, ∞, 1) when e has no excess variance.
+    Source: the shaping-filter construction of coloured noise (Gelb, *Applied Optimal Estimation*, 1974,
+    §4.5; Brown & Hwang, *Introduction to Random Signals and Applied Kalman Filtering*, 4th ed., §3.9)."""
     e = e - e.mean()
     s2 = max(float(np.mean(e**2)) - white_var, 0.0)
     if s2 <= 0.0:
-        return 0.0, 1.0
+        return 0.0, 1.0, math.inf, 1
     fs = 1.0 / dt_s
-    f, pxx = sp_signal.welch(e, fs=fs, nperseg=int(min(e.size, 20 * fs)))
-    low = (f > 0) & (f <= LOW_BAND_HZ)
-    s_low = max(float(np.mean(pxx[low])) - white_psd, 0.0) if low.any() else 4 * s2
-    tau = s_low / (4.0 * s2)
-    return math.sqrt(s2), min(max(tau, 2.0 * dt_s), 10.0)
+    f, pxx = sp_signal.welch(e, fs=fs, nperseg=int(min(e.size, 40 * fs)))
+    band = (f >= 0.02) & (f <= 2.5) & (pxx > 0)
+    if band.sum() < 5:
+        return math.sqrt(s2), 1.0, math.inf, 1
+    f, lp, w = f[band], np.log(pxx[band]), 1.0 / f[band]
+    taus = np.geomspace(2 * dt_s, 10.0, 28)[:, None, None]
+    ths = np.concatenate([np.geomspace(0.1, 30.0, 24), [np.inf]])[None, :, None]
+    fi = np.geomspace(1e-4, 0.5 * fs, 2000)                            # for ∫ S df (σ_x = 1)
+    best = (math.inf, 1.0, math.inf, 1, s2)
+    for m in (1, 2):
+        def shape(fr):
+            w2 = (2 * np.pi * fr) ** 2
+            with np.errstate(divide="ignore", invalid="ignore"):
+                hp = (1.0 / (1.0 + 1.0 / (w2 * ths**2))) ** m           # 1 for τ_h = ∞
+            return 4.0 * taus / (1.0 + w2 * taus**2) * hp
+        var1 = np.trapezoid(shape(fi[None, None, :]), fi, axis=-1)      # (τ, τ_h): Var a for σ_x = 1
+        var1 = var1 + 4.0 * taus[..., 0] * fi[0] * (ths[..., 0] == np.inf)  # the flat PSD below fi[0]
+        sx2 = s2 / np.maximum(var1, 1e-300)
+        model = sx2[..., None] * shape(f[None, None, :])
+        cost = np.sum(w * (np.log(model + white_psd) - lp) ** 2, axis=-1)
+        k = np.unravel_index(int(np.argmin(cost)), cost.shape)
+        if cost[k] < best[0]:
+            best = (float(cost[k]), float(taus[k[0], 0, 0]), float(ths[0, k[1], 0]), m, float(sx2[k]))
+    _, tau, th, m, sx2 = best
+    return math.sqrt(sx2), tau, th, (m if math.isfinite(th) else 1)
+
+
+@dataclass(frozen=True)
+class BiasDrift:
+    """The gyro bias's drift seen between the session's rests (:func:`bias_drift`): the random-walk
+    intensity q_b (rad²/s³ per axis; √q_b in rad/s/√s is IEEE 952's rate random walk K), the statistic
+    X = Σ|Δb̄|²/(s_i² + s_j²) with its degrees of freedom and the threshold it had to pass, and the rest
+    means (rad/s, body) at their mid times (s)."""
+
+    q_rad2_s3: float
+    chi2: float
+    dof: int
+    threshold: float
+    rest_bias_rad_s: tuple[tuple[float, float, float], ...]
+    rest_mid_s: tuple[float, ...]
+
+    @property
+    def rrw_rad_s_sqrt_s(self) -> float:
+        return math.sqrt(self.q_rad2_s3)
+
+    def to_dict(self) -> dict:
+        return {"rate_random_walk_rad_s_sqrt_s": self.rrw_rad_s_sqrt_s, "q_rad2_s3": self.q_rad2_s3,
+                "chi2": self.chi2, "dof": self.dof, "threshold_95": self.threshold,
+                "rest_bias_rad_s": [list(b) for b in self.rest_bias_rad_s], "rest_mid_s": list(self.rest_mid_s)}
+
+
+def bias_drift(gyro_rad_s: np.ndarray, t_s: np.ndarray, rests: tuple[tuple[int, int], ...],
+               arw_rad_s_sqrt_hz: float, min_rest_s: float = 2.0) -> BiasDrift:
+    """The gyro bias's random-walk intensity q_b from the recording's own rests (never from a sensor model).
+
+    At a rest the gyro reads its bias (plus white noise): the mean b̄_i over rest i (length L_i) has
+    white-noise variance s_i² = N_g²/L_i per axis.  For a bias that is a random walk ḃ = w,
+    E[w²] = q_b, the mean over a window of length L differs from the walk's value at the window's
+    edge by a variance q_b L/3 (∫₀ᴸ (s/L)² ds · q_b), so consecutive rests separated by a gap g_ij
+    give  E|b̄_j − b̄_i|² = 3 [q_b (g_ij + (L_i + L_j)/3) + s_i² + s_j²]  (three axes).  The
+    method-of-moments estimate over the k consecutive pairs:
+
+        q̂_b = Σ (|Δb̄|² − 3(s_i² + s_j²)) / (3 Σ (g_ij + (L_i + L_j)/3)),
+
+    applied only when X = Σ |Δb̄|² / (s_i² + s_j²) exceeds χ²(3k)'s 95 % quantile (no drift is
+    modelled that the rests' white noise explains), else 0.  A deterministic drift (a warm-up ramp,
+    the bias's g-sensitivity after a change of attitude) enters as its end-to-end change: the random
+    walk fitted to it predicts a variance ∝ τ over a sub-interval τ where the ramp gives ∝ τ², so the
+    model is conservative inside the session.  Sources: the random walk's structure function
+    (IEEE Std 952-1997 Annex C, rate random walk: σ²(τ) = K²τ/3 for the Allan variance, the same
+    window-mean argument); Brown & Hwang, *Introduction to Random Signals and Applied Kalman
+    Filtering*, 4th ed., §2.10 (Wiener process), §9 (a gyro bias as a random-walk state).
+    """
+    from scipy import stats
+
+    means, mids, lengths, s2 = [], [], [], []
+    for a, b in rests:
+        if b - a < 2 or t_s[b - 1] - t_s[a] < min_rest_s:
+            continue
+        L = float(t_s[b - 1] - t_s[a])
+        means.append(np.mean(gyro_rad_s[a:b], axis=0))
+        mids.append(0.5 * float(t_s[a] + t_s[b - 1]))
+        lengths.append(L)
+        s2.append(arw_rad_s_sqrt_hz**2 / L)
+    k = len(means) - 1
+    if k < 1:
+        return BiasDrift(0.0, 0.0, 0, float("inf"), tuple(tuple(m) for m in means), tuple(mids))
+    num, den, x = 0.0, 0.0, 0.0
+    for i in range(k):
+        d2 = float(np.sum((means[i + 1] - means[i]) ** 2))
+        gap = (mids[i + 1] - lengths[i + 1] / 2) - (mids[i] + lengths[i] / 2)
+        num += d2 - 3.0 * (s2[i] + s2[i + 1])
+        den += 3.0 * (max(gap, 0.0) + (lengths[i] + lengths[i + 1]) / 3.0)
+        x += d2 / (s2[i] + s2[i + 1])
+    thr = float(stats.chi2.ppf(DRIFT_QUANTILE, 3 * k))
+    q = max(num, 0.0) / den if x > thr else 0.0
+    return BiasDrift(q, x, 3 * k, thr, tuple(tuple(float(v) for v in m) for m in means), tuple(mids))
 
 
 def white_density(x: np.ndarray, rate_hz: float) -> float | None:
@@ -143,7 +257,14 @@ def kf_hand(rec: Recording) -> Calibration:
         cfg0 = type(cfg0)(**{**cfg0.__dict__,
                              "arw_rad_s_sqrt_hz": max(arw, nz.gyro_floor_rad_s / math.sqrt(rec.rate_hz)),
                              "vrw_m_s2_sqrt_hz": max(vrw, nz.acc_floor_m_s2 / math.sqrt(rec.rate_hz))})
-    a, fs = prep.start, rec.rate_hz
+    fs = rec.rate_hz
+    # the gyro bias is a state (a random walk, q_b from the rests: bias_drift): the filter starts after
+    # the rest that gave the bias's prior, whose gyro samples would otherwise inform the bias twice
+    drift = bias_drift(rec.gyro_rad_s, rec.t_s, prep.rest.index_ranges, cfg0.arw_rad_s_sqrt_hz)
+    cfg0 = replace(cfg0, gyro_bias_rw_rad_s_sqrt_s=drift.rrw_rad_s_sqrt_s)
+    tilt = _tilt_sigma(rec, ra, rb, cfg0.gravity_m_s2)
+    prep = replace(prep, start=max(rb - 1, prep.start))
+    a = prep.start
     t = rec.t_s[a:]
     n = t.size
     sigma_f2 = cfg0.vrw_m_s2_sqrt_hz**2 * fs
@@ -159,10 +280,11 @@ def kf_hand(rec: Recording) -> Calibration:
     # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed)
     f_lp0 = _lowpass(rec.acc_m_s2[a:], fs)
     along = float(np.mean((np.linalg.norm(f_lp0, axis=1) - cfg0.gravity_m_s2) ** 2)) - sigma_f2 * rho
-    sigma_s, tau = math.sqrt(max(3.0 * along, r_var)), 1.0
+    sigma_s, tau, tau_hp, hp_order = math.sqrt(max(3.0 * along, r_var)), 1.0, math.inf, 1
     tremor_rms = math.sqrt(max(float(np.mean(np.sum((rec.acc_m_s2[a:] - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
     still = rest_mask(prep, n)
     for p in range(PASSES):
+        theta[theta_slice("gyro_bias")] = prep.theta0[theta_slice("gyro_bias")]   # each pass starts at the rest's bias
         m = m_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")])
         w = (rec.gyro_rad_s[a:] - theta[theta_slice("gyro_bias")]) @ np.linalg.inv(m).T
         q = integrate_gyro(t, w, prep.quat0_nb)
@@ -171,22 +293,22 @@ def kf_hand(rec: Recording) -> Calibration:
         kreg = lever_regressor(w, t, fs)
         if p > 0:   # Gauss–Markov σ_s, τ from the previous pass's lever arm (module docstring, step 2)
             e = np.linalg.norm(f_lp - np.einsum("nij,j->ni", kreg, hand0[:3]), axis=1) - cfg0.gravity_m_s2
-            sigma_s, tau = _gm_from_residual(e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2)
+            sigma_s, tau, tau_hp, hp_order = _gm_from_residual(e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2)
             sigma_s = max(sigma_s, 1e-3 * math.sqrt(r_var))
         cfg = type(cfg0)(**{**cfg0.__dict__, "external_acc_allowance_m_s2": 0.0, "ext_acc_rms_m_s2": sigma_s,
-                            "ext_acc_tau_s": tau})
-        p0 = initial_covariance(HAND, cfg)
-        x0 = np.zeros(HAND.n)
+                            "ext_acc_tau_s": tau, "ext_acc_highpass_tau_s": tau_hp, "ext_acc_highpass_order": hp_order})
+        p0 = initial_covariance(LAYOUT, cfg, tilt_sigma_rad=tilt)
+        x0 = np.zeros(LAYOUT.n)
         x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
-        x0[HAND.offset("lever_arm"):HAND.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
-        h0 = np.concatenate([hand0[:3], np.zeros(3)])
-        out = run_filter(rec.gyro_rad_s[None, a:], f_lp[None], t, prep.quat0_nb[None], theta[None], p0, HAND, cfg, fs,
-                         r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still, x0=x0[None],
-                         lever_regressor=kreg, hand0=h0)
+        x0[LAYOUT.offset("lever_arm"):LAYOUT.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
+        h0 = np.concatenate([hand0[:3], np.zeros(9)])
+        out = run_filter(rec.gyro_rad_s[None, a:], f_lp[None], t, prep.quat0_nb[None], theta[None], p0,
+                         LAYOUT, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
+                         x0=x0[None], lever_regressor=kreg, hand0=h0)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
     P = out.p[0]
-    ol = HAND.offset("lever_arm")
+    ol = LAYOUT.offset("lever_arm")
     _confounding(P, ol)
     infl = innovation_inflation(out.whitened[0], t[1:])
     cov = np.zeros((9, 9))
@@ -197,17 +319,27 @@ def kf_hand(rec: Recording) -> Calibration:
     status, notes = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
                             check_estimate(values, cov, cfg0.gravity_m_s2))
     status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+    if drift.q_rad2_s3 > 0:
+        notes.append(f"gyro bias drift: the rests' bias moved beyond their noise (χ² {drift.chi2:.0f} on {drift.dof}, "
+                     f"95 % bound {drift.threshold:.1f}); modelled as a random walk of {drift.rrw_rad_s_sqrt_s:.2e} "
+                     "rad/s/√s (from the rests, bias_drift); a longer warm-up before the session or a temperature-"
+                     "stable sensor gives a smaller σ")
     r_hat = hand0[:3]
     r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl.factor)
     hand = {"lever_arm_m": r_hat.tolist(), "lever_arm_std_m": r_sd.tolist(),
-            "external_acc_psd": {"model": "first-order Gauss–Markov per nav axis (after the tremor low-pass)",
+            "external_acc_psd": {"model": "a_e = a first-order Gauss–Markov x (rms_m_s2, tau_s) per nav axis after the tremor "
+                                          "low-pass, high-passed (highpass_tau_s, highpass_order m; null: none): "
+                                          "one-sided PSD 4σ²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m",
                                  "rms_m_s2": sigma_s, "tau_s": tau,
-                                 "psd_one_sided_0hz_m2_s4_per_hz": 4 * sigma_s**2 * tau,  # 4σ²τ/(1 + (2πfτ)²)
+                                 "highpass_tau_s": tau_hp if math.isfinite(tau_hp) else None,
+                                 "highpass_order": hp_order, "acc_rms_m_s2": cfg.ext_acc_rms_a_m_s2,
+                                 "psd_one_sided_0hz_m2_s4_per_hz": 4 * sigma_s**2 * tau if not math.isfinite(tau_hp) else 0.0,
                                  "tremor_band_rms_m_s2": tremor_rms, "lowpass_hz": CUTOFF_HZ,
                                  "update_every_samples": dec}}
     notes.append(f"hand: lever arm r̂ = {np.array2string(r_hat * 100, precision=1)} ± "
                  f"{np.array2string(r_sd * 100, precision=1)} cm (body); slow external acceleration "
-                 f"{sigma_s:.3f} m/s² RMS (τ {tau:.2f} s); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
+                 f"{cfg.ext_acc_rms_a_m_s2:.3f} m/s² RMS (τ {tau:.2f} s, high-pass "
+                 f"{'none' if not math.isfinite(tau_hp) else f'order {hp_order}, {tau_hp:.1f} s'}); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
     gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
     return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
@@ -217,7 +349,8 @@ def kf_hand(rec: Recording) -> Calibration:
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
                                                 "rest_segments": prep.rest.to_list(),
-                                                "filter": {"states": list(HAND.names), "passes": PASSES,
+                                                "gyro_bias_drift": drift.to_dict(),
+                                                "filter": {"states": list(LAYOUT.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
 
@@ -226,7 +359,7 @@ def _confounding(P: np.ndarray, ol: int) -> None:
     """Refuse a session whose motion cannot tell the lever arm from S, G (module docstring)."""
     sd = np.sqrt(np.clip(np.diag(P), 1e-300, None))
     corr = P / np.outer(sd, sd)
-    names = HAND.names
+    names = LAYOUT.names
     bad = []
     for i in range(ol, ol + 3):
         for j in range(3, 9):

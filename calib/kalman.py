@@ -30,7 +30,8 @@ compensates the samples, ω̂ = M̂_g⁻¹(ω̃ − b̂_g), f̂ = M̂_a⁻¹(f̃
 symmetric N_g of eq. 2 the block is the symmetric J_G (tested).  F² = 0 (only the φ rows are
 non-zero and F's φ columns are zero), so Φ = I + F Δt exactly, F at the step's midpoint.
 Process noise Q_φφ = N_g² Δt I (ε isotropic: Ĉ M̂⁻¹ N_g² M̂⁻ᵀ Ĉᵀ ≈ N_g² I); the parameters are
-random constants (Q = 0).
+random constants (Q = 0), except the gyro bias when ``FilterConfig.gyro_bias_rw_rad_s_sqrt_s`` > 0
+(a random walk, Q_bb = q_b Δt I: the drift of a consumer gyro's bias during the session).
 
 **Measurement** (Zhou eq. 11–12, extended): z = Ĉ f̂ − g_up, g_up = (0, 0, g):
 
@@ -77,7 +78,7 @@ from filterpy.kalman import KalmanFilter
 from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
-__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND",
+__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
            "HAND_BLOCKS",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
@@ -87,18 +88,24 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 # error-state blocks (3 states each) in their fixed order; θ (the nominal parameters) has one
 # 3-vector per block after "phi"
 # after them the hand's blocks (compiled filter only, :mod:`calib.handkf`): the lever arm r
-# (body, m; a constant) and the external acceleration a_e (nav, m/s²; a first-order Gauss–Markov
-# process); their nominals live beside θ, not in it (θ keeps its 18 sensor parameters)
+# (body, m; a constant) and the external acceleration a_e = x − z (nav, m/s²): x a first-order
+# Gauss–Markov process ("ext_acc"), z its own first-order low-pass ("ext_acc_lp"), so that a_e's PSD
+# falls to zero at 0 Hz as a bounded hand translation's does (z ≡ 0 when the high-pass time constant is
+# infinite: the plain Gauss–Markov a_e); a second-order high-pass adds z₂, the low-pass of x − z
+# ("ext_acc_lp2"), a_e = x − z − z₂ (z₂ ≡ 0 for the first order); their nominals live beside θ, not in it (θ keeps its 18 sensor
+# parameters)
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
-          "lever_arm", "ext_acc")
+          "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2")
 THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:]
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
-          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae"}
+          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
+          "ext_acc_lp2": "ael2"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
-                "ext_acc": "external acceleration"}
+                "ext_acc": "external acceleration", "ext_acc_lp": "external acceleration's low-pass",
+                "ext_acc_lp2": "external acceleration's second low-pass"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -148,7 +155,8 @@ class StateLayout:
 
 PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated accelerometer, static bias)
 JOINT = StateLayout(BLOCKS[:7])          # + gyro bias and the accelerometer's 9 parameters: 21 states
-HAND = StateLayout(BLOCKS[:3] + HAND_BLOCKS)  # the paper's 9 + lever arm + external acceleration: 15 states
+HAND = StateLayout(BLOCKS[:3] + HAND_BLOCKS)  # the paper's 9 + lever arm + external acceleration (x, z, z₂): 21 states
+HAND_BIAS = StateLayout(BLOCKS[:4] + HAND_BLOCKS)  # kf_hand: HAND + the gyro bias (a random walk): 24 states
 
 
 def theta_slice(block: str) -> slice:
@@ -229,6 +237,12 @@ class FilterConfig:
     (:data:`HAND`): the lever arm's prior σ ``prior_lever_arm_m`` (a wrist 30 cm away covers any hand-held
     grip), and the external acceleration a first-order Gauss–Markov process per nav axis with
     stationary RMS ``ext_acc_rms_m_s2`` and time constant ``ext_acc_tau_s`` (:mod:`calib.handkf`).
+    ``ext_acc_highpass_tau_s`` τ_h, ``ext_acc_highpass_order`` m (1 or 2): a_e = x − z (− z₂), ż = (x − z)/τ_h,
+    ż₂ = (x − z − z₂)/τ_h (∞: a_e = x, the plain Gauss–Markov process); the one-sided PSD of a_e is
+    4σ²τ/(1 + (2πfτ)²) · [(2πfτ_h)²/(1 + (2πfτ_h)²)]^m.
+    ``gyro_bias_rw_rad_s_sqrt_s``: with a ``gyro_bias`` block, the bias is a random walk,
+    ḃ_g = w_b, E[w_b w_bᵀ] = q_b I δ(t), q_b = this² (rad²/s³): Q_bb = q_b Δt per step (IEEE 952's rate
+    random walk K; 0: a random constant, the paper's model).
     """
 
     arw_rad_s_sqrt_hz: float
@@ -247,6 +261,9 @@ class FilterConfig:
     prior_lever_arm_m: float = 0.3
     ext_acc_rms_m_s2: float = 0.0
     ext_acc_tau_s: float = 1.0
+    gyro_bias_rw_rad_s_sqrt_s: float = 0.0
+    ext_acc_highpass_tau_s: float = math.inf
+    ext_acc_highpass_order: int = 1
 
     def r_var(self, rate_hz: float) -> float:
         """R per axis, (m/s²)²: σ_f² + a_ext²."""
@@ -259,7 +276,35 @@ class FilterConfig:
                 "acc_bias": np.full(3, self.prior_acc_bias_m_s2), "acc_scale": np.full(3, self.prior_acc_scale),
                 "acc_nonorth": np.full(3, self.prior_acc_nonorthogonality),
                 "lever_arm": np.full(3, self.prior_lever_arm_m),
-                "ext_acc": np.full(3, self.ext_acc_rms_m_s2)}[block]
+                "ext_acc": np.full(3, self.ext_acc_rms_m_s2),
+                "ext_acc_lp": np.zeros(3), "ext_acc_lp2": np.zeros(3)}[block]   # with ext_acc: ext_acc_stationary
+
+    def ext_acc_stationary(self) -> np.ndarray:
+        """Stationary covariance (k, k) of one nav axis's (x, z[, z₂]) (k = 1 + high-pass order; k = 1 for
+        τ_h = ∞): the continuous Lyapunov equation A Σ + Σ Aᵀ + Q = 0 of ẋ = −x/τ + w (E w² = 2σ²/τ),
+        ż = (x − z)/τ_h, ż₂ = (x − z − z₂)/τ_h (Gelb 1974, §4.4).  a_e = x − z − z₂ has variance vΣvᵀ,
+        v = (1, −1, −1)."""
+        from scipy.linalg import solve_continuous_lyapunov
+
+        tau, th, s2 = self.ext_acc_tau_s, self.ext_acc_highpass_tau_s, self.ext_acc_rms_m_s2**2
+        if not math.isfinite(th):
+            return np.array([[s2]])
+        k = 1 + int(self.ext_acc_highpass_order)
+        a = np.zeros((k, k))
+        a[0, 0] = -1.0 / tau
+        for i in range(1, k):
+            a[i, 0] = 1.0 / th
+            a[i, 1:i + 1] = -1.0 / th
+        q = np.zeros((k, k))
+        q[0, 0] = 2.0 * s2 / tau
+        return solve_continuous_lyapunov(a, -q)
+
+    @property
+    def ext_acc_rms_a_m_s2(self) -> float:
+        """RMS of one axis of a_e = x − z − z₂ (:meth:`ext_acc_stationary`)."""
+        c = self.ext_acc_stationary()
+        v = np.array([1.0] + [-1.0] * (c.shape[0] - 1))
+        return float(math.sqrt(max(v @ c @ v, 0.0)))
 
 
 def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,
@@ -282,6 +327,14 @@ def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.n
     for b in layout.blocks:
         o = layout.offset(b)
         p[o:o + 3, o:o + 3] = np.diag(config.prior_sigma(b) ** 2)
+    if layout.has("ext_acc"):                    # (x, z, z₂) start stationary (FilterConfig.ext_acc_stationary)
+        c = config.ext_acc_stationary()
+        idx = [layout.offset(b) for b in ("ext_acc", "ext_acc_lp", "ext_acc_lp2")][:c.shape[0]]
+        for j in range(3):
+            for u, ou in enumerate(idx):
+                for v, ov in enumerate(idx):
+                    if ou >= 0 and ov >= 0:
+                        p[ou + j, ov + j] = c[u, v]
     if tilt_sigma_rad is not None:
         p[0, 0] = p[1, 1] = tilt_sigma_rad**2
     if layout.estimates_accelerometer and acc_covariance is not None:
@@ -425,6 +478,10 @@ class ZhouFilter:
             F[0:3, lay.offset("gyro_bias"):lay.offset("gyro_bias") + 3] = cm
         kf.F = F                                                         # Φ = I + F Δt (exact, F² = 0)
         kf.Q[0, 0] = kf.Q[1, 1] = kf.Q[2, 2] = self.config.arw_rad_s_sqrt_hz**2 * dt
+        ob = self.layout.offset("gyro_bias")
+        if ob >= 0:                                                      # the bias's random walk, q_b Δt
+            for j in range(3):
+                kf.Q[ob + j, ob + j] = self.config.gyro_bias_rw_rad_s_sqrt_s**2 * dt
         kf.predict()                                                     # P = Φ P Φᵀ + Q
         innov, nis, white = np.full(3, np.nan), float("nan"), np.full(3, np.nan)
         if update:

@@ -53,7 +53,7 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
 from .handkf import white_density
-from .kalman import HAND, JOINT, PAPER, FilterConfig, initial_covariance
+from .kalman import HAND, HAND_BIAS, JOINT, PAPER, FilterConfig, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -156,11 +156,14 @@ def _estimator(method: str, accelerometer: str) -> Callable:
 
 def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, quat_true_nb: np.ndarray,
               t_s: np.ndarray, theta_true: np.ndarray, config: FilterConfig, rate_hz: float, sigma_s_m_s2: float,
-              tau_s: float, vague: float = 10.0) -> np.ndarray:
-    """The hand-aware Cramér–Rao bound (15, 15) over the :data:`calib.kalman.HAND` states (module
+              tau_s: float, vague: float = 10.0, highpass_tau_s: float = math.inf,
+              bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1) -> np.ndarray:
+    """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.kalman.HAND` states (module
     docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
-    rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ) and the decimated, tremor-free
-    measurement of :mod:`calib.handkf` (every D-th sample, R = σ_f²/D)."""
+    rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
+    tremor-free measurement of :mod:`calib.handkf` (every D-th sample, R = σ_f²/D); with
+    ``bias_rw_rad_s_sqrt_s`` > 0 the gyro bias is a random-walk state as in ``kf_hand`` (prior: the rest
+    average's σ in ``config``).  S, G are rows 3:9 of the result either way."""
     from .handkf import _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
@@ -170,14 +173,17 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     n = t_s.size
     upd = np.zeros(n, bool)
     upd[::dec] = True
-    cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s)
-    p0 = initial_covariance(HAND, cfg)
+    cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s,
+                  ext_acc_highpass_tau_s=highpass_tau_s, ext_acc_highpass_order=int(highpass_order),
+                  gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s)
+    layout = HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND
+    p0 = initial_covariance(layout, cfg)
     p0[3:9, 3:9] = np.eye(6) * vague**2
-    o = HAND.offset("lever_arm")
+    o = layout.offset("lever_arm")
     p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
     r_var = config.vrw_m_s2_sqrt_hz**2 * rate_hz / dec
     run = run_filter(gyro[None], np.asarray(f_gravity_body_m_s2)[None], t_s, np.asarray(quat_true_nb[0], float)[None],
-                     th[None], p0, HAND, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
+                     th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
                      lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz))
     return run.p[0]
 
@@ -224,7 +230,7 @@ def monte_carlo(
     estimate = accelerometer == "estimate"
     names = GYRO_PARAMS + (ACC_PARAMS if estimate else ())
     runners = {m: _estimator(m, accelerometer) for m in methods}   # unknown names fail before any simulation
-    psd = []
+    psd, drift = [], []
     truth_fixed = simulate_truth(sched, hnd, rate_hz, seed=first_seed) if hnd.is_ideal else None
     est = {m: [] for m in methods}
     cov = {m: [] for m in methods}
@@ -242,6 +248,8 @@ def monte_carlo(
             c = runners[m](user)
             if "hand" in c.diagnostics and "external_acc_psd" in c.diagnostics["hand"]:
                 psd.append(c.diagnostics["hand"]["external_acc_psd"])
+            if "gyro_bias_drift" in c.diagnostics:
+                drift.append(c.diagnostics["gyro_bias_drift"]["rate_random_walk_rad_s_sqrt_s"])
             items = [("gyro", "bias"), ("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
             if estimate:
                 items += [("accelerometer", "bias"), ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")]
@@ -286,12 +294,20 @@ def monte_carlo(
     sqrt_hand, hand_psd = np.zeros(0), {}
     if not estimate:
         if psd:
+            hp = [d.get("highpass_tau_s") for d in psd]
             hand_psd = {"rms_m_s2": float(np.median([d["rms_m_s2"] for d in psd])),
-                        "tau_s": float(np.median([d["tau_s"] for d in psd]))}
+                        "tau_s": float(np.median([d["tau_s"] for d in psd])),
+                        "highpass_tau_s": float(np.median([math.inf if h is None else h for h in hp])),
+                        "highpass_order": int(round(float(np.median([d.get("highpass_order", 1) for d in psd])))),
+                        "bias_rw_rad_s_sqrt_s": float(np.median(drift)) if drift else 0.0}
         else:
-            hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0}
+            hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0, "highpass_tau_s": math.inf, "highpass_order": 1,
+                        "bias_rw_rad_s_sqrt_s": 0.0}
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
-                       hand_psd["rms_m_s2"], hand_psd["tau_s"])
+                       hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
+                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"])
+        if not math.isfinite(hand_psd["highpass_tau_s"]):
+            hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
         sqrt_hand = np.concatenate([bias_crlb, np.sqrt(np.diag(ph))[3:9]])
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), truths_arr, sqrt_crlb, status[m], slice(3, 9), sqrt_hand)
               for m in methods}

@@ -141,7 +141,8 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     acc_nonortho=(0.0, 0.0, 0.0), kin=None, g_sensitivity=None, delay_s: float = 0.0,
                     field_enu_ut=None, mag_noise_ut: float = 0.0,
                     lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
-                    sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0)) -> dict:
+                    sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
+                    bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0)) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
@@ -153,7 +154,11 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     An imperfect hand, its own way: ``lever_arm_m`` r (body, m, from the rotation centre to
     the accelerometer) adds ω̇ × r + ω × (ω × r) with the closed-form ω̇ of :func:`angular_acceleration`;
     ``tremor_acc_rms_m_s2`` / ``sway_acc_rms_m_s2`` add a translation of the hand in nav, band-limited
-    sums of sines (:func:`sum_of_sines`), seen in the body as Cᵀ a."""
+    sums of sines (:func:`sum_of_sines`), seen in the body as Cᵀ a.
+
+    A drifting gyro bias (a consumer gyro warming up): ``bias_ramp_rad_s2`` adds a linear trend per axis
+    and ``bias_walk_rad_s_sqrt_s`` K a random walk (Euler sum of N(0, K² Δt) steps per sample, its own
+    random stream); ``bias_rad_s`` in the result stays the bias at t = 0, ``bias_path_rad_s`` the whole path."""
     rng = np.random.default_rng(seed)
     t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
     n = omega.shape[0]
@@ -172,7 +177,12 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     if sway_acc_rms_m_s2 > 0:
         a_nav += sum_of_sines(hand_rng, t, sway_band_hz, sway_acc_rms_m_s2)
     f_hand += np.einsum("nji,nj->ni", dcm, a_nav)
-    clean = omega @ _m(scale, nonortho).T + bias
+    bias_path = np.tile(bias, (n, 1)) + np.outer(t, np.asarray(bias_ramp_rad_s2, float))
+    if bias_walk_rad_s_sqrt_s > 0:
+        steps_rw = np.random.default_rng([seed, 19]).normal(size=(n, 3)) * bias_walk_rad_s_sqrt_s / math.sqrt(rate_hz)
+        steps_rw[0] = 0.0
+        bias_path = bias_path + np.cumsum(steps_rw, axis=0)
+    clean = omega @ _m(scale, nonortho).T + bias_path
     if g_sensitivity is not None:
         clean = clean + gravity_body @ np.asarray(g_sensitivity, float).T
     if delay_s:
@@ -185,7 +195,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
         mag = np.einsum("nji,j->ni", dcm, np.asarray(field_enu_ut, float))
         mag = mag + rng.normal(size=(n, 3)) * mag_noise_ut
     return {"t_s": t, "gyro_rad_s": gyro, "acc_m_s2": acc, "mag_ut": mag, "omega_rad_s": omega, "quat_nb": quat,
-            "bias_rad_s": bias, "scale_factor": np.asarray(scale, float), "nonorthogonality": np.asarray(nonortho, float),
+            "bias_rad_s": bias, "bias_path_rad_s": bias_path, "scale_factor": np.asarray(scale, float), "nonorthogonality": np.asarray(nonortho, float),
             "acc_bias_m_s2": acc_bias, "acc_scale_factor": np.asarray(acc_scale, float),
             "acc_nonorthogonality": np.asarray(acc_nonortho, float),
             "gyro_noise_rad_s": math.radians(gyro_noise_deg_s), "acc_noise_m_s2": acc_noise_g * G}

@@ -16,8 +16,7 @@ import independent_generator as ig
 from calib import estimators
 from calib.cli import main as calib_main
 from calib.consistency import apply_inflation, innovation_inflation
-from calib.handkf import CONFOUND_CORRELATION, _confounding
-from calib.kalman import HAND
+from calib.handkf import CONFOUND_CORRELATION, LAYOUT, _confounding
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 
@@ -102,14 +101,14 @@ def test_innovation_inflation_measures_the_long_run_variance():
 def test_confounded_lever_arm_is_refused_with_the_motion_that_separates_it():
     """A posterior where the lever arm's r_y moves with S_x (correlation above the threshold) is refused,
     naming both and the separating motion (two speeds)."""
-    p = np.eye(HAND.n)
-    o, s = HAND.offset("lever_arm") + 1, HAND.offset("gyro_scale")
+    p = np.eye(LAYOUT.n)
+    o, s = LAYOUT.offset("lever_arm") + 1, LAYOUT.offset("gyro_scale")
     c = (CONFOUND_CORRELATION + 1) / 2
     p[o, s] = p[s, o] = c
     with pytest.raises(RecordingError, match=r"lever arm r_y with S_x.*two clearly different speeds"):
-        _confounding(p, HAND.offset("lever_arm"))
+        _confounding(p, LAYOUT.offset("lever_arm"))
     p[o, s] = p[s, o] = 0.5
-    _confounding(p, HAND.offset("lever_arm"))
+    _confounding(p, LAYOUT.offset("lever_arm"))
 
 
 def test_calib_run_exit_codes_and_coaching_with_a_hand(kin, tmp_path, capsys):
@@ -150,18 +149,142 @@ def test_montecarlo_takes_registered_methods_and_the_hand_bound_is_above_the_ide
         monte_carlo("zhou2020", "ideal", "zhou2020_sim", seeds=2, methods=("no_such_method",))
 
 
+# docs/hand.md's campaign (50 seeds per cell): where kf_hand's NEES sits against its 95 % band
+NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer", "steady"): "in",
+             ("zhou2020_sim_consumer", "typical"): "low", ("zhou2020_sim_consumer", "shaky"): "low",
+             ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
+             ("mpu9250", "shaky"): "low"}
+
+
 @pytest.mark.slow
+@pytest.mark.parametrize("sensor", ["zhou2020_sim_consumer", "mpu9250"])
 @pytest.mark.parametrize("hand", ["ideal", "steady", "typical", "shaky"])
-def test_kf_hand_nees_in_band_per_hand_preset(hand):
-    """The docs/hand.md claim for zhou2020_sim_consumer (accelerometer calibrated), 50 seeds: kf_hand's σ is
-    never optimistic — NEES over the 6 S, G below the top of its 95 % band χ²(300)/50 — and at most ×1.5
-    pessimistic (NEES above the band's bottom / 1.5²), no seed diverged.  The issue's target, NEES *inside*
-    the band, is not met on the low side with a hand (measured 3.0–4.5 against [5.08, 7.00]: the
-    Gauss–Markov sway model's power at 0 Hz; docs/hand.md, "What is not done")."""
+def test_kf_hand_nees_in_band_per_hand_preset(sensor, hand):
+    """The docs/hand.md claim (accelerometer calibrated, 50 seeds, the zhou2020 schedule): no seed diverged and
+    every seed "ok"-or-flagged-inconsistent at the rate of a false alarm (≤ 3 of 50, the windowed NIS test's
+    tail); kf_hand's NEES over the 6 S, G inside its 95 % band χ²(300)/50 where docs/hand.md says "in" (a
+    correct σ fails this 5 % of the time); where it says "low" (σ pessimistic), never optimistic and at most
+    ×1.5 pessimistic in σ (NEES above the band's bottom / 1.5²)."""
     from calib.montecarlo import monte_carlo
 
-    r = monte_carlo("zhou2020", hand, "zhou2020_sim_consumer", seeds=50, methods=("kf_hand",),
-                    calibrated_accelerometer=True)
+    r = monte_carlo("zhou2020", hand, sensor, seeds=50, methods=("kf_hand",), calibrated_accelerometer=True)
     st = r.methods["kf_hand"]
-    assert st.nees_band[0] / 1.5**2 < st.nees_mean < st.nees_band[1], st.nees_mean
-    assert "diverged" not in st.statuses
+    assert "diverged" not in st.statuses, st.statuses
+    assert st.statuses.get("ok", 0) >= 47, st.statuses
+    lo, hi = st.nees_band
+    if NEES_SIDE[(sensor, hand)] == "in":
+        assert lo < st.nees_mean < hi, st.nees_mean
+    else:
+        assert lo / 1.5**2 < st.nees_mean < hi, st.nees_mean
+
+
+def _rests_with_walk(rng, q_rad2_s3: float, arw: float, rate_hz: float = 100.0):
+    """A gyro at rest for 8 s in turn with 20-s gaps (6 rests, 5 pairs), its bias a random walk of intensity q."""
+    n = int(148 * rate_hz)
+    t = np.arange(n) / rate_hz
+    bias = np.cumsum(rng.normal(size=(n, 3)) * np.sqrt(q_rad2_s3 / rate_hz), axis=0)
+    gyro = bias + rng.normal(size=(n, 3)) * arw * np.sqrt(rate_hz)
+    rests = tuple((int(s * rate_hz), int((s + 8) * rate_hz)) for s in range(0, 148, 28))
+    return gyro, t, rests
+
+
+def test_bias_drift_recovers_a_random_walk_and_stays_silent_without_one():
+    """bias_drift's method-of-moments q̂ on 6 rests (5 pairs, 15 degrees of freedom): for a random walk
+    well above the rests' white noise (K = 1e-4 rad/s/√s, rest-mean noise 3.5e-5 rad/s against a 20-s
+    step of 4.5e-4 rad/s) q̂ is unbiased with relative σ ≈ √(2/15) = 0.37 per session, so the mean over 100
+    sessions is within 4·0.037 = 15 % of q.  Without a walk, q̂ > 0 only when the statistic passes its
+    χ²(15) 95 % quantile: in ≈ 5 % of 200 sessions (binomial σ 1.5 %: below 11 %)."""
+    from calib.handkf import bias_drift
+
+    rng = np.random.default_rng(5)
+    arw, q = 1e-4, 1e-8
+    qs = []
+    for _ in range(100):
+        g, t, rests = _rests_with_walk(rng, q, arw)
+        d = bias_drift(g, t, rests, arw)
+        assert d.dof == 15
+        qs.append(d.q_rad2_s3)
+    assert abs(np.mean(qs) / q - 1) < 4 * np.sqrt(2 / 15) / np.sqrt(100), np.mean(qs) / q
+    fired = 0
+    for _ in range(200):
+        g, t, rests = _rests_with_walk(rng, 0.0, arw)
+        fired += bias_drift(g, t, rests, arw).q_rad2_s3 > 0
+    assert fired < 22, fired
+
+
+def test_kf_hand_models_a_drifting_gyro_bias_found_from_the_rests(kin):
+    """A consumer gyro's bias drifts during a session (mpu9250: warm-up, g-sensitivity; our simulator's
+    kf_hand diverged in 3/20 seeds without a model of it).  The independent generator adds a random-walk
+    bias (K = 3e-5 rad/s/√s, its own construction: an Euler sum per sample) to an ideal-hand session:
+    kf_hand must find the drift from the two rests (q̂ > 0, the rests' statistic above its χ²(3) 95 %
+    quantile), answer "ok", and be honest — the summed NEES of 4 sessions × 6 S, G is χ²(24): inside its
+    two-sided 99.9 % interval [7.0, 51.2].  The paper's filter, whose bias is a constant, must not say "ok"."""
+    total = 0.0
+    for seed in range(4):
+        d = ig.generate_arrays(seed=seed, kin=kin, **NOISE, bias_walk_rad_s_sqrt_s=3e-5)
+        rec = _rec(d)
+        cal = estimators.kf_hand(rec)
+        assert cal.status == "ok", cal.warnings
+        drift = cal.diagnostics["gyro_bias_drift"]
+        assert drift["q_rad2_s3"] > 0 and drift["chi2"] > drift["threshold_95"], drift
+        e, c = _err_cov(cal, d)
+        total += float(e @ np.linalg.solve(c, e))
+        assert estimators.kf(rec).status != "ok"
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], 24)
+    assert lo < total < hi, total
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_high_passed_gauss_markov_block_propagates_to_its_stationary_covariance(order):
+    """The kernel's a_e = x − z (− z₂) block without measurements: from P = 0 the covariance of (x, z, z₂)
+    after 40 s (≥ 40 τ_h) must equal the continuous Lyapunov solution (FilterConfig.ext_acc_stationary) —
+    the discrete steps Φ = e^{−Δt/τ}, z ← βz + (1 − β)x differ from the continuous model by O(Δt/τ) = 2 %
+    per element, so 5 % relative (of the largest element) — and for order 1 the closed form
+    Var z = Cov(x, z) = σ²τ/(τ + τ_h) holds to 1e-9."""
+    from calib.fastkf import run_filter
+    from calib.kalman import HAND, FilterConfig
+
+    cfg = FilterConfig(1e-4, 1e-3, ext_acc_rms_m_s2=0.03, ext_acc_tau_s=0.5, ext_acc_highpass_tau_s=1.0,
+                       ext_acc_highpass_order=order)
+    st = cfg.ext_acc_stationary()
+    assert st.shape == (order + 1, order + 1)
+    if order == 1:
+        c = 0.03**2 * 0.5 / 1.5
+        assert st[1, 1] == pytest.approx(c, rel=1e-9) and st[0, 1] == pytest.approx(c, rel=1e-9)
+    n = 4001
+    t = np.arange(n) / 100.0
+    acc = np.tile([0.0, 0.0, 9.80665], (n, 1))
+    out = run_filter(np.zeros((1, n, 3)), acc[None], t, np.array([1.0, 0, 0, 0]), np.zeros(18), np.zeros((HAND.n, HAND.n)),
+                     HAND, cfg, 100.0, update_mask=np.zeros(n, bool), lever_regressor=np.zeros((n, 3, 3)))
+    idx = [HAND.offset(b) for b in ("ext_acc", "ext_acc_lp", "ext_acc_lp2")][:order + 1]
+    for j in range(3):
+        got = out.p[0][np.ix_([i + j for i in idx], [i + j for i in idx])]
+        assert np.max(np.abs(got - st)) < 0.05 * np.max(np.abs(st)), (got, st)
+
+
+def test_hand_acceleration_fit_sees_the_missing_low_frequencies():
+    """_gm_from_residual on 180 s at 100 Hz.  A sway-like residual (sum of sines in 0.2–1 Hz, no power below:
+    a bounded translation) must get a high-pass whose model PSD at 0.05 Hz is at least 10× below its PSD at
+    0.5 Hz; a first-order Gauss–Markov residual (τ = 0.5 s, flat below 0.3 Hz) must keep its low band: model
+    PSD at 0.05 Hz within ×2 of the true 4σ²τ (a 40-s Welch estimate's log-PSD scatters ~0.4 per bin, the
+    fit averages ~100 bins)."""
+    from calib.handkf import _gm_from_residual
+
+    def psd(sx, tau, th, m, f):
+        w2 = (2 * np.pi * f) ** 2
+        hp = 1.0 if not np.isfinite(th) else (w2 * th**2 / (1 + w2 * th**2)) ** m
+        return 4 * sx**2 * tau / (1 + w2 * tau**2) * hp
+
+    rng = np.random.default_rng(3)
+    t = np.arange(18000) / 100.0
+    white = 1e-4
+    sway = ig.sum_of_sines(rng, t, (0.2, 1.0), 0.05)[:, 2] + rng.normal(size=t.size) * white
+    fit = _gm_from_residual(sway, 0.01, white**2, 2 * white**2 * 0.01)
+    assert psd(*fit, 0.05) < 0.1 * psd(*fit, 0.5), fit
+    al = np.exp(-0.01 / 0.5)
+    gm = np.zeros(t.size)
+    drive = rng.normal(size=t.size) * 0.03 * np.sqrt(1 - al**2)
+    for k in range(1, t.size):
+        gm[k] = al * gm[k - 1] + drive[k]
+    fit = _gm_from_residual(gm + rng.normal(size=t.size) * white, 0.01, white**2, 2 * white**2 * 0.01)
+    assert 0.5 < psd(*fit, 0.05) / (4 * 0.03**2 * 0.5) < 2.0, fit
