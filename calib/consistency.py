@@ -248,7 +248,7 @@ def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
     """``status`` and the warnings that explain it (each says what to try)."""
     if sanity:
         return "diverged", [f"diverged: {'; '.join(sanity)}. Check the units (--gyro-unit, --acc-unit), that the "
-                            "recording starts at rest, and try --method iterated"]
+                            "recording starts at rest, and try --method iterated_session"]
     mean = c.nis_mean if c.nis_mean is not None else float("nan")
     if c.windows and (c.fraction_above > DIVERGED_FRACTION or mean > DIVERGED_MEAN_FACTOR * c.rows):
         return "diverged", [
@@ -260,7 +260,7 @@ def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
         return "inconsistent", [
             f"inconsistent: the innovations exceed their 99.9 % χ² bound in {100 * c.fraction_above:.0f} % of 1 s "
             f"windows (mean NIS {mean:.2f}, expected {c.rows}): the noise model does not fit this motion, so σ is "
-            "understated. Try a larger --external-acc (the hand's acceleration), --method iterated, or a steadier "
+            "understated. Try a larger --external-acc (the hand's acceleration), --method iterated_session, or a steadier "
             "hand; an unmodelled sensor error shows here too (calib closeloop traces it)"]
     if rest is not None and rest.dof > 0 and rest.p_value < TAIL:
         worst = int(np.argmax(np.abs(rest.residual_m_s2 / rest.std_m_s2)))

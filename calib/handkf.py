@@ -370,7 +370,7 @@ def _confounding(P: np.ndarray, ol: int) -> None:
             "this session's motion cannot separate the hand's lever arm from the gyro errors: " + "; ".join(bad) +
             ". The lever arm's acceleration grows with ω² and ω̇, a scale or axis error's attitude error with the "
             "angle turned: repeat the rotations about each axis at two clearly different speeds (one at least "
-            "twice the other), including rotations about horizontal axes — or use --method kf if the device turned "
+            "twice the other), including rotations about horizontal axes — or use --method kf_session if the device turned "
             "about its own sensor (no lever arm)")
 
 
