@@ -1100,7 +1100,7 @@ def build_parser() -> argparse.ArgumentParser:
     _input_options(al)
     al.set_defaults(func=cmd_allan)
     no = sub.add_parser("noise", help="stochastic model of a static record: wavelet variance, GMWM fit, model chosen by "
-                                      "WIC, 95 % intervals, every unit, noise-inflation figure")
+                                      "WIC, 95 %% intervals, every unit, noise-inflation figure")
     no.add_argument("recording", help=RECORDING_HELP + "; static (a moving record is refused unless --span/--longest-still)")
     no.add_argument("--triad", choices=("gyro", "acc"), default="gyro", help="which triad (default gyro)")
     no.add_argument("--model", default="auto",

@@ -259,6 +259,11 @@ def test_every_cli_command_and_option_has_help_text():
     missing, n_options = [], 0
     for top, commands, helped in _parsers():
         assert len(commands) >= 10
+        # `calib --help` lists every command's help line through %-formatting: a bare "%" in a help
+        # text crashed it (TypeError) while each sub-command's own --help worked
+        assert all(name in top.format_help() for name in helped)
+        for parser in commands.values():
+            parser.format_help()
         for name, parser in commands.items():
             if not helped.get(name):
                 missing.append(f"{top.prog} {name} (the command itself)")
