@@ -235,7 +235,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
 
     check_output_paths({"--json": args.json}, [args.schedule, args.hand, args.sensor])
     with tqdm(total=args.seeds, desc="sessions", unit="seed", leave=False) as bar:
-        r = monte_carlo(args.schedule, args.hand, args.sensor, args.seeds, args.rate, tuple(args.methods.split(",")),
+        methods = args.methods or ("kf_session,iterated_session" if args.accelerometer == "estimate" else "kf,iterated_session")
+        r = monte_carlo(args.schedule, args.hand, args.sensor, args.seeds, args.rate, tuple(methods.split(",")),
                         progress=bar.update, calibrated_accelerometer=args.calibrated_accelerometer,
                         accelerometer=args.accelerometer, first_seed=args.first_seed)
     print(r.table())
@@ -1074,10 +1075,12 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("--sensor", default="zhou2020_sim", help="sensor preset or TOML path (default zhou2020_sim: Zhou 2020 Table 7)")
     mc.add_argument("--seeds", type=integer(2, 100_000), default=50, help="sessions, 2 … 1e5 (default 50)")
     mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] (default 100)")
-    mc.add_argument("--methods", default="kf,iterated_session",
+    mc.add_argument("--methods", default=None,
                     help="comma-separated: any registered estimator (kf = the paper's filter, iterated = it in three "
                          "passes, kf_hand, kf_lever_arm, kf_session_r, …, or package.module:attribute) and kf_session, "
-                         "iterated_session (calib run's filter, with the --accelerometer mode asked)")
+                         "iterated_session (calib run's filter, with the --accelerometer mode asked); default "
+                         "kf,iterated_session, or kf_session,iterated_session with --accelerometer estimate (the paper's "
+                         "kf assumes a calibrated accelerometer)")
     mc.add_argument("--calibrated-accelerometer", action="store_true",
                     help="simulate a calibrated accelerometer: keep only its white noise (Zhou §3.3.2's assumption)")
     mc.add_argument("--accelerometer", default="calibrated", choices=("estimate", "calibrated"),

@@ -42,6 +42,7 @@ import numpy as np
 from scipy import stats
 
 from gyrosim.calibration import truth_calibration
+from gyrosim.errors import GyrosimError
 from gyrosim.estimator import as_user_file, load_estimator
 from gyrosim.hand import load_hand
 from gyrosim.rotations import quat_conjugate, quat_rotate
@@ -253,8 +254,14 @@ def monte_carlo(
             items = [("gyro", "bias"), ("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
             if estimate:
                 items += [("accelerometer", "bias"), ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")]
+            block = c.block_covariance(items)
+            if estimate and k == 0 and not np.all(np.diag(block)[len(GYRO_PARAMS):] > 0):
+                raise GyrosimError(
+                    f"--accelerometer estimate scores the accelerometer's parameters, but {m!r} does not estimate them "
+                    "(it assumes a calibrated accelerometer: no σ for them). Use a joint method (kf_session, "
+                    "iterated_session: calib run's filter) or --accelerometer calibrated")
             est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))
-            cov[m].append(c.block_covariance(items))
+            cov[m].append(block)
             status[m].append(c.status)
             if first is None:
                 first = (rec, c)

@@ -50,3 +50,13 @@ def test_monte_carlo_reaches_the_bound_and_is_consistent():
         assert lo < st.nees_mean < hi, (method, st.nees_mean)
     # the bound is informative: √CRLB of S is a few 1e-3 (reading A), far below the 0.05 prior
     assert np.all(r.sqrt_crlb[3:9] < 0.006)
+
+
+def test_monte_carlo_refuses_a_gyro_only_method_when_scoring_the_accelerometer():
+    # the paper's kf assumes a calibrated accelerometer and reports no σ for its parameters: scoring them
+    # used to die inside a matrix inverse (exit 3); now the first session names the method and the fix
+    import pytest
+    from gyrosim.errors import GyrosimError
+
+    with pytest.raises(GyrosimError, match=r"'kf' does not estimate them.*kf_session"):
+        monte_carlo(sensor="mpu9250_linear", seeds=2, methods=("kf",), accelerometer="estimate")
