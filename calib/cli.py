@@ -411,13 +411,13 @@ def cmd_noise(args: argparse.Namespace) -> int:
         trend_msg = (f"the temperature changes by {trend:+.2f} °C over the {rec.duration_s:.0f}-s record (straight-line fit): "
                      "the bias follows the temperature, so its drift would be read as random walk (or rate ramp) and "
                      "that estimate biased high")
-        asked_slow = models is not None and any(k in ("random_walk", "rate_ramp") for k in models[0])
+        asked_slow = models is not None and any(NOISE_TERMS[k].noise_bias_drift for k in models[0])
         if asked_slow and not args.allow_temperature_trend:
             raise TemperatureTrendError(f"{args.recording}: {trend_msg}; record at a stable temperature, compensate the "
                                         "temperature first (calib temperature), or pass --allow-temperature-trend")
         warnings.append(trend_msg)
     res = identify_noise(x, rec.rate_hz, args.triad, models, tuple(warnings))
-    chosen_slow = [a.axis for a in res.axes if any(k in ("random_walk", "rate_ramp") for k in a.selection.chosen.kinds)]
+    chosen_slow = [a.axis for a in res.axes if any(NOISE_TERMS[k].noise_bias_drift for k in a.selection.chosen.kinds)]
     if trend_msg and chosen_slow and not args.allow_temperature_trend:
         raise TemperatureTrendError(f"{args.recording}: axes {', '.join(chosen_slow)} chose a random walk or rate ramp, "
                                     f"but {trend_msg}; record at a stable temperature, compensate the temperature first "
@@ -924,10 +924,8 @@ def cmd_mag(args: argparse.Namespace) -> int:
         from gyrosim.sensor_model import stored_sensor_model
 
         mag_effects = stored_sensor_model(rec.meta).magnetometer
-        wn = [e for e in mag_effects if e.kind == "white_noise"]
-        lsb = [e for e in mag_effects if e.kind == "quantization"]
-        sig = math.sqrt(float(np.mean(wn[0].density ** 2 * rec.rate_hz + (lsb[0].lsb ** 2 / 12 if lsb else 0.0)))) \
-            if wn else 0.0
+        var = [v for v in (e.sample_noise_variance(rec.rate_hz) for e in mag_effects) if v is not None]
+        sig = math.sqrt(float(np.mean(sum(var)))) if any(e.is_white_noise for e in mag_effects) else 0.0
         floor = math.degrees(heading_noise_floor_rad(rec.truth.extra["mag_field"], up, sig, truth["soft_iron"]))
         rms_b, rms_a = (math.degrees(math.sqrt(float(np.mean(e**2)))) for e in (before, after))
         print(f"  vs truth: hard iron error {np.round(res.hard_iron_ut - truth['hard_iron_uT'], 3).tolist()} µT; "

@@ -227,7 +227,7 @@ def monte_carlo(
     sched, hnd, model = load_schedule(schedule), load_hand(hand), load_sensor(sensor)
     if calibrated_accelerometer:
         model = replace(model, name=f"{model.name} (accelerometer calibrated)",
-                        accelerometer=tuple(e for e in model.accelerometer if e.kind == "white_noise"))
+                        accelerometer=tuple(e for e in model.accelerometer if e.is_white_noise))
     estimate = accelerometer == "estimate"
     names = GYRO_PARAMS + (ACC_PARAMS if estimate else ())
     runners = {m: _estimator(m, accelerometer) for m in methods}   # unknown names fail before any simulation

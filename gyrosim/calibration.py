@@ -48,10 +48,13 @@ CALIBRATION_VERSION = 1
 STATUSES = ("ok", "diverged", "inconsistent")
 TRIADS = ("gyro", "accelerometer")
 # the summary blocks of the JSON (``calib run --json`` promises these keys): kind → key per triad
-_SUMMARY = {"gyro": (("bias", "bias_rad_s"), ("scale_factor", "scale_factor"), ("nonorthogonality", "nonorthogonality")),
-            "accelerometer": (("bias", "bias_m_s2"), ("scale_factor", "scale_factor"),
-                              ("nonorthogonality", "nonorthogonality"))}
-_LINEAR = {"bias": Bias, "scale_factor": ScaleFactor, "nonorthogonality": NonOrthogonality}
+_SUMMARY = {"gyro": ((Bias.kind, "bias_rad_s"), (ScaleFactor.kind, "scale_factor"),
+                     (NonOrthogonality.kind, "nonorthogonality")),
+            "accelerometer": ((Bias.kind, "bias_m_s2"), (ScaleFactor.kind, "scale_factor"),
+                              (NonOrthogonality.kind, "nonorthogonality"))}
+# the linear model ω̃ = (I + S + N) ω + b (Zhou 2020 eq. 1): its effect classes, by kind
+_LINEAR = {cls.kind: cls for cls in (Bias, ScaleFactor, NonOrthogonality)}
+LINEAR_KINDS = tuple(_LINEAR)  # ("bias", "scale_factor", "nonorthogonality"), the vector order
 
 
 def _deterministic(effects: tuple[Effect, ...]) -> tuple[Effect, ...]:
@@ -222,11 +225,11 @@ class Calibration:
 
     def vector(self, triad: str = "gyro") -> np.ndarray:
         """(b, S, G) of ``triad`` (9,), the order of :meth:`linear_covariance`."""
-        return np.concatenate([self.value(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")])
+        return np.concatenate([self.value(triad, k) for k in LINEAR_KINDS])
 
     def linear_covariance(self, triad: str = "gyro") -> np.ndarray:
         """Covariance (9, 9) of :meth:`vector`."""
-        return self.block_covariance([(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")])
+        return self.block_covariance([(triad, k) for k in LINEAR_KINDS])
 
     @property
     def ok(self) -> bool:

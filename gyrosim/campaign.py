@@ -239,7 +239,7 @@ def _sensor(task: Task):
 
     s = load_sensor(task.sensor)
     if task.calibrated_accelerometer:  # Zhou §3.3.2: a calibrated accelerometer keeps only its noise
-        s = replace(s, accelerometer=tuple(e for e in s.accelerometer if e.kind == "white_noise"))
+        s = replace(s, accelerometer=tuple(e for e in s.accelerometer if e.is_white_noise))
     return s
 
 

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .calibration import Calibration
+from .calibration import LINEAR_KINDS, Calibration
 from .errors import GyrosimError, PresetError
 
 __all__ = ["kalibr_imu_yaml", "sensor_from_kalibr", "imucal_json"]
@@ -141,7 +141,7 @@ def imucal_json(cal: Calibration, comment: str = "") -> str:
     from .effects import nonortho_matrix
 
     for triad in ("gyro", "accelerometer"):
-        if not any(cal.has(triad, k) for k in ("bias", "scale_factor", "nonorthogonality")):
+        if not any(cal.has(triad, k) for k in LINEAR_KINDS):
             raise GyrosimError(f"imucal's format needs both triads; this calibration has no {triad} intrinsics "
                                "(calibrate with --accelerometer estimate)")
     def m(triad: str) -> np.ndarray:

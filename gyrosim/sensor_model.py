@@ -31,14 +31,10 @@ from .effects import EFFECTS, Effect, SignalContext, effect_from_dict
 from ._presets import builtin_names, load_named_toml
 from .errors import GyrosimError, PresetError
 from .thermal import ThermalModel
-from .units import to_si
 
 __all__ = ["SensorModel", "load_sensor", "sensor_preset_names", "stored_sensor_model", "TRIADS"]
 
 TRIADS = ("gyro", "accelerometer", "magnetometer")
-
-_MAIN_FIELD = {cls.kind: cls.param_fields[0] for cls in EFFECTS.values()}
-
 
 @dataclass(frozen=True)
 class SensorModel:
@@ -93,7 +89,7 @@ class SensorModel:
         streams = rng.spawn(len(effs)) if effs else []
         x = np.ascontiguousarray(x, dtype=float)
         y = x.copy()
-        white = sum((e.density for e in effs if e.kind == "white_noise"), np.zeros(3))
+        white = sum((e.density for e in effs if e.is_white_noise), np.zeros(3))
         error = [(e, r) for e, r in zip(effs, streams) if e.stage == "error"]
         for e, r in error:
             if e.pointwise:
@@ -216,29 +212,17 @@ def _effect_from_preset(triad: str, raw: dict[str, Any], where: str) -> Effect:
         raise PresetError(f"{where}: unknown effect {kind!r}; known: {', '.join(EFFECTS)}")
     unit = raw.pop("unit", None)
     raw.pop("note", None)
-    quantity = EFFECTS[kind].quantities.get(triad)
+    cls = EFFECTS[kind]
+    quantity = cls.quantities.get(triad)
     if quantity is None:
         raise PresetError(f"{where}: effect {kind!r} does not apply to the {triad}")
-    main = _MAIN_FIELD[kind]
     if unit is None:
-        raise PresetError(f"{where}: effect {kind!r} needs a unit for {main!r} (e.g. one of its accepted units)")
-    if kind == "white_noise":
-        convention = raw.pop("convention", "ieee952")
-        if convention not in ("ieee952", "one-sided"):
-            raise PresetError(f"{where}: white_noise convention must be 'ieee952' or 'one-sided'")
-    else:
-        convention = "ieee952"
+        raise PresetError(f"{where}: effect {kind!r} needs a unit for {cls.param_fields[0]!r} "
+                          "(e.g. one of its accepted units)")
     try:
-        for key in (main, f"{main}_sigma"):
-            if key in raw:
-                v = np.asarray(raw[key], dtype=float)
-                raw[key] = np.asarray(to_si(v.ravel().tolist(), unit, quantity)).reshape(v.shape)
+        raw = cls.preset_to_si(raw, unit, quantity)
     except GyrosimError as exc:
         raise PresetError(f"{where}: {exc}") from exc
-    if convention == "one-sided":
-        raw[main] = np.asarray(raw[main]) / np.sqrt(2.0)
-    if kind == "earth_rate" and "latitude" in raw:
-        raw["latitude_rad"] = float(np.asarray(to_si(raw.pop("latitude"), unit, "angle")))
     try:
         return effect_from_dict({"effect": kind, **raw})
     except (TypeError, GyrosimError) as exc:

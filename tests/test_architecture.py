@@ -322,3 +322,38 @@ def test_one_meaning_per_unit_constant():
                  for f in sorted((ROOT / pkg).rglob("*.py")) if f != ROOT / "gyrosim" / "units.py"
                  for m in pattern.finditer(f.read_text(encoding="utf-8"))]
     assert not redefined, "unit constants are defined once, in gyrosim/units.py:\n" + "\n".join(redefined)
+
+
+# Places that still compare against an effect kind's literal name, and how many times: the closed
+# loop's own steps (being restructured separately) and the magnetometer fit's model assembly.  The
+# count may only go down; a new switch anywhere else fails here, naming the line.
+_KIND_SWITCH_ALLOWANCE = {"calib/closeloop/loop.py": 1, "calib/closeloop/mag_loop.py": 2,
+                          "calib/closeloop/mag_fit.py": 6}
+
+
+def test_no_module_outside_the_effects_package_switches_on_effect_names():
+    """Knowledge of an effect kind lives on its class (gyrosim/effects/): a comparison of a kind with
+    one of the vocabulary's names (``kind == "white_noise"``, ``k in ("bias", …)``, ``"hard_iron" in
+    kinds``) elsewhere is a second place to edit when an effect is added."""
+    import re
+
+    from gyrosim.effects import EFFECTS
+
+    names = "|".join(sorted(map(re.escape, EFFECTS), key=len, reverse=True))
+    lhs = r"(?:\bkind|\bk|\.effect|\.kind)"
+    switch = re.compile(rf"""{lhs}\s*(?:==|!=|\bin\b|\bnot in\b)\s*[(\[{{]?\s*["'](?:{names})["']"""
+                        rf"""|["'](?:{names})["']\s*(?:\bin\b|\bnot in\b)\s+\w*kinds\b"""
+                        rf"""|\bfor k in \(["'](?:{names})["']""")
+    found: dict[str, list[str]] = {}
+    for top in ("gyrosim", "calib"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            rel = path.relative_to(ROOT).as_posix()
+            if rel.startswith("gyrosim/effects/"):
+                continue
+            for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+                if switch.search(line):
+                    found.setdefault(rel, []).append(f"{rel}:{i}: {line.strip()}")
+    over = [hit for rel, hits in found.items() if len(hits) > _KIND_SWITCH_ALLOWANCE.get(rel, 0) for hit in hits]
+    assert not over, "switch on effect names outside gyrosim/effects (declare it on the effect class):\n" + "\n".join(over)
+    fewer = {rel: n for rel, n in _KIND_SWITCH_ALLOWANCE.items() if len(found.get(rel, [])) < n}
+    assert not fewer, f"fewer name switches than allowed in {fewer}: lower _KIND_SWITCH_ALLOWANCE to match"

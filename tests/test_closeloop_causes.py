@@ -25,7 +25,7 @@ from calib.closeloop import run_closeloop
 from calib.closeloop.candidates import (Candidate, CandidateFamily, Channel, register_family,
                                         unregister_family)
 from calib.closeloop.suite import HARD_SUITE, run_case, run_suite, sensor_with
-from gyrosim.effects import Effect
+from gyrosim.effects import Effect, unregister_effect
 from gyrosim.loaders import available_datasets, load_dataset
 from gyrosim.recording import Recording, Truth
 from gyrosim.simulate import apply_sensor
@@ -122,34 +122,39 @@ def test_nothing_identifiable_says_so_with_reasons_and_exit_0(tmp_path):
     assert "Nothing could be tested" in (tmp_path / "cl" / "report.md").read_text()
 
 
-@dataclass(frozen=True)
-class _CrossSquare(Effect):
-    """Toy effect for the registration test: δ_y = k ω_x |ω_x| (rad/s, k in 1/(rad/s))."""
+def _cross_square_family() -> type[CandidateFamily]:
+    """The toy effect and its family, defined at test time: an effect class registers itself in the
+    vocabulary when defined, and no other test module should see it there."""
 
-    kind: ClassVar[str] = "toy_cross_square"
-    param_fields: ClassVar[tuple[str, ...]] = ("k",)
-    k: float = 0.0
+    @dataclass(frozen=True)
+    class _CrossSquare(Effect):
+        """Toy effect for the registration test: δ_y = k ω_x |ω_x| (rad/s, k in 1/(rad/s))."""
 
-    def delta(self, x, ctx, rng=None):
-        out = np.zeros_like(x)
-        out[:, 1] = self.k * x[:, 0] * np.abs(x[:, 0])
-        return out
+        kind: ClassVar[str] = "toy_cross_square"
+        param_fields: ClassVar[tuple[str, ...]] = ("k",)
+        k: float = 0.0
 
+        def delta(self, x, ctx, rng=None):
+            out = np.zeros_like(x)
+            out[:, 1] = self.k * x[:, 0] * np.abs(x[:, 0])
+            return out
 
-class _CrossSquareFamily(CandidateFamily):
-    kinds = ("toy_cross_square",)
-    driver = "ω_x·|ω_x| on the y axis"
-    quantity = "rate"
-    channel = Channel.RATE
-    separated_by = "rotations about x at several rates"
+    class _CrossSquareFamily(CandidateFamily):
+        kinds = ("toy_cross_square",)
+        driver = "ω_x·|ω_x| on the y axis"
+        quantity = "rate"
+        channel = Channel.RATE
+        separated_by = "rotations about x at several rates"
 
-    def build(self, kind, ctx, ref, options):
-        proto = _CrossSquare()
-        reg = proto.sensitivity(ctx.omega_true_rad_s, ctx)
-        return Candidate(self, kind, tuple(proto.param_names()), proto.with_params, "ω_x|ω_x| on y", None, reg)
+        def build(self, kind, ctx, ref, options):
+            proto = _CrossSquare()
+            reg = proto.sensitivity(ctx.omega_true_rad_s, ctx)
+            return Candidate(self, kind, tuple(proto.param_names()), proto.with_params, "ω_x|ω_x| on y", None, reg)
 
-    def plausible_max(self, kind, ctx):
-        return 0.01
+        def plausible_max(self, kind, ctx):
+            return 0.01
+
+    return _CrossSquareFamily
 
 
 def test_a_new_candidate_family_registers_itself_and_is_proposed(typical_session):
@@ -158,11 +163,12 @@ def test_a_new_candidate_family_registers_itself_and_is_proposed(typical_session
     gyro = np.array(rec.gyro_rad_s)
     w = np.asarray(rec.truth.omega_body_rad_s)
     gyro[:, 1] += 3e-3 * w[:, 0] * np.abs(w[:, 0])
-    register_family(_CrossSquareFamily)
     try:
+        register_family(_cross_square_family())
         res = run_closeloop(rec.with_signals(gyro_rad_s=gyro))
     finally:
         unregister_family("toy_cross_square")
+        unregister_effect("toy_cross_square")
     assert [f.effect for f in res.found] == ["toy_cross_square"]
     p = res.found[0].params["toy_cross_square.k"]
     assert abs(p["value"] - 3e-3) < 4 * p["sigma"]

@@ -6,20 +6,24 @@ the reference rate (body frame RFU, rad/s) and the recording's context (specific
 temperature, attitude body→ENU, magnetic field).  The fitted θ is turned back into the same effect
 class, so what the loop finds can be injected by the simulator unchanged.
 
-Everything the loop needs to know about one effect kind lives in its :class:`CandidateFamily`
-(:mod:`calib.closeloop.families`): how its regressor is built, what it claims to depend on (its
-*driver*) and through which channel that driver reaches the regressor, the size that matters
-(its largest plausible size, for the identifiability gate), how to display and finalise what was fitted, and what
-recording would separate it from an effect of another driver.  Families register themselves with
-:func:`register_family`; the loop asks :func:`family_for` and never tests an effect's name.  A
-gyro effect of the vocabulary without a registered family is still proposed, through
-:class:`GenericFamily` (its default-constructed prototype's sensitivity).
+What an effect kind is lives on its class (:mod:`gyrosim.effects`): its triads, units and display
+unit, whether it is a candidate at all (``Effect.candidate``; a non-candidate says why in
+``Effect.closeloop_reason``) and its regressor from the context alone
+(``Effect.candidate_regressor``).  What the loop knows beyond that lives in the kind's
+:class:`CandidateFamily` (:mod:`calib.closeloop.families`): how its regressor is built on a
+reference, what it claims to depend on (its *driver*) and through which channel that driver
+reaches the regressor, its largest plausible size (for the identifiability gate), how to finalise
+what was fitted, and what recording would separate it from an effect of another driver.  Families
+register themselves with :func:`register_family`; the loop asks :func:`family_for` and never tests
+an effect's name.  A candidate effect class without a registered family is still proposed, through
+:class:`GenericFamily` (its own ``candidate_regressor`` and display unit): adding an effect is one
+class in one file.
 
 Adding a candidate family (e.g. a magnetometer-driven term)::
 
     @register_family
     class MyFamily(CandidateFamily):
-        kinds = ("my_effect",)
+        effects = (MyEffect,)
         driver = "the thing it depends on"
         channel = Channel.OTHER_SENSOR
         separated_by = "what recording separates it"
@@ -152,7 +156,8 @@ class CandidateFamily:
     Subclasses set the class attributes and implement :meth:`build`; the defaults of the other
     methods suit a linear, error-stage effect whose regressor is its driver measured directly."""
 
-    kinds: ClassVar[tuple[str, ...]] = ()
+    effects: ClassVar[tuple[type[Effect], ...]] = ()   # the effect classes it describes
+    kinds: ClassVar[tuple[str, ...]] = ()              # their kinds (set from ``effects`` on registration)
     triad: ClassVar[str] = "gyro"
     driver: ClassVar[str] = ""                   # what the effect claims to depend on, in words
     quantity: ClassVar[str] = ""                 # short token of the driver ("rate", "temperature", ...)
@@ -161,7 +166,12 @@ class CandidateFamily:
     catch_all: ClassVar[bool] = False            # chosen only when no measured-channel candidate helps
     output_stage: ClassVar[bool] = False         # linearised about the value found so far (see loop)
     bound: ClassVar[float] = math.inf            # |θ| box of a nonlinear fit
-    display: ClassVar[tuple[float, str]] = (1.0, "SI")   # report factor and unit of the parameters
+
+    @property
+    def display(self) -> tuple[float, str]:
+        """Report factor and unit of the parameters: the effect class's own (``Effect.display_unit``);
+        a family whose parameters are not the effect's (a reparametrisation) sets its own."""
+        return self.effects[0].display_unit(self.triad) if self.effects else (1.0, "SI")
 
     def build(self, kind: str, ctx: SignalContext, ref: "Reference", options: BuildOptions) -> Candidate | Untestable:
         raise NotImplementedError
@@ -250,6 +260,8 @@ _FAMILIES: dict[str, CandidateFamily] = {}
 
 def register_family(cls: type[CandidateFamily]) -> type[CandidateFamily]:
     """Class decorator: make the family's kinds candidates of the loop (a later registration wins)."""
+    if cls.effects:
+        cls.kinds = tuple(e.kind for e in cls.effects)
     inst = cls()
     for kind in cls.kinds:
         _FAMILIES[kind] = inst
@@ -257,19 +269,21 @@ def register_family(cls: type[CandidateFamily]) -> type[CandidateFamily]:
 
 
 class GenericFamily(CandidateFamily):
-    """A gyro effect of the vocabulary that no family describes: its default-constructed prototype's
-    sensitivity is the regressor, its own parameters the columns (only the rank gates it)."""
+    """A candidate effect class that no family describes: its own ``candidate_regressor`` (the
+    prototype's sensitivity) is the regressor, its parameters the columns, its ``display_unit`` the
+    report's unit (only the rank gates it)."""
 
     driver = "its own inputs"
     quantity = "unknown"
     channel = Channel.OTHER_SENSOR
     separated_by = "a recording that varies its inputs independently"
 
+    def __init__(self, effect: type[Effect] | None = None) -> None:
+        self.effects = (effect,) if effect is not None else ()
+
     def build(self, kind, ctx, ref, options):
-        cls = EFFECTS[kind]
         try:
-            proto = cls()
-            reg = np.asarray(proto.sensitivity(ctx.omega_true_rad_s, ctx), dtype=float)
+            proto, reg = EFFECTS[kind].candidate_regressor(ctx)
         except Exception as err:  # noqa: BLE001 - an effect needing context the recording lacks says so
             return Untestable(kind, f"cannot be evaluated on this recording: {err}")
         return Candidate(self, kind, tuple(proto.param_names()), proto.with_params, f"the inputs of {kind}", None, reg)
@@ -291,9 +305,10 @@ def family_for(kind: str) -> CandidateFamily | Untestable:
     cls = EFFECTS[kind]
     if "gyro" not in cls.triads:
         return Untestable(kind, "not an effect of the gyro triad")
-    if cls.stochastic or cls.stage == "output":
-        return Untestable(kind, "a random process or output transform with no family to linearise it")
-    return GenericFamily()
+    if not cls.candidate:
+        return Untestable(kind, cls.closeloop_reason or "a random process or output transform with no family to "
+                                                          "linearise it")
+    return GenericFamily(cls)
 
 
 def candidate_kinds() -> list[str]:

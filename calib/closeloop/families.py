@@ -31,7 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from gyrosim.effects import (EARTH_RATE_RAD_S, Bias, EarthRate, Effect, GSensitivity, MagneticSensitivity,
+from gyrosim.effects import (EARTH_RATE_RAD_S, Bias, EarthRate, Effect, GSensitivity, MagneticSensitivity, RateRamp,
                              Misalignment, NonOrthogonality, RandomWalk, ScaleFactor, ScaleNonlinearity, SignalContext,
                              TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale, ThermalHysteresis,
                              TimeOffset, nonortho_matrix)
@@ -48,24 +48,23 @@ __all__ = ["earth_rate_summary"]
 
 
 
-def _proto_candidate(family: CandidateFamily, proto: Effect, ctx: SignalContext, follows: str,
-                     series: np.ndarray | None) -> Candidate:
-    reg = np.asarray(proto.sensitivity(ctx.omega_true_rad_s, ctx), dtype=float)
+def _class_candidate(family: CandidateFamily, ctx: SignalContext, follows: str, series: np.ndarray | None) -> Candidate:
+    """The candidate of the family's effect class as the class builds it (``Effect.candidate_regressor``)."""
+    proto, reg = family.effects[0].candidate_regressor(ctx)
     return Candidate(family, proto.kind, tuple(proto.param_names()), proto.with_params, follows, series, reg)
 
 
 # ================================================================ a constant
 @register_family
 class ConstantBias(CandidateFamily):
-    kinds = ("bias",)
+    effects = (Bias,)
     driver = "nothing (a constant)"
     quantity = "constant"
     channel = Channel.RATE
     separated_by = "—"
-    display = (RAD2DEG, "°/s")
 
     def build(self, kind, ctx, ref, options):
-        return _proto_candidate(self, Bias(), ctx, "a constant", np.ones_like(ctx.omega_true_rad_s))
+        return _class_candidate(self, ctx, "a constant", np.ones_like(ctx.omega_true_rad_s))
 
     def plausible_max(self, kind, ctx):
         return math.radians(5.0)
@@ -88,11 +87,10 @@ class _AxisMatrix(_RateDriven):
     equations of the gravity reference have far-away spurious solutions)."""
 
     bound = 0.3
-    proto: type[Effect] = ScaleFactor
     follows_text = ""
 
     def build(self, kind, ctx, ref, options):
-        return _proto_candidate(self, self.proto(), ctx, self.follows_text, ctx.omega_true_rad_s)
+        return _class_candidate(self, ctx, self.follows_text, ctx.omega_true_rad_s)
 
     def plausible_max(self, kind, ctx):
         return 0.05
@@ -106,29 +104,23 @@ class _AxisMatrix(_RateDriven):
 
 @register_family
 class ScaleFactorFamily(_AxisMatrix):
-    kinds = ("scale_factor",)
+    effects = (ScaleFactor,)
     driver = "the rate on the same axis"
-    proto = ScaleFactor
     follows_text = "the rate on the same axis"
-    display = (1e6, "ppm")
 
 
 @register_family
 class NonOrthogonalityFamily(_AxisMatrix):
-    kinds = ("nonorthogonality",)
+    effects = (NonOrthogonality,)
     driver = "the rate on the other axes"
-    proto = NonOrthogonality
     follows_text = "the rate on the other axes (symmetric)"
-    display = (1e3, "mrad")
 
 
 @register_family
 class MisalignmentFamily(_AxisMatrix):
-    kinds = ("misalignment",)
+    effects = (Misalignment,)
     driver = "the rate on the other axes"
-    proto = Misalignment
     follows_text = "the rate on the other axes"
-    display = (1e3, "mrad")
 
     def caveat(self, kind, reference_kind):
         if reference_kind == "optical":
@@ -153,14 +145,13 @@ class MisalignmentFamily(_AxisMatrix):
 
 @register_family
 class ScaleNonlinearityFamily(_RateDriven):
-    kinds = ("scale_nonlinearity",)
+    effects = (ScaleNonlinearity,)
     driver = "ω·|ω| on the same axis"
     separated_by = "rotations at several rates, slow and fast, in both directions"
-    display = (1.0, "1/(rad/s)")
 
     def build(self, kind, ctx, ref, options):
         w = ctx.omega_true_rad_s
-        return _proto_candidate(self, ScaleNonlinearity(), ctx, "ω·|ω| on the same axis", w * np.abs(w))
+        return _class_candidate(self, ctx, "ω·|ω| on the same axis", w * np.abs(w))
 
     def plausible_max(self, kind, ctx):
         return 5e-3
@@ -174,12 +165,11 @@ class TimeOffsetFamily(CandidateFamily):
     (``BuildOptions.modelled_rate``), which is what the output stage delays; without it the delay
     would absorb the scale factor (d̂ = d (1 + s))."""
 
-    kinds = ("time_offset",)
+    effects = (TimeOffset,)
     driver = "the angular acceleration dω/dt"
     quantity = "angular_acceleration"
     channel = Channel.RATE
     output_stage = True
-    display = (1e3, "ms")
     separated_by = ("fast reversals (large dω/dt) at several rates; against an external reference, a synchronisation "
                     "event recorded by both systems")
 
@@ -187,7 +177,7 @@ class TimeOffsetFamily(CandidateFamily):
         if options.modelled_rate is not None:
             ctx = replace(ctx, omega_true_rad_s=options.modelled_rate)
         dw = np.gradient(ctx.omega_true_rad_s, ctx.t_s, axis=0)
-        return _proto_candidate(self, TimeOffset(), ctx, "dω/dt", dw)
+        return _class_candidate(self, ctx, "dω/dt", dw)
 
     def plausible_max(self, kind, ctx):
         return 50e-3
@@ -237,15 +227,14 @@ class GSensitivityFamily(CandidateFamily):
     the specific force that *motion* explains (truth, or gravity turned by the reference attitude
     plus the optical position's acceleration, or the rest poses of the gravity reference)."""
 
-    kinds = ("g_sensitivity",)
+    effects = (GSensitivity,)
     driver = "the specific force through motion and attitude"
     quantity = "specific_force"
     channel = Channel.OTHER_SENSOR
     separated_by = "rotations through different attitudes at constant temperature (a multi-position test)"
-    display = (RAD2DEG * G0, "°/s/g")
 
     def build(self, kind, ctx, ref, options):
-        return _proto_candidate(self, GSensitivity(), ctx, "the specific force", ctx.specific_force_true_m_s2)
+        return _class_candidate(self, ctx, "the specific force", ctx.specific_force_true_m_s2)
 
     def plausible_max(self, kind, ctx):
         return math.radians(0.5) / G0
@@ -264,17 +253,16 @@ class GSensitivityFamily(CandidateFamily):
 
 @register_family
 class MagneticSensitivityFamily(CandidateFamily):
-    kinds = ("magnetic_sensitivity",)
+    effects = (MagneticSensitivity,)
     driver = "the magnetic field through the attitude"
     quantity = "magnetic_field"
     channel = Channel.OTHER_SENSOR
     separated_by = "rotations through different headings at constant temperature, or a field changed on purpose"
-    display = (RAD2DEG * 3600, "°/h/µT")
 
     def build(self, kind, ctx, ref, options):
         if ctx.mag_body_ut is None:
             return Untestable(kind, "the recording has no magnetometer channel")
-        return _proto_candidate(self, MagneticSensitivity(), ctx, "the magnetic field", ctx.mag_body_ut)
+        return _class_candidate(self, ctx, "the magnetic field", ctx.mag_body_ut)
 
     def plausible_max(self, kind, ctx):
         return math.radians(0.01)
@@ -331,14 +319,12 @@ class _Temperature(CandidateFamily):
 
 @register_family
 class TemperatureBiasFamily(_Temperature):
-    kinds = ("temperature_bias",)
-    display = (RAD2DEG, "°/s/°C")
+    effects = (TemperatureBias,)
 
     def _build(self, kind, ctx):
-        t_ref, lo, hi = self._range(ctx)
-        proto = TemperatureBias(coefficients=np.zeros((3, 1)), t_ref_c=t_ref, range_c=(lo - 1.0, hi + 1.0))
+        t_ref, _, _ = self._range(ctx)
         temp = np.broadcast_to((ctx.temperature_c - t_ref)[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the temperature", temp)
+        return _class_candidate(self, ctx, "the temperature", temp)
 
     def plausible_max(self, kind, ctx):
         return math.radians(0.5)
@@ -346,15 +332,13 @@ class TemperatureBiasFamily(_Temperature):
 
 @register_family
 class TemperatureScaleFamily(_Temperature):
-    kinds = ("temperature_scale",)
+    effects = (TemperatureScale,)
     driver = "the temperature times the rate"
-    display = (1e6, "ppm/°C")
 
     def _build(self, kind, ctx):
-        t_ref, lo, hi = self._range(ctx)
-        proto = TemperatureScale(coefficients=np.zeros((3, 1)), t_ref_c=t_ref, range_c=(lo - 1.0, hi + 1.0))
+        t_ref, _, _ = self._range(ctx)
         w = ctx.omega_true_rad_s
-        return _proto_candidate(self, proto, ctx, "temperature × rate", (ctx.temperature_c - t_ref)[:, None] * w)
+        return _class_candidate(self, ctx, "temperature × rate", (ctx.temperature_c - t_ref)[:, None] * w)
 
     def plausible_max(self, kind, ctx):
         return 1e-3
@@ -367,15 +351,14 @@ class TemperatureScaleFamily(_Temperature):
 
 @register_family
 class ThermalHysteresisFamily(_Temperature):
-    kinds = ("thermal_hysteresis",)
+    effects = (ThermalHysteresis,)
     driver = "the low-passed temperature rate dT/dt"
     separated_by = "a heating and a cooling pass over the same temperatures"
-    display = (RAD2DEG, "(°/s)/(°C/s)")
 
     def _build(self, kind, ctx):
-        proto = ThermalHysteresis(tau_s=300.0)
-        series = np.broadcast_to(proto.regressor(ctx)[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the low-passed temperature rate dT/dt", series)
+        series = np.broadcast_to(ThermalHysteresis.candidate_prototype(ctx).regressor(ctx)[:, None],
+                                 ctx.omega_true_rad_s.shape)
+        return _class_candidate(self, ctx, "the low-passed temperature rate dT/dt", series)
 
     def plausible_max(self, kind, ctx):
         return math.radians(100.0)
@@ -385,14 +368,11 @@ class ThermalHysteresisFamily(_Temperature):
 class TemperaturePiecewiseFamily(_Temperature):
     """Seed 001: bias and scale at 5 temperature points, linear between."""
 
-    kinds = ("temperature_pwl",)
-    display = (1.0, "SI (rad/s | 1)")
+    effects = (TemperaturePiecewise,)
 
     def _build(self, kind, ctx):
-        _, lo, hi = self._range(ctx)
-        proto = TemperaturePiecewise(points_c=np.linspace(lo, hi, 5), bias=np.zeros((3, 5)), scale=np.zeros((3, 5)))
         temp = np.broadcast_to((ctx.temperature_c - np.mean(ctx.temperature_c))[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the temperature (piecewise linear)", temp)
+        return _class_candidate(self, ctx, "the temperature (piecewise linear)", temp)
 
     def plausible_max(self, kind, ctx):
         return np.concatenate([np.full(15, math.radians(30.0)), np.full(15, 0.05)])
@@ -402,16 +382,12 @@ class TemperaturePiecewiseFamily(_Temperature):
 class TemperatureRBFFamily(_Temperature):
     """Seed 003: Gaussian RBF on ΔT and ΔT², 6 centres."""
 
-    kinds = ("temperature_rbf",)
-    display = (RAD2DEG, "°/s")
+    effects = (TemperatureRBF,)
 
     def _build(self, kind, ctx):
-        t_ref, lo, hi = self._range(ctx)
-        centres = np.linspace(lo, hi, 6)
-        proto = TemperatureRBF(centres_c=centres, width_c=float(centres[1] - centres[0]), t_ref_c=t_ref,
-                               weights=np.zeros((3, 6)))
+        t_ref, _, _ = self._range(ctx)
         temp = np.broadcast_to((ctx.temperature_c - t_ref)[:, None], ctx.omega_true_rad_s.shape)
-        return _proto_candidate(self, proto, ctx, "the temperature (RBF of ΔT, ΔT²)", temp)
+        return _class_candidate(self, ctx, "the temperature (RBF of ΔT, ΔT²)", temp)
 
     def plausible_max(self, kind, ctx):
         return math.radians(30.0)
@@ -429,11 +405,11 @@ class EarthRateFamily(CandidateFamily):
     """δ = C_nᵇ ω_ieⁿ, fitted as the 3-vector ω_ieⁿ (ENU) so that it is linear; latitude
     L = atan2(ω_U, ω_N) and |ω_ie| are reported from it, and a size far from Ω is refused."""
 
-    kinds = ("earth_rate",)
+    effects = (EarthRate,)
     driver = "the attitude (a rate fixed in ENU)"
     quantity = "attitude"
     channel = Channel.DEDICATED
-    display = (RAD2DEG * 3600, "°/h")
+    display = (RAD2DEG * 3600, "°/h")  # the fitted ENU components, not the effect's latitude
     separated_by = "rotations through different headings and tilts (the Earth rate turns with the attitude)"
 
     def build(self, kind, ctx, ref, options):
@@ -478,13 +454,13 @@ class BiasDriftFamily(CandidateFamily):
     can mimic any slow term, so it is the catch-all: chosen only when no candidate tied to a
     measured channel helps."""
 
-    kinds = ("random_walk",)
+    effects = (RandomWalk,)
     driver = "time (a slowly wandering bias)"
     quantity = "time"
     channel = Channel.TIME
     catch_all = True
     separated_by = "a second recording: a drift does not repeat, a deterministic term does"
-    display = (RAD2DEG, "°/s")
+    display = (RAD2DEG, "°/s")  # the knot biases, not the walk's K
 
     @staticmethod
     def _hat_index(t: np.ndarray, knots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -606,28 +582,6 @@ class BiasDriftFamily(CandidateFamily):
         return np.array([p["value"]]), np.array([float(true_effect.value[0])]), np.array([p["sigma"]])
 
 
-# ================================================================ vocabulary entries that are not residual terms
-@register_family
-class NotAResidualTerm(CandidateFamily):
-    """Effects that are not parameters of a deterministic term: each says how it is covered instead."""
-
-    kinds = ("white_noise", "jitter", "bias_instability", "bandwidth", "quantization", "saturation")
-    REASONS = {
-        "white_noise": "the noise floor itself: its level is the held-out residual the loop reports, not a term to fit",
-        "jitter": "random sampling-time error: checked as residual variance growing with |dω/dt|² (structure tests)",
-        "bias_instability": "tested together with random_walk as 'bias drift' (one slow bias; one recording cannot "
-                            "separate the two spectra reliably)",
-        "bandwidth": "a first-order low-pass equals a time offset d = 1/(2π f_c) to first order in f/f_c; tested as "
-                     "time_offset, whose equivalent cutoff is reported",
-        "quantization": "not a residual term (RMS LSB/√12): detected from the output's granularity (checks)",
-        "saturation": "not a residual term: detected as samples at the rails (checks)",
-    }
-
-    def build(self, kind, ctx, ref, options):
-        return Untestable(kind, self.REASONS[kind])
-
-
-
 @register_family
 class RateRampFamily(CandidateFamily):
     """``rate_ramp`` (IEEE 952 R, a straight-line bias drift) is never a separate loop candidate: the
@@ -636,7 +590,7 @@ class RateRampFamily(CandidateFamily):
     drift does not repeat between recordings, so a line fitted to one is one path of the walk).
     ``calib noise`` identifies R from the wavelet variance of a long static record instead."""
 
-    kinds = ("rate_ramp",)
+    effects = (RateRamp,)
     driver = "time (a straight-line bias drift)"
     quantity = "time"
     channel = Channel.TIME

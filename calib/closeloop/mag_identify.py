@@ -75,11 +75,10 @@ def mag_excitation(ref: MagReference, fit: MagFit, kind: str, rows: np.ndarray, 
                           "needs an attitude reference: the field magnitude does not change when the magnetometer's "
                           "axes rotate (the ellipsoid fit's blind spot); record with an optical/truth attitude")
     idx = np.flatnonzero(rows & ref.valid)
-    if not ref.has_attitude and kind in ("soft_iron", "hard_iron"):
+    if not ref.has_attitude and term.coverage_part:
         cov, weak = direction_coverage(ref.mag_ut[idx])
         if cov < MIN_COVERAGE:
-            part = ("the soft iron" if kind == "soft_iron" else
-                    "the hard iron along the turning axis (calib mag's circle fit gives the other two components)")
+            part = term.coverage_part
             return Excitation(kind, term.driver, False, 0, 0.0, 1.0,
                               f"field direction coverage {cov:.2f} < {MIN_COVERAGE:g} (calib mag's rule; 1 = every "
                               f"direction): the magnitude alone cannot separate {part} from the field magnitude — "
@@ -103,7 +102,7 @@ def mag_excitation(ref: MagReference, fit: MagFit, kind: str, rows: np.ndarray, 
     why = (f"{term.driver}: its least excited combination ({_weak_components(term.param_names, vt[-1])}) at the "
            f"largest plausible size ({term.plausible_max * f:.3g} {unit}) would change the residual by only {z:.2g}σ "
            f"(needs {Z_DETECT:g}σ); what would show it: {term.separated_by}")
-    if kind in ("soft_iron", "hard_iron"):
+    if term.coverage_part:
         cov, weak = direction_coverage(_field_body(ref, fit, idx))
         why += f"; field direction coverage {cov:.2f} (1 = every direction): " + rotations_to_add(weak)
     return Excitation(kind, term.driver, False, rank, z, 1.0, why)

@@ -211,7 +211,7 @@ def sensor_with(case: SuiteCase | None, base: str = BASE_SENSOR) -> SensorModel:
     mag = s.magnetometer
     if case.mag:   # the AK8963 as a calibrated compass: noise, quantisation and range only, plus the case's effects
         mag = tuple(e for e in load_sensor(MAG_BASE).magnetometer
-                    if e.kind in ("white_noise", "quantization", "saturation")) + tuple(case.magnetometer)
+                    if e.is_white_noise or isinstance(e, (E.Quantization, E.Saturation))) + tuple(case.magnetometer)
     return replace(s, gyro=s.gyro + tuple(case.effects), accelerometer=s.accelerometer + tuple(case.accelerometer),
                    thermal=case.thermal or s.thermal, magnetometer=mag)
 

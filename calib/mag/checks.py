@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrosim.effects import Saturation
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.sensor_model import stored_sensor_model
@@ -65,7 +66,7 @@ def detect_unit(radius: float, *, from_radius: bool) -> str | None:
 def _declared_range(rec: Recording) -> float | None:
     model = stored_sensor_model(rec.meta)
     for e in model.magnetometer if model is not None else ():
-        if e.kind == "saturation":
+        if isinstance(e, Saturation):
             return float(np.min(e.range))
     return None
 

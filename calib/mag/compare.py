@@ -201,8 +201,7 @@ def simulated_comparison(sensor: str = "phone", *, seed: int = 7, hand: str = "t
                     use_rec.rate_hz, 0.0, False)
                for name, c, hi in (("raw (true tilt)", None, False), ("hard iron only (true tilt)", cal, True),
                                    ("calibrated (true tilt)", cal, False))]
-    wn = next(e for e in dev.magnetometer if e.kind == "white_noise")
-    lsb = next((e.lsb for e in dev.magnetometer if e.kind == "quantization"), np.zeros(3))
-    sigma = float(np.sqrt(np.mean(wn.density**2 * use_rec.rate_hz + lsb**2 / 12)))
+    var = [v for v in (e.sample_noise_variance(use_rec.rate_hz) for e in dev.magnetometer) if v is not None]
+    sigma = float(np.sqrt(np.mean(sum(var))))  # white noise N² f_s plus rounding LSB²/12 per sample
     floor = math.degrees(heading_noise_floor_rad(use_truth.truth.extra["mag_field"], up_true, sigma, cal.soft_iron))
     return SimulatedComparison(sensor, cal, rows, rows_tt, floor)

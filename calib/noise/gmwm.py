@@ -44,8 +44,8 @@ __all__ = ["NOISE_TERMS", "ModelFit", "candidate_models", "fit_model", "identify
 
 # the vocabulary's noise terms, discovered (each effect says which of its fields a fit estimates)
 NOISE_TERMS: dict[str, type[Effect]] = {k: c for k, c in EFFECTS.items() if c.noise_parameters}
-SHORT = {"white_noise": "white", "quantization_noise": "qn", "bias_instability": "flicker", "random_walk": "rw",
-         "gauss_markov": "gm", "rate_ramp": "drift"}
+# kind → short name, in the canonical order of a model's terms (each class's noise_rank)
+SHORT = {k: c.noise_short_name for k, c in sorted(NOISE_TERMS.items(), key=lambda kc: kc[1].noise_rank)}
 LONG = {v: k for k, v in SHORT.items()}
 
 
@@ -202,7 +202,7 @@ def fit_model(kinds: tuple[str, ...], wv: WaveletVariance, sd: np.ndarray) -> Mo
     from scipy.optimize import minimize, nnls
 
     model = _Model(kinds, wv.m, wv.dt_s)
-    gm = [j for j, k in enumerate(kinds) if k == "gauss_markov"]
+    gm = [j for j, k in enumerate(kinds) if "tau_s" in NOISE_TERMS[k].noise_parameters]  # terms with a correlation time
     w = 1.0 / sd
 
     def solve(cols: np.ndarray) -> tuple[np.ndarray, float]:

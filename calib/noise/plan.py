@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrosim.effects import Effect, GaussMarkov
+from gyrosim.effects import Effect
 
 from .gmwm import NOISE_TERMS, _canonical, _Model, _sandwich
 from .wavelet import WaveletVariance, scales_for, wv_covariance
@@ -30,8 +30,7 @@ def noise_terms_of(effects: tuple[Effect, ...], axis: int = 0) -> tuple[tuple[st
     its ``gauss_markov`` process); terms with a zero parameter are left out."""
     terms = []
     for e in effects:
-        if e.kind == "bias_instability" and getattr(e, "model", "flicker") == "gauss_markov":
-            e = GaussMarkov(sigma=e.value / 0.664, tau_s=np.full(3, e.tau_s))
+        e = e.noise_model_term()
         if e.kind in NOISE_TERMS:
             vals = [float(np.asarray(getattr(e, f))[axis]) for f in NOISE_TERMS[e.kind].noise_parameters]
             if all(v > 0 for v in vals):
@@ -116,7 +115,7 @@ def schedule_repetitions(sensor, schedule: str, rate_hz: float, target_s: float,
     from ..kalman import FilterConfig
 
     def density(effects) -> float:
-        return float(sum((np.asarray(e.density) for e in effects if e.kind == "white_noise"), np.zeros(3)).max())
+        return float(sum((np.asarray(e.density) for e in effects if e.is_white_noise), np.zeros(3)).max())
 
     arw, vrw = density(sensor.gyro), density(sensor.accelerometer)
     if arw <= 0 or vrw <= 0:

@@ -10,22 +10,9 @@ import numpy as np
 
 from .gmwm import NOISE_TERMS
 from .identify import NoiseIdentification
-from .units import representations
+from .units import datasheet_unit, representations
 
 __all__ = ["summary_lines", "plot_noise", "temperature_trend_c"]
-
-_MAIN_UNIT = {("white_noise", "gyro"): "deg/sqrt(h)", ("white_noise", "accelerometer"): "ug/sqrt(Hz) (two-sided)",
-              ("random_walk", "gyro"): "deg/h/sqrt(h)", ("random_walk", "accelerometer"): "ug/sqrt(h)",
-              ("bias_instability", "gyro"): "deg/h", ("bias_instability", "accelerometer"): "ug",
-              ("quantization_noise", "gyro"): "arcsec", ("quantization_noise", "accelerometer"): "mm/s",
-              ("rate_ramp", "gyro"): "deg/h^2", ("rate_ramp", "accelerometer"): "ug/h"}
-
-
-def _unit(kind: str, field: str, triad: str) -> str:
-    if kind == "gauss_markov":
-        return "s" if field == "tau_s" else ("deg/h" if triad == "gyro" else "ug")
-    return _MAIN_UNIT[(kind, triad)]
-
 
 def summary_lines(res: NoiseIdentification) -> list[str]:
     """One line per parameter: value and 95 % interval in datasheet units, and SI."""
@@ -35,7 +22,7 @@ def summary_lines(res: NoiseIdentification) -> list[str]:
         out.append(f"  axis {a.axis}: model {a.model}" + ("" if a.consistent else
                    f"  (INCONSISTENT: objective p = {a.objective_p_value:.1e}, no candidate describes this axis)"))
         for p in a.parameters:
-            u = _unit(p.kind, p.field, triad)
+            u = datasheet_unit(p.kind, p.field, triad)
             conv = [representations(p.kind, p.field, v, res.rate_hz, triad)[u] for v in (p.value,) + p.ci95]
             out.append(f"    {p.kind}.{p.field}{'' if p.index == 0 else f'[{p.index}]'} = {conv[0]:.4g} {u} "
                        f"(95 %: {conv[1]:.4g} … {conv[2]:.4g}; ±{100 * p.rel_sigma:.1f} % 1σ)  = {p.value:.4g} {p.unit}")

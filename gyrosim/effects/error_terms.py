@@ -1,0 +1,225 @@
+"""Error terms of the classic linear model and its extensions, δ computed from the true input x
+(rate or specific force) and the other triad's truth (Zhou 2020 eq. 1–2):
+
+    ω̃ = (I + S + N) ω + b + ε,   plus a general misalignment M, a quadratic nonlinearity
+    k x|x| and the gyro's g-sensitivity K f.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from .. import _kernels as kern
+from ..errors import GyrosimError
+from ..units import G0, RAD2DEG
+from .base import Effect, VectorEffect, _check_invertible, zeros_field
+
+__all__ = ["Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "ScaleNonlinearity", "GSensitivity",
+           "nonortho_matrix"]
+
+
+@dataclass(frozen=True)
+class Bias(VectorEffect):
+    """Constant bias: δ = b.  ``value_sigma`` draws a turn-on bias per run (b ~ N(value, σ²)).
+
+    Units: rad/s (gyro) or m/s² (accelerometer).  Zhou 2020 eq. 1, §3.2.
+    """
+
+    kind: ClassVar[str] = "bias"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (RAD2DEG, "°/s")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration"}
+    pointwise: ClassVar[bool] = True
+    labels: ClassVar[tuple[str, str]] = ("bias value", "bias sigma")
+
+    def delta(self, x, ctx, rng=None):
+        return np.broadcast_to(self.value, x.shape).copy()
+
+    def add_delta(self, y, x, ctx, rng=None):
+        y += self.value
+
+    def affine(self):
+        return np.zeros((3, 3)), self.value
+
+    def sensitivity(self, x, ctx):
+        return np.broadcast_to(np.eye(3), x.shape + (3,)).copy()
+
+
+def nonortho_matrix(g: np.ndarray) -> np.ndarray:
+    """N(G), the symmetric non-orthogonality matrix of ω̃ = (I + diag(S) + N(G)) ω + b (Zhou 2020 eq. 1):
+    zero diagonal, N[0,1] = N[1,0] = Gz, N[0,2] = N[2,0] = Gy, N[1,2] = N[2,1] = Gx."""
+    gx, gy, gz = g
+    return np.array([[0.0, gz, gy], [gz, 0.0, gx], [gy, gx, 0.0]])
+
+
+@dataclass(frozen=True)
+class ScaleFactor(VectorEffect):
+    """Scale-factor error: δ = S x, S = diag(Sx, Sy, Sz) (dimensionless).  Zhou 2020 eq. 2."""
+
+    kind: ClassVar[str] = "scale_factor"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (1e6, "ppm")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
+    pointwise: ClassVar[bool] = True
+    labels: ClassVar[tuple[str, str]] = ("scale factor", "scale factor sigma")
+
+    def delta(self, x, ctx, rng=None):
+        return x * self.value
+
+    def add_delta(self, y, x, ctx, rng=None):
+        y += x * self.value
+
+    def affine(self):
+        return np.diag(self.value), np.zeros(3)
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(np.diag(self.value), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = x[:, i]
+        return out
+
+
+@dataclass(frozen=True)
+class NonOrthogonality(VectorEffect):
+    """Non-orthogonality in the paper's symmetric form (Zhou 2020 eq. 2): δ = N x,
+
+        N = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]]   (dimensionless, small-angle rad).
+
+    ∂(N x)/∂Gx = (0, x_z, x_y), ∂/∂Gy = (x_z, 0, x_x), ∂/∂Gz = (x_y, x_x, 0).
+    """
+
+    kind: ClassVar[str] = "nonorthogonality"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (1e3, "mrad")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
+    pointwise: ClassVar[bool] = True
+    labels: ClassVar[tuple[str, str]] = ("non-orthogonality", "non-orthogonality sigma")
+
+    def check(self) -> None:
+        _check_invertible(np.eye(3) + nonortho_matrix(self.value), self.kind, self.value)
+
+    def delta(self, x, ctx, rng=None):
+        return x @ nonortho_matrix(self.value).T
+
+    def affine(self):
+        return nonortho_matrix(self.value), np.zeros(3)
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(nonortho_matrix(self.value), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        out[:, 1, 0], out[:, 2, 0] = x[:, 2], x[:, 1]
+        out[:, 0, 1], out[:, 2, 1] = x[:, 2], x[:, 0]
+        out[:, 0, 2], out[:, 1, 2] = x[:, 1], x[:, 0]
+        return out
+
+
+_MISALIGN_IDX = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+
+
+@dataclass(frozen=True)
+class Misalignment(VectorEffect):
+    """General 6-parameter misalignment/cross-coupling: δ = M x, M off-diagonal with
+    value = [m_xy, m_xz, m_yx, m_yz, m_zx, m_zy] (row = sensing axis, column = input axis)."""
+
+    kind: ClassVar[str] = "misalignment"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (1e3, "mrad")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
+    pointwise: ClassVar[bool] = True
+    labels: ClassVar[tuple[str, str]] = ("misalignment", "misalignment sigma")
+    size: ClassVar[int] = 6
+    value: np.ndarray = zeros_field(6)
+    value_sigma: np.ndarray = zeros_field(6)
+
+    def check(self) -> None:
+        _check_invertible(np.eye(3) + self.matrix(), self.kind, self.value)
+
+    def matrix(self) -> np.ndarray:
+        m = np.zeros((3, 3))
+        for k, (i, j) in enumerate(_MISALIGN_IDX):
+            m[i, j] = self.value[k]
+        return m
+
+    def delta(self, x, ctx, rng=None):
+        return x @ self.matrix().T
+
+    def affine(self):
+        return self.matrix(), np.zeros(3)
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(self.matrix(), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (6,))
+        for k, (i, j) in enumerate(_MISALIGN_IDX):
+            out[:, i, k] = x[:, j]
+        return out
+
+
+@dataclass(frozen=True)
+class ScaleNonlinearity(VectorEffect):
+    """Quadratic scale nonlinearity per axis: δ_i = k_i x_i |x_i| (odd-symmetric, so it is a
+    true nonlinearity and not a bias).  k in 1/(rad/s) or 1/(m/s²); a datasheet "nonlinearity
+    ±p % of full scale R" gives k = p/100 / R (the error at full scale is p % of R)."""
+
+    kind: ClassVar[str] = "scale_nonlinearity"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (1.0, "1/(rad/s)")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "per_rate", "accelerometer": "per_acceleration"}
+    pointwise: ClassVar[bool] = True
+    labels: ClassVar[tuple[str, str]] = ("nonlinearity", "nonlinearity sigma")
+
+    def delta(self, x, ctx, rng=None):
+        return self.value * x * np.abs(x)
+
+    def add_delta(self, y, x, ctx, rng=None):
+        kern.add_nonlinearity(y, x, self.value)
+
+    def delta_dx(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = 2 * self.value[i] * np.abs(x[:, i])
+        return out
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = x[:, i] * np.abs(x[:, i])
+        return out
+
+
+@dataclass(frozen=True)
+class GSensitivity(Effect):
+    """Gyro sensitivity to specific force: δ = K f, K 3×3 in (rad/s)/(m/s²) (gyro only)."""
+
+    kind: ClassVar[str] = "g_sensitivity"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (RAD2DEG * G0, "°/s/g")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "rate_per_acceleration"}
+    pointwise: ClassVar[bool] = True
+    param_fields: ClassVar[tuple[str, ...]] = ("value",)
+    value: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    value_sigma: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+    def __post_init__(self) -> None:
+        for name in ("value", "value_sigma"):
+            v = np.array(getattr(self, name), dtype=float)
+            v = np.diag(v) if v.shape == (3,) else v.reshape(3, 3)
+            if not np.all(np.isfinite(v)):
+                raise GyrosimError("g-sensitivity has NaN/inf values")
+            object.__setattr__(self, name, v)
+
+    def delta(self, x, ctx, rng=None):
+        return ctx.specific_force_true_m_s2 @ self.value.T
+
+    def add_delta(self, y, x, ctx, rng=None):
+        kern.add_matvec(y, np.ascontiguousarray(ctx.specific_force_true_m_s2), self.value)
+
+    def sensitivity(self, x, ctx):
+        f = ctx.specific_force_true_m_s2
+        out = np.zeros(x.shape + (9,))
+        for i in range(3):
+            out[:, i, 3 * i : 3 * i + 3] = f
+        return out
