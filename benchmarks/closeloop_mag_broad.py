@@ -1,4 +1,4 @@
-"""The closeloop's magnetometer part on BROAD trials 30 and 34 (issue 17 item 4), as in docs/magnetometer.md.
+"""The closeloop's magnetometer part on BROAD trials 30 and 34, as in docs/magnetometer.md.
 
     OMP_NUM_THREADS=1 python benchmarks/closeloop_mag_broad.py > docs/magnetometer_closeloop_broad.json
 

@@ -1,4 +1,4 @@
-"""Monte Carlo campaigns behind docs/noise.md (issue 19).  Noise drawn with the effect vocabulary's
+"""Monte Carlo campaigns behind docs/noise.md.  Noise drawn with the effect vocabulary's
 own code (``Effect.delta``: static record, no MuJoCo needed), identified by calib.noise.
 
     python benchmarks/noise_mc.py avr --seeds 20 --out docs/noise_avr.json

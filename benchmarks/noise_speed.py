@@ -1,4 +1,4 @@
-"""Speed of ``calib noise`` against ``calib allan`` on the same record, in one run (issue 19).
+"""Speed of ``calib noise`` against ``calib allan`` on the same record, in one run.
 
     OMP_NUM_THREADS=1 python benchmarks/noise_speed.py [--repeats 3] [--hours 2] [--rate 100]
 

@@ -291,7 +291,7 @@ def cmd_observability(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    """Speed of ``calib run``'s calibration against the paper's filterpy filter (today's ``kf``), on one
+    """Speed of ``calib run``'s calibration against its former 9-state filter in filterpy (``kf_session_r``), on one
     3-minute 100 Hz session with a raw accelerometer; runs interleaved, best of ``--repeats``, same run."""
     from .bench import run_bench
 
@@ -890,8 +890,13 @@ def cmd_mag(args: argparse.Namespace) -> int:
     _print_input_warnings(loaded.report)
     field_ut, incl_deg, ref = _mag_reference(args)
     window = (args.t_from if args.t_from is not None else -math.inf, args.t_to if args.t_to is not None else math.inf)
-    res = calibrate_magnetometer(rec, args.method, mag_unit=args.mag_unit, field_ut=field_ut, inclination_deg=incl_deg,
-                                 range_ut=args.range_ut,
+    # the calibration sees what a user's file carries (samples and rate) and the options; a reference
+    # position in the file (an optical tracker's) only labels where a disturbance was
+    from gyrosim.estimator import as_user_file
+
+    ref_pos = rec.truth.position_nav_m if rec.truth is not None else None
+    res = calibrate_magnetometer(as_user_file(rec), args.method, mag_unit=args.mag_unit, field_ut=field_ut,
+                                 inclination_deg=incl_deg, range_ut=args.range_ut, position_nav_m=ref_pos,
                                  time_range_s=window if (args.t_from is not None or args.t_to is not None) else None)
     mg = res.to_dict()["magnetometer"]
 
@@ -1239,7 +1244,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="true inclination, °, in [-90, 90] (resolves a one-axis session's hard iron)")
     mg.add_argument("--location", help="field and inclination from the World Magnetic Model: LAT,LON[,HEIGHT_M[,YYYY-MM-DD]]")
     mg.add_argument("--range-ut", type=number(0, 1e7, lo_open=True, unit="µT"),
-                    help="magnetometer range, µT, > 0 (samples at it are excluded)")
+                    help="magnetometer range (datasheet full scale), µT, > 0: samples at it are excluded; without it "
+                         "only flat tops beyond 200 µT are found from the data")
     mg.add_argument("--from", dest="t_from", type=number(unit="s"), help="calibrate from this time, s (finite)")
     mg.add_argument("--to", dest="t_to", type=number(unit="s"), help="calibrate up to this time, s (finite)")
     _input_options(mg)

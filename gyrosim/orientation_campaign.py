@@ -115,7 +115,7 @@ def _calibrated(rec, spec: OrientationSpec):
         from .plugins import load
 
         calibrate_magnetometer = load("gyrosim.magnetometer_calibrators", "ellipsoid", what="magnetometer calibration")
-        out = calibrate_magnetometer(out).compensate_recording(out)
+        out = calibrate_magnetometer(as_user_file(out)).compensate_recording(out)  # it, too, sees a user's file
     return out, cal.status
 
 

@@ -1,4 +1,4 @@
-"""The bad inputs of issue 11, derived from one simulated session with numpy/h5py (as the issue says).
+"""The bad inputs of the input-boundary tests, derived from one simulated session with numpy/h5py.
 
 Base: ``gyrosim simulate --schedule zhou2020 --hand typical --sensor zhou2020_sim_consumer --rate 100
 --seed 1`` (171 s, 17 101 samples), written as HDF5 and as CSV (``%.17g``: the CSV holds exactly the

@@ -11,7 +11,7 @@ simulator for the calibrator.  Kinematic, numpy only, written independently:
   S_a, G_a, b_a are given; N(G) = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]] for both triads);
 * noise-free when both noise levels are 0 (the CSV then carries 9 significant digits);
 * optionally an imperfect hand: a lever arm from the rotation centre (closed-form ω̇) and tremor / sway
-  as band-limited sums of sines in nav (issue 13);
+  as band-limited sums of sines in nav (an imperfect hand);
 * CSV in deg/s and g with the header t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z.
 
 Schedules: ``STEPS`` (Zhou 2020 Table 6-like: vertical and horizontal turns, two rest poses) and
@@ -151,7 +151,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     ``field_enu_ut``: a constant field (µT, ENU) seen by an ideal magnetometer, m = Cᵀ B + noise
     (``mag_ut`` in the result).
 
-    An imperfect hand (issue 13), its own way: ``lever_arm_m`` r (body, m, from the rotation centre to
+    An imperfect hand, its own way: ``lever_arm_m`` r (body, m, from the rotation centre to
     the accelerometer) adds ω̇ × r + ω × (ω × r) with the closed-form ω̇ of :func:`angular_acceleration`;
     ``tremor_acc_rms_m_s2`` / ``sway_acc_rms_m_s2`` add a translation of the hand in nav, band-limited
     sums of sines (:func:`sum_of_sines`), seen in the body as Cᵀ a.

@@ -1,4 +1,4 @@
-"""A 9-axis IMU data generator that imports nothing from gyrosim or calib (issue 17): data from
+"""A 9-axis IMU data generator that imports nothing from gyrosim or calib: data from
 outside our simulator for the magnetometer calibration.  numpy and h5py only, written
 independently of gyrosim's scene, effects and writer:
 

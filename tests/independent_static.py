@@ -1,4 +1,4 @@
-"""Static-test data written without gyrosim or calib (numpy only), for issue 20's instruments:
+"""Static-test data written without gyrosim or calib (numpy only), for the static instruments (tilt, north-finding):
 
 * a north-finding record: a level board turned about the vertical between P positions, the
   Earth's rotation computed here in ENU, Ω = 7.292115e-5 rad/s, ω_ie = Ω (0, cos L, sin L); the

@@ -1,6 +1,6 @@
-"""Issue 11: the table of bad inputs and bad arguments — every one ends in a named error (exit 2, a
+"""The table of bad inputs and bad arguments — every one ends in a named error (exit 2, a
 message naming the problem) or a correct answer (the same result and exit code as the clean file: exit 0,
-or 1 for ``calib run`` on this typical-hand base, whose default result issue 13 flags as inconsistent).
+or 1 for ``calib run`` on this typical-hand base, whose default result is flagged inconsistent).
 
 The issue counted 242 cases without listing them; this table rebuilds 242 from the classes and
 derivations it names (tests/bad_inputs.py), against ``calib run``, ``allan``, ``inspect``,
@@ -397,7 +397,7 @@ def _clean_run(b: Base, name: str, tmp: Path) -> dict:
     if name not in _CLEAN:
         out = tmp / f"clean_{name}.json"
         rc, _, e = _call("calib", ["run", str(derived(b, name)), "--json", str(out)])
-        # the base is a typical hand: since issue 13 the default method says its σ cannot be trusted
+        # the base is a typical hand: the default method says its σ cannot be trusted
         # (inconsistent, exit 1) — a repaired input must give that same answer
         assert rc in (0, 1), e
         _CLEAN[name] = {**json.loads(out.read_text()), "_rc": rc}

@@ -1,4 +1,4 @@
-"""Zhou 2020 in-self calibration (issue 4): accuracy, data from outside gyrosim, outputs, bad input."""
+"""Zhou 2020 in-self calibration: accuracy, data from outside gyrosim, outputs, bad input."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 6: campaigns on Dask, the estimator interface, and their bad input.
+"""Campaigns on Dask, the estimator interface, and their bad input.
 
 The Dask test starts a real LocalCluster (2 worker processes on 127.0.0.1) and checks that the
 results of 2 presets × 3 seeds equal, number for number, the same campaign run in-process: the
@@ -53,7 +53,7 @@ def test_results_have_provenance_summary_and_a_physical_trend(in_process):
     for r in summary:
         assert r["rms_S_pct_lo"] <= r["rms_S_pct"] <= r["rms_S_pct_hi"]
     assert (out / "summary.csv").is_file() and (out / "error_vs_severity.png").stat().st_size > 1000
-    # summary.rrd (issue 15): the summary as plots against the external acceleration, every cell on x,
+    # summary.rrd (what a person sees on opening it): the summary as plots against the external acceleration, every cell on x,
     # S and G errors on one log10 scale
     from gyrosim.viewer import read_blueprint, read_texts
 

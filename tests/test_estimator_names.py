@@ -75,3 +75,50 @@ def test_calib_run_filter_is_registered_under_the_name_it_reports(device_session
     with warnings.catch_warnings():
         warnings.simplefilter("error")   # the default spelling does not warn
         assert calibrate(user, accelerometer="calibrated", keep_history=False, hand_check=False).method == "kf_session_r"
+
+
+@pytest.fixture(scope="module")
+def clipped_mag_session():
+    """A 9-axis session whose magnetometer clips 25 µT above its largest hard-iron component (seed 4:
+    at 221 µT): the stored sensor model declares that rail, a user's file does not."""
+    from gyrosim.sensor_model import SensorModel
+    from gyrosim.simulate import signal_context
+
+    mag9 = load_sensor("mpu9250_9axis")
+    probe = SensorModel("mag", magnetometer=mag9.magnetometer).realize(np.random.default_rng(4))
+    rail = float(np.max(np.abs(next(e.value for e in probe.magnetometer if e.kind == "hard_iron")))) + 25.0
+    mag = tuple(e if e.kind != "saturation" else type(e)(range=[rail] * 3) for e in mag9.magnetometer)
+    dev = SensorModel("clipped", magnetometer=mag).realize(np.random.default_rng(4))
+    truth = session("typical")
+    m = dev.apply_magnetometer(signal_context(truth), np.random.default_rng(10_004))
+    return truth.with_signals(mag_ut=m, meta={**truth.meta, "sensor_model": dev.to_json()}), rail
+
+
+def test_every_registered_magnetometer_calibrator_ignores_truth_and_metadata(clipped_mag_session):
+    """Each calibrator of the ``gyrosim.magnetometer_calibrators`` group (both methods) gives the same
+    JSON on the simulated session and on its user view; the rail the stored model declares is not
+    used unless passed (range_ut), and then on both alike.  Exact equality: the same arithmetic."""
+    import json
+
+    from gyrosim.plugins import load, registered
+
+    rec, rail = clipped_mag_session
+    user = as_user_file(rec)
+    assert user.truth is None and set(user.meta) == {"rate_hz"} and "sensor_model" in rec.meta
+    clipped = int(np.any(np.abs(rec.mag_ut) >= rail * (1 - 1e-9), axis=1).sum())
+    assert rail > 200.0 and 100 < clipped < rec.n // 2
+    names = tuple(registered("gyrosim.magnetometer_calibrators"))
+    assert "ellipsoid" in names
+
+    def js(res):
+        return json.dumps(res.to_dict(), sort_keys=True)
+
+    for name in names:
+        cal = load("gyrosim.magnetometer_calibrators", name)
+        for method in ("ellipsoid", "aided"):
+            full, mine = cal(rec, method), cal(user, method)
+            assert js(full) == js(mine), (name, method)
+            # the rail (221 µT for this device) found from the data alone: its flat tops beyond 200 µT
+            assert full.samples["saturated"] == clipped
+        passed = cal(user, "ellipsoid", range_ut=rail)   # the user's own datasheet range: the same samples
+        assert passed.samples["saturated"] == clipped and js(passed) == js(cal(rec, "ellipsoid", range_ut=rail))

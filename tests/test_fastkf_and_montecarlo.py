@@ -1,5 +1,5 @@
 """The compiled fast path equals the filterpy filter; the Monte Carlo reaches the Cramér–Rao bound
-with consistent covariances (issue 4)."""
+with consistent covariances."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 11: property-based fuzzing of the loaders and the command lines (hypothesis).
+"""Property-based fuzzing of the loaders and the command lines (hypothesis).
 
 Random CSV and HDF5 recordings — shapes, dtypes, time units and epochs, rates, separators,
 encodings, header variants, NaN/inf/spike/constant placement, gaps, disorder, truncation, junk —

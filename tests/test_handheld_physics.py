@@ -1,4 +1,4 @@
-"""Physical checks of the MuJoCo hand-held session (issue 2). Tolerances derive from the physics
+"""Physical checks of the MuJoCo hand-held session. Tolerances derive from the physics
 and the integration scheme; each test says how."""
 
 from __future__ import annotations

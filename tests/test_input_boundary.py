@@ -1,4 +1,4 @@
-"""Issue 11: the pieces of the input and output boundaries, one fact each (the table of whole
+"""The pieces of the input and output boundaries, one fact each (the table of whole
 commands is tests/test_bad_inputs.py, the fuzzing tests/test_fuzz_inputs.py)."""
 
 from __future__ import annotations
@@ -209,7 +209,7 @@ def test_xio_fusion_with_its_two_sample_gaps_is_accepted_by_calib_run(tmp_path):
     """x-io Fusion's published recording has 10 steps of 3 × the 10 ms clock (2 samples lost each):
     bridged and listed, the calibration runs (exit 0, or 1 when the result fails its own consistency
     check — the JSON is still written with the status).  Its hand motion cannot separate the
-    accelerometer's errors from the gyro's (issue 12 refuses that by name), so it runs with
+    accelerometer's errors from the gyro's (the 21-state filter refuses that by name), so it runs with
     ``--accelerometer calibrated``."""
     from calib.cli import main
 
@@ -285,7 +285,7 @@ def test_allan_of_a_static_record_with_one_corrupt_gyro_sample_matches_the_clean
 
 
 def test_calib_mag_goes_through_the_same_boundaries(tmp_path, capsys):
-    """Issue 17's command landed after the boundary: its outputs are checked first, its numbers ranged,
+    """``calib mag`` landed after the boundary: its outputs are checked first, its numbers ranged,
     its recording read by calib.inputs (a constant gyro is named before any field fit)."""
     from calib.cli import main
 

@@ -1,4 +1,4 @@
-"""The 9-axis virtual IMU (issue 17, simulation side): MuJoCo's magnetometer on the board, the
+"""The 9-axis virtual IMU (simulation side): MuJoCo's magnetometer on the board, the
 Earth field from the World Magnetic Model or an ENU vector, dipole anomalies, the magnetometer
 effects, and the 6-axis results left as they were."""
 

@@ -1,4 +1,4 @@
-"""Issue 19: wavelet variance, GMWM model selection, intervals, units, plan, inflation, bad input.
+"""Noise identification: wavelet variance, GMWM model selection, intervals, units, plan, inflation, bad input.
 
 Data come from tests/independent_noise.py (numpy only, no gyrosim); the wavelet-variance theory is
 checked against gyrosim's own draws too, because the simulator and the estimator must agree on

@@ -1,4 +1,4 @@
-"""Issue 20: gyrocompassing (north-finding) and its latitude limit.
+"""Gyrocompassing (north-finding) and its latitude limit.
 
 Tolerances, derived here once:
 * Window-mean covariance against a Monte Carlo of gyrosim's own noise synthesis: the sample

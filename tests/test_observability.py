@@ -1,4 +1,4 @@
-"""Observability (Zhou 2020 §4): Table 5's conclusions and Tables 10–11's structure (issue 4)."""
+"""Observability (Zhou 2020 §4): Table 5's conclusions and Tables 10–11's structure."""
 
 from __future__ import annotations
 

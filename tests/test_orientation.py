@@ -1,4 +1,4 @@
-"""Orientation estimators under test (issue 18): frames, peers, scoring, failures, BROAD, campaign."""
+"""Orientation estimators under test: frames, peers, scoring, failures, BROAD, campaign."""
 
 from __future__ import annotations
 
@@ -278,7 +278,7 @@ def test_rerun_view_has_truth_estimators_and_error_series(tmp_path):
                    "/events/disturbance"):
         assert entity in text, entity
     assert "/world/mahony" not in text  # only the estimators asked for
-    # it opens on the whole session with a story naming each estimator (gyrosim.viewer, issue 15)
+    # it opens on the whole session with a story naming each estimator (gyrosim.viewer)
     from gyrosim.viewer import read_blueprint, read_texts
 
     views = {v.origin: v for v in read_blueprint(path)}

@@ -1,4 +1,4 @@
-"""The model must load from an installed wheel as well as from the checkout (issue 2)."""
+"""The model must load from an installed wheel as well as from the checkout."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The HDF5 recording format, determinism, the CLI and its bad-input errors (issue 2)."""
+"""The HDF5 recording format, determinism, the CLI and its bad-input errors."""
 
 from __future__ import annotations
 

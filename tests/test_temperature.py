@@ -1,4 +1,4 @@
-"""bias(T) fitted only as far as the data support it (issue 7 groundwork)."""
+"""bias(T) fitted only as far as the data support it (groundwork of the thermal compensation)."""
 
 from __future__ import annotations
 

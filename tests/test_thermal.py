@@ -1,4 +1,4 @@
-"""Issue 7: thermal scenarios (chamber profiles, virtual rate table) and temperature compensation.
+"""Thermal scenarios (chamber profiles, virtual rate table) and temperature compensation.
 
 Tolerances:
 * case lag: a first-order case (τ = 300 s) under a ramp of r °C/s lags by r·τ once settled
@@ -103,7 +103,7 @@ def test_best_compensation_is_ten_times_better_on_held_out_cycles(chamber, tmp_p
     assert rows["polynomial+dT/dt"].held_out_rms_deg_s < 0.5 * rows["polynomial"].held_out_rms_deg_s
     for m in ("polynomial", "piecewise_linear", "rbf"):
         assert rows[m].held_out_rms_deg_s < 0.1 * none.held_out_rms_deg_s
-    # the same comparison as a recording (issue 15): every model's residual in one view per axis on one
+    # the same comparison as a recording (what its viewer opens on): every model's residual in one view per axis on one
     # y range, the whole chamber run on x, the held-out cycles marked, the story names the best model
     from calib.viz_temperature import save_temperature_rrd
     from gyrosim.viewer import read_blueprint, read_texts

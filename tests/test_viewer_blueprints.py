@@ -1,4 +1,4 @@
-"""What a person sees on opening our .rrd files (issue 15): the blueprint read back from the file.
+"""What a person sees on opening our .rrd files: the blueprint read back from the file.
 
 Each recording is written by the same function its command uses, then read back with
 ``gyrosim.viewer.read_blueprint`` (the blueprint store inside the .rrd, via rerun's RrdReader) and

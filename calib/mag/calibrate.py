@@ -78,13 +78,9 @@ def _mean_with_std(x: np.ndarray, blocks: np.ndarray) -> tuple[float, float]:
     return mean, math.sqrt(float(np.sum(sums**2)) / xv.size**2 * nb / max(nb - 1, 1))
 
 
-def _position(rec: Recording) -> np.ndarray | None:
-    t = rec.truth
-    return None if t is None or t.position_nav_m is None else np.asarray(t.position_nav_m)
-
-
 def _disturbance_loop(residual_of, rec: Recording, inp: MagInput, gravity, refit, used0: np.ndarray,
-                      rounds: int) -> tuple[np.ndarray, tuple[Disturbance, ...], np.ndarray]:
+                      rounds: int, position_nav_m: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, tuple[Disturbance, ...], np.ndarray]:
     """Detect on the residual of the current fit, exclude, refit; until the set stops changing.
     ``residual_of()`` → (|B| − F in µT, inclination − I in ° or None) for every sample;
     ``refit(used)`` refits on the samples ``used``."""
@@ -93,7 +89,7 @@ def _disturbance_loop(residual_of, rec: Recording, inp: MagInput, gravity, refit
     used = used0.copy()
     for _ in range(rounds):
         dev_field, dev_incl = residual_of()
-        mask, new = find_disturbances(rec.t_s, dev_field, dev_incl, inp.valid, position_nav_m=_position(rec))
+        mask, new = find_disturbances(rec.t_s, dev_field, dev_incl, inp.valid, position_nav_m=position_nav_m)
         if np.array_equal(mask, disturbed):
             break
         disturbed, found = mask, new
@@ -166,7 +162,8 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
                            field_ut: float | None = None, inclination_deg: float | None = None,
                            range_ut: float | None = None, min_coverage: float = MIN_COVERAGE,
                            time_range_s: tuple[float, float] | None = None, detect_disturbances: bool = True,
-                           consistency_check: bool = True) -> MagCalibration:
+                           consistency_check: bool = True,
+                           position_nav_m: np.ndarray | None = None) -> MagCalibration:
     """Hard and soft iron of ``rec``'s magnetometer (module docstring).
 
     Args:
@@ -179,11 +176,21 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
         range_ut: the magnetometer's range, if the recording does not declare one.
         min_coverage: below this :func:`direction_coverage` the soft iron is refused.
         time_range_s: calibrate only the samples with t in [t0, t1] (s).
+        position_nav_m: (N, 3) the board's position (ENU, m) from an external reference the user has
+            (an optical tracker); only labels where a disturbance was, never enters the fit.
+
+    Reads only the samples, times and rate of ``rec`` (no truth, no stored sensor model): a
+    simulated recording and its :func:`gyrosim.estimator.as_user_file` view give the same result.
     """
     if method not in METHODS:
         raise RecordingError(f"unknown magnetometer method {method!r}; use one of {', '.join(METHODS)}")
     meth: MagMethod = METHODS[method]()
     inp = prepare_magnetometer(rec, unit=mag_unit, range_ut=range_ut)
+    if position_nav_m is not None:
+        position_nav_m = np.asarray(position_nav_m, dtype=float)
+        if position_nav_m.shape != (rec.n, 3):
+            raise RecordingError(f"position_nav_m has shape {position_nav_m.shape}; the recording has {rec.n} samples: "
+                                 f"expected ({rec.n}, 3)")
     if time_range_s is not None:
         inside = (rec.t_s >= time_range_s[0]) & (rec.t_s <= time_range_s[1])
         if inside.sum() < 50:
@@ -236,7 +243,8 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
     refit_sphere(inp.valid)
     check_unit(m[inp.valid], state["f"], mag_unit)
     rounds = 4 if detect_disturbances else 0
-    used, found, disturbed = _disturbance_loop(sphere_residual, rec, inp, gravity, refit_sphere, inp.valid, rounds)
+    used, found, disturbed = _disturbance_loop(sphere_residual, rec, inp, gravity, refit_sphere, inp.valid, rounds,
+                                               position_nav_m)
 
     # 4. the method, started from the sphere, and detection on its own residual
     start = (np.eye(3) / state["f"], state["h"])
@@ -267,7 +275,8 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
         refused_mis = True
         meth = METHODS["ellipsoid"]()
         refit_method(used)
-    used2, found2, disturbed2 = _disturbance_loop(method_residual, rec, inp, gravity, refit_method, inp.valid, rounds)
+    used2, found2, disturbed2 = _disturbance_loop(method_residual, rec, inp, gravity, refit_method, inp.valid, rounds,
+                                                  position_nav_m)
     if disturbed2.sum() >= disturbed.sum():
         used, found, disturbed = used2, found2, disturbed2
     else:  # the method's fit hid part of a disturbance the sphere saw: keep the sphere's verdict
@@ -353,7 +362,8 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
 
 
 def true_magnetometer(rec: Recording) -> dict[str, np.ndarray] | None:
-    """The device's m = A B + h of a simulated recording (from its stored sensor model), or None:
+    """The oracle: the device's m = A B + h of a simulated recording (from its stored sensor model),
+    or None; for scoring a calibration, never for making one.
     A = I + Σ (affine parts of the magnetometer effects), h = Σ constants."""
     model = stored_sensor_model(rec.meta)
     if model is None or not model.magnetometer:

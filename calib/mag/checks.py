@@ -6,10 +6,12 @@
   100–1500 is milligauss, 10 000–150 000 nanotesla: such a channel declared as µT is refused
   with the unit to pass, never rescaled silently.  The median |m| is checked first (it contains the
   hard iron, so only gauss and nT are told apart there), then the radius of a sphere fit.
-* **Saturation.**  Samples at the range the recording declares (its stored sensor model's
-  magnetometer ``saturation``, or ``range_ut``) or, without a declared range, runs of ≥ 3 equal
-  samples at a channel's extreme where that extreme is beyond 200 µT (no working compass reads
-  that much from the Earth and its board; common rails are 400 µT–4.9 mT): excluded, counted.
+* **Saturation.**  Samples at the range the user passes (``range_ut``, ``calib mag --range-ut``:
+  the datasheet's full scale) or, without one, runs of ≥ 3 equal samples at a channel's extreme
+  where that extreme is beyond 200 µT (no working compass reads that much from the Earth and its
+  board; common rails are 400 µT–4.9 mT): excluded, counted.  Nothing is read from a simulated
+  file's stored sensor model (an estimator sees what a user's file carries): a rail below 200 µT is
+  found only when passed.
 * **Coverage.**  :func:`calib.mag.gravity.direction_coverage` of the field samples (1 = the field
   seen evenly from every direction, 0 = in one plane only): a soft-iron fit needs the field to
   vary along all three body axes.
@@ -21,10 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrosim.effects import Saturation
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
-from gyrosim.sensor_model import stored_sensor_model
 from gyrosim.units import to_si
 
 __all__ = ["MagInput", "prepare_magnetometer", "detect_unit", "EARTH_FIELD_RANGE_UT", "PLAUSIBLE_RADIUS_UT",
@@ -63,14 +63,6 @@ def detect_unit(radius: float, *, from_radius: bool) -> str | None:
     return "unknown"
 
 
-def _declared_range(rec: Recording) -> float | None:
-    model = stored_sensor_model(rec.meta)
-    for e in model.magnetometer if model is not None else ():
-        if isinstance(e, Saturation):
-            return float(np.min(e.range))
-    return None
-
-
 def _rail_runs(x: np.ndarray, threshold_ut: float = 200.0, run: int = 3) -> np.ndarray:
     bad = np.zeros(x.shape[0], dtype=bool)
     for i in range(3):
@@ -92,7 +84,7 @@ def prepare_magnetometer(rec: Recording, *, unit: str = "uT", range_ut: float | 
     scale = to_si(1.0, unit, "magnetic_field")
     m = np.asarray(rec.mag_ut, dtype=float) * scale
     unit_from_median(m, unit)  # before the range: a field in nT sits beyond every µT rail
-    rail = range_ut if range_ut is not None else _declared_range(rec)
+    rail = range_ut
     if rail is not None:
         sat = np.any(np.abs(m) >= rail * (1 - 1e-9), axis=1)
     else:

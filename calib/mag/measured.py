@@ -70,6 +70,11 @@ def _row(name: str, rec: Recording, res: MagCalibration, window: np.ndarray, lab
                        optical_heading_errors(rec, m, judge), optical_heading_errors(rec, b, judge), notes)
 
 
+def _optical_position(rec: Recording) -> np.ndarray | None:
+    t = rec.truth
+    return None if t is None or t.position_nav_m is None else np.asarray(t.position_nav_m, dtype=float)
+
+
 def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
     rows = []
     for name in available_datasets():
@@ -78,7 +83,8 @@ def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
             continue
         everything = np.ones(rec.n, dtype=bool)
         try:
-            res = calibrate_magnetometer(rec, method)
+            # the optical position labels the disturbances (the fit reads only the samples)
+            res = calibrate_magnetometer(rec, method, position_nav_m=_optical_position(rec))
         except GyrosimError as exc:
             rows.append(MeasuredRow(name, "all", "refused", 0, 0, float("nan"), float("nan"), float("nan"),
                                     float("nan"), str(exc)[:120]))
