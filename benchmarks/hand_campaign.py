@@ -1,4 +1,4 @@
-"""Issue 13's campaign: method × hand → RMS error, efficiency (ideal and hand-aware bound), NEES.
+"""The hand campaign: method × hand → RMS error, efficiency (ideal and hand-aware bound), NEES.
 
     python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 --out docs/hand_zhou2020_sim_consumer.json
     python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf_hand --seeds 50 --out docs/hand_mpu9250.json

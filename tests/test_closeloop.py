@@ -1,4 +1,4 @@
-"""calib closeloop (issue 5): the undeclared-effect suite, the negative control, an effect outside
+"""calib closeloop: the undeclared-effect suite, the negative control, an effect outside
 the vocabulary, bad input, the report files and the measured recordings.
 
 Tolerances:
@@ -63,7 +63,7 @@ def test_a_50_hz_disturbance_is_unexplained_structure_not_an_effect():
     res = run_closeloop(rec.with_signals(gyro_rad_s=gyro))
     assert res.found == [], [f.effect for f in res.found]
     lines = res.unexplained["spectral_lines"]
-    # its closeloop.rrd says nothing was found and marks the line on the y spectrum (issue 15)
+    # its closeloop.rrd says nothing was found and marks the line on the y spectrum
     import tempfile
 
     import rerun as rr
@@ -175,7 +175,7 @@ def test_cli_writes_report_json_md_plots_and_rrd(tmp_path, typical_session):
     assert re.search(r"time offset of 3\.[34]\d ± 0\.0\d ms", md) and "residual_vs_time_offset.png" in md
     assert (tmp_path / "cl" / "residual_vs_time_offset.png").stat().st_size > 1000
     assert h5.read_bytes() == before  # nothing the user gave is touched
-    # closeloop.rrd opens on the comparison (issue 15): per axis, before and after in ONE view, the three
+    # closeloop.rrd opens on the comparison: per axis, before and after in ONE view, the three
     # on one y range, the whole recording on x; the found effect against its regressor; the spectrum
     from gyrosim.viewer import read_blueprint, read_texts
 

@@ -1,5 +1,5 @@
 """calib closeloop names causes, not proxies: identifiability, confounding, acceptance on every
-held-out metric, and the harder suite (issue 14).
+held-out metric, and the harder suite.
 
 Tolerances and counts:
 * parameters: |θ̂ − θ| ≤ 4σ̂ per identifiable parameter (σ̂ the fit's own standard error, inflated by

@@ -1,4 +1,4 @@
-"""The loop on the magnetometer channel (issue 17 item 4): undeclared hard iron, soft iron and the
+"""The loop on the magnetometer channel: undeclared hard iron, soft iron and the
 magnetometer-to-IMU misalignment named, a room anomaly reported as unexplained structure (never
 absorbed), nothing added on a clean compass, the identifiability gate, and the report.
 

@@ -1,4 +1,4 @@
-"""The magnetometer cases of the closeloop suite over 10 seeds (issue 17 item 4; docs/magnetometer.md
+"""The magnetometer cases of the closeloop suite over 10 seeds (docs/magnetometer.md
 has the 20-seed table of ``calib closeloop-suite --cases mag --seeds 20``).
 
 Criteria (the issue): the right cause named in ≥ 9/10 seeds, the room anomaly reported as

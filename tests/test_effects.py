@@ -1,4 +1,4 @@
-"""The effect vocabulary and sensor model (issue 3): round trips, sensitivities, units, noise
+"""The effect vocabulary and sensor model: round trips, sensitivities, units, noise
 statistics, temperature, immutability and bad input."""
 
 from __future__ import annotations

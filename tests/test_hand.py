@@ -1,4 +1,4 @@
-"""Issue 13: calibration with an imperfect hand — the hand-aware method (kf_hand), honest σ for the
+"""Calibration with an imperfect hand — the hand-aware method (kf_hand), honest σ for the
 hand-blind ones, the hand-aware bound, coaching, confounding refusal.
 
 Data from the independent generator (tests/independent_generator.py: imports nothing of ours; the hand
