@@ -35,6 +35,10 @@ __all__ = ["SignalContext", "Effect", "VectorEffect", "EFFECTS", "effect_from_di
 EFFECTS: dict[str, type["Effect"]] = {}  # kind → class, filled by Effect.__init_subclass__ in definition order
 
 
+# ``quantities`` of an effect that any triad can carry (noise terms, output stage)
+ANY_TRIAD: dict[str, str] = {"gyro": "rate", "accelerometer": "acceleration", "magnetometer": "magnetic_field"}
+
+
 @dataclass(frozen=True)
 class SignalContext:
     """What effects may depend on, all sampled at ``t_s`` (s).

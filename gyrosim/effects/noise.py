@@ -17,7 +17,7 @@ from scipy import signal as sp_signal
 from .. import _kernels as kern
 from ..errors import GyrosimError
 from ..units import DEG, G0
-from .base import Effect, _need_rng, _vec
+from .base import ANY_TRIAD, Effect, _need_rng, _vec
 
 __all__ = ["WhiteNoise", "BiasInstability", "RandomWalk", "GaussMarkov", "QuantizationNoise", "RateRamp",
            "spectral_noise", "haar_gain2"]
@@ -186,8 +186,7 @@ class BiasInstability(Effect):
     closeloop_reason: ClassVar[str] = (
         "tested together with random_walk as 'bias drift' (one slow bias; one recording cannot "
         "separate the two spectra reliably)")
-    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
-                                            "magnetometer": "magnetic_field"}
+    quantities: ClassVar[dict[str, str]] = ANY_TRIAD
     stochastic: ClassVar[bool] = True
     invertible: ClassVar[bool] = False
     param_fields: ClassVar[tuple[str, ...]] = ("value",)
@@ -347,8 +346,7 @@ class GaussMarkov(Effect):
     ``bias_instability`` with ``model = "gauss_markov"`` is this process sized by B (σ = B/0.664)."""
 
     kind: ClassVar[str] = "gauss_markov"
-    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
-                                            "magnetometer": "magnetic_field"}
+    quantities: ClassVar[dict[str, str]] = ANY_TRIAD
     stochastic: ClassVar[bool] = True
     invertible: ClassVar[bool] = False
     param_fields: ClassVar[tuple[str, ...]] = ("sigma", "tau_s")

@@ -13,7 +13,7 @@ from scipy.interpolate import CubicSpline
 
 from .. import _kernels as kern
 from ..errors import GyrosimError
-from .base import Effect, SignalContext, _need_rng, _vec
+from .base import ANY_TRIAD, Effect, SignalContext, _need_rng, _vec
 
 __all__ = ["Bandwidth", "TimeOffset", "Jitter", "Quantization", "Saturation"]
 
@@ -126,8 +126,7 @@ class Quantization(Effect):
     kind: ClassVar[str] = "quantization"
     closeloop_reason: ClassVar[str] = (
         "not a residual term (RMS LSB/√12): detected from the output's granularity (checks)")
-    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
-                                            "magnetometer": "magnetic_field"}
+    quantities: ClassVar[dict[str, str]] = ANY_TRIAD
     pointwise: ClassVar[bool] = True
     stage: ClassVar[str] = "output"
     invertible: ClassVar[bool] = False
@@ -159,8 +158,7 @@ class Saturation(Effect):
     kind: ClassVar[str] = "saturation"
     closeloop_reason: ClassVar[str] = (
         "not a residual term: detected as samples at the rails (checks)")
-    quantities: ClassVar[dict[str, str]] = {"gyro": "rate", "accelerometer": "acceleration",
-                                            "magnetometer": "magnetic_field"}
+    quantities: ClassVar[dict[str, str]] = ANY_TRIAD
     pointwise: ClassVar[bool] = True
     stage: ClassVar[str] = "output"
     invertible: ClassVar[bool] = False
