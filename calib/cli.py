@@ -235,8 +235,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
 
     check_output_paths({"--json": args.json}, [args.schedule, args.hand, args.sensor])
     with tqdm(total=args.seeds, desc="sessions", unit="seed", leave=False) as bar:
-        methods = args.methods or ("kf_session,iterated_session" if args.accelerometer == "estimate" else "kf,iterated_session")
-        r = monte_carlo(args.schedule, args.hand, args.sensor, args.seeds, args.rate, tuple(methods.split(",")),
+        methods = tuple(args.methods.split(",")) if args.methods else None   # None: the library's default
+        r = monte_carlo(args.schedule, args.hand, args.sensor, args.seeds, args.rate, methods,
                         progress=bar.update, calibrated_accelerometer=args.calibrated_accelerometer,
                         accelerometer=args.accelerometer, first_seed=args.first_seed)
     print(r.table())

@@ -217,13 +217,18 @@ def monte_carlo(
     sensor: str = "zhou2020_sim",
     seeds: int = 50,
     rate_hz: float = 100.0,
-    methods: tuple[str, ...] = ("kf", "iterated_session"),
+    methods: tuple[str, ...] | None = None,
     first_seed: int = 0,
     progress: Callable[[int], None] | None = None,
     calibrated_accelerometer: bool = False,
     accelerometer: str = "calibrated",
 ) -> MonteCarloResult:
-    """Run the Monte Carlo (module docstring) and return its statistics."""
+    """Run the Monte Carlo (module docstring) and return its statistics.  ``methods`` defaults to the
+    paper's filter and calib run's three-pass one (``kf``, ``iterated_session``); with
+    ``accelerometer="estimate"`` to calib run's two (``kf_session``, ``iterated_session``): the paper's
+    ``kf`` assumes a calibrated accelerometer and has no σ for its parameters."""
+    if methods is None:
+        methods = ("kf_session" if accelerometer == "estimate" else "kf", "iterated_session")
     sched, hnd, model = load_schedule(schedule), load_hand(hand), load_sensor(sensor)
     if calibrated_accelerometer:
         model = replace(model, name=f"{model.name} (accelerometer calibrated)",
