@@ -74,10 +74,10 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import _tilt_sigma, prepare, rest_mask
 from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
 from .fastkf import run_filter
-from .kalman import HAND_BIAS, initial_covariance, m_matrix, theta_slice
+from .kalman import G_SENS_BLOCKS, HAND_BIAS, StateLayout, initial_covariance, m_matrix, theta_slice
 
 __all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
-           "bias_drift"]
+           "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature"]
 
 CUTOFF_HZ = 4.0            # below the tremor band (8–12 Hz), above the schedule's rotations (< 1 Hz)
 ORDER = 4
@@ -87,6 +87,60 @@ WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (
 PASSES = 3
 LAYOUT = HAND_BIAS
 DRIFT_QUANTILE = 0.95      # the rests' bias differences must exceed their white-noise χ² quantile to be drift
+THERMAL_MIN_SPAN_C = 0.2   # the scale factor's temperature coefficient is a state when the session's temperature moved this much
+THERMAL_SMOOTH_S = 2.0     # the temperature channel is averaged over this window (its quantisation and noise)
+
+
+def hand_layout(temperature: bool) -> StateLayout:
+    """kf_hand's states: :data:`calib.kalman.HAND_BIAS` (attitude, S, G, gyro bias, lever arm, x, z, z₂), then
+    the scale factor's temperature coefficient s_T when the session's temperature moved (``temperature``), then
+    the gyro's g-sensitivity (diagonal: b_g,i = b_i + k_i f_i, f the specific force) — 27 or 30 states."""
+    return StateLayout(HAND_BIAS.blocks + (("gyro_temp_scale",) if temperature else ()) + G_SENS_BLOCKS)
+
+
+def session_temperature(temp_c: np.ndarray | None, rate_hz: float) -> tuple[np.ndarray, float] | None:
+    """(T − T₀ (N,), T₀) of a recording's temperature channel over the filtered span, or None when it has
+    none or it moved less than ``THERMAL_MIN_SPAN_C`` (then S is a constant, as before).  T is averaged over
+    ``THERMAL_SMOOTH_S`` (a thermometer's LSB and noise; the sensor's temperature moves over minutes), T₀ its
+    mean (the filter's reference: keeps the regressor ω (T − T₀) centred)."""
+    from scipy.ndimage import uniform_filter1d
+
+    if temp_c is None:
+        return None
+    t = np.asarray(temp_c, float)
+    if t.size < 2 or not np.all(np.isfinite(t)):
+        return None
+    ts = uniform_filter1d(t, size=max(1, int(round(THERMAL_SMOOTH_S * rate_hz))), mode="nearest")
+    if float(ts.max() - ts.min()) < THERMAL_MIN_SPAN_C:
+        return None
+    t0 = float(ts.mean())
+    return ts - t0, t0
+
+
+def scale_at_temperature(P: np.ndarray, layout, t0_c: float) -> tuple[np.ndarray, np.ndarray]:
+    """The temperatures T_r (3,) at which the session determined each axis's gyro scale factor best, and the
+    map J (6, n) from the error state to [S(T_r), G]: with S_i(T) = S_i(T₀) + s_T,i (T − T₀) (the
+    ``gyro_temp_scale`` block),
+
+        Var S_i(T) = P_SS,ii + 2 (T − T₀) P_Ss,ii + (T − T₀)² P_ss,ii,   minimal at T_r,i = T₀ − P_Ss,ii / P_ss,ii
+
+    — the temperature at which axis i's rotations happened, weighted by what they taught (the centre of the
+    regressor ω_i (T − T₀)'s information, where S_i and s_T,i decouple).  A gyro's scale factor moves with
+    temperature (the MPU-9250's datasheet: ±4 % over −40…85 °C) and a session that warms by a degree cannot
+    measure that coefficient (its σ is tens of times the coefficient itself), so the calibration is valid at a
+    temperature and says which: S_i is reported at T_r,i.  Without the block: (T₀ on every axis, the plain
+    selection of S, G)."""
+    n = P.shape[0]
+    J = np.zeros((6, n))
+    J[:, 3:9] = np.eye(6)
+    o = layout.offset("gyro_temp_scale")
+    if o < 0:
+        return np.full(3, t0_c), J
+    pss = np.diag(P[o:o + 3, o:o + 3])
+    psS = np.diag(P[3:6, o:o + 3])
+    d = -psS / np.where(pss > 0, pss, np.inf)
+    J[0:3, o:o + 3] = np.diag(d)
+    return t0_c + d, J
 
 
 def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -283,6 +337,8 @@ def kf_hand(rec: Recording) -> Calibration:
     sigma_s, tau, tau_hp, hp_order = math.sqrt(max(3.0 * along, r_var)), 1.0, math.inf, 1
     tremor_rms = math.sqrt(max(float(np.mean(np.sum((rec.acc_m_s2[a:] - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
     still = rest_mask(prep, n)
+    thermal = session_temperature(None if rec.temp_c is None else rec.temp_c[a:], fs)   # (T − T₀, T₀) or None
+    layout = hand_layout(thermal is not None)
     for p in range(PASSES):
         theta[theta_slice("gyro_bias")] = prep.theta0[theta_slice("gyro_bias")]   # each pass starts at the rest's bias
         m = m_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")])
@@ -297,14 +353,22 @@ def kf_hand(rec: Recording) -> Calibration:
             sigma_s = max(sigma_s, 1e-3 * math.sqrt(r_var))
         cfg = type(cfg0)(**{**cfg0.__dict__, "external_acc_allowance_m_s2": 0.0, "ext_acc_rms_m_s2": sigma_s,
                             "ext_acc_tau_s": tau, "ext_acc_highpass_tau_s": tau_hp, "ext_acc_highpass_order": hp_order})
-        p0 = initial_covariance(LAYOUT, cfg, tilt_sigma_rad=tilt)
-        x0 = np.zeros(LAYOUT.n)
+        p0 = initial_covariance(layout, cfg, tilt_sigma_rad=tilt)
+        x0 = np.zeros(layout.n)
         x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
-        x0[LAYOUT.offset("lever_arm"):LAYOUT.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
-        h0 = np.concatenate([hand0[:3], np.zeros(9)])
+        x0[layout.offset("lever_arm"):layout.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
+        h0 = np.concatenate([hand0[:3], np.zeros(9), hand0[12:21] if hand0.size >= 21 else np.zeros(9)])
+        og = layout.offset("gyro_g_sens")
+        if og >= 0:
+            x0[og:og + 3] = -h0[18:21]                            # prior k = 0 seen from the linearisation point
+        ot = layout.offset("gyro_temp_scale")
+        if ot >= 0:
+            x0[ot:ot + 3] = -h0[15:18]                            # prior s_T = 0 seen from the linearisation point
         out = run_filter(rec.gyro_rad_s[None, a:], f_lp[None], t, prep.quat0_nb[None], theta[None], p0,
-                         LAYOUT, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
-                         x0=x0[None], lever_regressor=kreg, hand0=h0)
+                         layout, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
+                         x0=x0[None], lever_regressor=kreg, hand0=h0,
+                         temperature_rel_c=None if thermal is None else thermal[0],
+                         specific_force_m_s2=f_lp)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
     P = out.p[0]
@@ -313,11 +377,17 @@ def kf_hand(rec: Recording) -> Calibration:
     infl = innovation_inflation(out.whitened[0], t[1:])
     cov = np.zeros((9, 9))
     cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)
-    cov[3:, 3:] = P[3:9, 3:9] * infl.factor
+    # the temperature block (thermal is not None): S is reported at the temperature the session pinned it best
+    t_ref, jt = scale_at_temperature(P, layout, thermal[1] if thermal is not None else float("nan"))
+    cov[3:, 3:] = (jt @ P @ jt.T) * infl.factor
+    temperature = _temperature_report(thermal, t_ref, hand0, P, layout, infl.factor)
+    if thermal is not None:
+        theta[theta_slice("gyro_scale")] += hand0[15:18] * (t_ref - thermal[1])   # S_i(T_r,i) = S_i(T₀) + s_T,i (T_r,i − T₀)
     values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
-    status, notes = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
+    status, notes_v = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
                             check_estimate(values, cov, cfg0.gravity_m_s2))
+    notes = notes_v + ([temperature["note"]] if thermal is not None else [])
     status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
     if prep.noise.at_floor and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
@@ -358,9 +428,48 @@ def kf_hand(rec: Recording) -> Calibration:
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": drift.to_dict(),
-                                                "filter": {"states": list(LAYOUT.names), "passes": PASSES,
+                                                "temperature": {k: v for k, v in temperature.items() if k != "note"},
+                                                "gyro_g_sensitivity": _g_sensitivity_report(hand0, P, layout, infl.factor),
+                                                "filter": {"states": list(layout.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
+
+
+def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.ndarray, hand: np.ndarray, P: np.ndarray,
+                        layout, inflation: float) -> dict:
+    """``diagnostics["temperature"]``: the temperature S is reported at and the scale factor's temperature
+    coefficient found (a finding for the user: it says how far from this temperature the calibration holds)."""
+    if thermal is None:
+        return {"modelled": False, "reason": f"no temperature channel, or it moved less than {THERMAL_MIN_SPAN_C} °C"}
+    dT, t0 = thermal
+    o = layout.offset("gyro_temp_scale")
+    s_t = hand[15:18]
+    s_sd = np.sqrt(np.diag(P[o:o + 3, o:o + 3]) * inflation)
+    return {"modelled": True, "scale_reference_temperature_c": np.asarray(t_ref_c).tolist(),
+            "filter_reference_temperature_c": t0,
+            "span_c": [t0 + float(dT.min()), t0 + float(dT.max())],
+            "scale_temperature_coefficient_per_c": s_t.tolist(), "scale_temperature_coefficient_std_per_c": s_sd.tolist(),
+            "note": f"temperature: the session warmed {float(dT.max() - dT.min()):.2f} °C ({t0 + float(dT.min()):.2f}–"
+                    f"{t0 + float(dT.max()):.2f} °C); the gyro scale factor is modelled as S + s_T (T − T₀) and reported at "
+                    f"{np.array2string(np.asarray(t_ref_c), precision=2)} °C (x, y, z: where this session's rotations about each axis "
+                    "determined it; a scale factor holds at a temperature); s_T = "
+                    f"{np.array2string(s_t * 1e6, precision=0)} ± {np.array2string(s_sd * 1e6, precision=0)} ppm/°C (a session "
+                    "spanning a degree cannot measure it: a calibration at two temperatures can)"}
+
+
+def _g_sensitivity_report(hand: np.ndarray, P: np.ndarray, layout, inflation: float) -> dict:
+    """``diagnostics["gyro_g_sensitivity"]``: the gyro's sensitivity to specific force along its own axis k_i
+    (b_g,i = b_i + k_i f_i) with its σ, in rad/s per m/s² and °/s/g (a datasheet's "linear acceleration
+    sensitivity").  The common part k_x = k_y = k_z is a bias along gravity — a rate about the vertical, which a
+    levelling measurement cannot see — so it stays near its prior σ; the differences are what the session
+    measured."""
+    o = layout.offset("gyro_g_sens")
+    k = hand[18:21]
+    sd = np.sqrt(np.clip(np.diag(P)[o:o + 3], 0.0, None) * inflation)
+    to_deg_g = math.degrees(1.0) * 9.80665
+    return {"model": "b_g,i = b_i + k_i f_i (f the specific force, body; diagonal g-sensitivity)",
+            "k_rad_s_per_m_s2": k.tolist(), "std_rad_s_per_m_s2": sd.tolist(),
+            "k_deg_s_per_g": (k * to_deg_g).tolist(), "std_deg_s_per_g": (sd * to_deg_g).tolist()}
 
 
 def _confounding(P: np.ndarray, ol: int) -> None:

@@ -79,7 +79,7 @@ from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
-           "HAND_BLOCKS",
+           "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "HAND_BIAS_TS", "HAND_BIAS_THERMAL",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
 
@@ -94,18 +94,28 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 # infinite: the plain Gauss–Markov a_e); a second-order high-pass adds z₂, the low-pass of x − z
 # ("ext_acc_lp2"), a_e = x − z − z₂ (z₂ ≡ 0 for the first order); their nominals live beside θ, not in it (θ keeps its 18 sensor
 # parameters)
+# then the gyro's temperature blocks (compiled filter only, :mod:`calib.handkf`): the bias's and the scale
+# factor's temperature coefficients, b_g(T) = b_g + c_b (T − T₀), S(T) = S + s_T (T − T₀), with T the
+# recording's own temperature channel and T₀ the filter's reference (random constants; nominals beside θ)
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
-          "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2")
+          "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2", "gyro_temp_bias", "gyro_temp_scale",
+          "gyro_g_sens")
 THETA = BLOCKS[1:7]
-HAND_BLOCKS = BLOCKS[7:]
+HAND_BLOCKS = BLOCKS[7:11]
+THERMAL_BLOCKS = BLOCKS[11:13]
+G_SENS_BLOCKS = BLOCKS[13:14]   # the gyro's g-sensitivity, diagonal K = diag(k) (rad/s per m/s²): b_g,i += k_i f_i
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
           "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
-          "ext_acc_lp2": "ael2"}
+          "ext_acc_lp2": "ael2", "gyro_temp_bias": "cb", "gyro_temp_scale": "sT",
+          "gyro_g_sens": "kg"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
                 "ext_acc": "external acceleration", "ext_acc_lp": "external acceleration's low-pass",
-                "ext_acc_lp2": "external acceleration's second low-pass"}
+                "ext_acc_lp2": "external acceleration's second low-pass",
+                "gyro_temp_bias": "gyro bias temperature coefficient",
+                "gyro_temp_scale": "gyro scale factor temperature coefficient",
+                "gyro_g_sens": "gyro g-sensitivity (diagonal)"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -152,11 +162,22 @@ class StateLayout:
     def models_hand(self) -> bool:
         return self.has("lever_arm") or self.has("ext_acc")
 
+    @property
+    def models_temperature(self) -> bool:
+        return self.has("gyro_temp_bias") or self.has("gyro_temp_scale")
+
+    @property
+    def models_g_sensitivity(self) -> bool:
+        return self.has("gyro_g_sens")
+
 
 PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated accelerometer, static bias)
 JOINT = StateLayout(BLOCKS[:7])          # + gyro bias and the accelerometer's 9 parameters: 21 states
 HAND = StateLayout(BLOCKS[:3] + HAND_BLOCKS)  # the paper's 9 + lever arm + external acceleration (x, z, z₂): 21 states
 HAND_BIAS = StateLayout(BLOCKS[:4] + HAND_BLOCKS)  # kf_hand: HAND + the gyro bias (a random walk): 24 states
+# kf_hand on a recording whose temperature moved: + the scale factor's temperature coefficient s_T: 27 states
+HAND_BIAS_TS = StateLayout(BLOCKS[:4] + HAND_BLOCKS + ("gyro_temp_scale",))
+HAND_BIAS_THERMAL = StateLayout(BLOCKS[:4] + HAND_BLOCKS + THERMAL_BLOCKS)   # + c_b too: 30 states
 
 
 def theta_slice(block: str) -> slice:
@@ -243,6 +264,9 @@ class FilterConfig:
     ``gyro_bias_rw_rad_s_sqrt_s``: with a ``gyro_bias`` block, the bias is a random walk,
     ḃ_g = w_b, E[w_b w_bᵀ] = q_b I δ(t), q_b = this² (rad²/s³): Q_bb = q_b Δt per step (IEEE 952's rate
     random walk K; 0: a random constant, the paper's model).
+    ``prior_gyro_temp_bias_rad_s_c``, ``prior_gyro_temp_scale_per_c``: prior σ of the temperature blocks
+    (rad/s/°C, 1/°C; 0.01 each: vague — 0.6 °/s/°C and 1 %/°C, thirty times a consumer MEMS gyro's datasheet
+    spread — so that the session's data, not a sensor's datasheet, decides them).
     """
 
     arw_rad_s_sqrt_hz: float
@@ -264,6 +288,9 @@ class FilterConfig:
     gyro_bias_rw_rad_s_sqrt_s: float = 0.0
     ext_acc_highpass_tau_s: float = math.inf
     ext_acc_highpass_order: int = 1
+    prior_gyro_temp_bias_rad_s_c: float = 0.01
+    prior_gyro_temp_scale_per_c: float = 0.01
+    prior_gyro_g_sens_rad_s_per_m_s2: float = 1e-3
 
     def r_var(self, rate_hz: float) -> float:
         """R per axis, (m/s²)²: σ_f² + a_ext²."""
@@ -277,7 +304,10 @@ class FilterConfig:
                 "acc_nonorth": np.full(3, self.prior_acc_nonorthogonality),
                 "lever_arm": np.full(3, self.prior_lever_arm_m),
                 "ext_acc": np.full(3, self.ext_acc_rms_m_s2),
-                "ext_acc_lp": np.zeros(3), "ext_acc_lp2": np.zeros(3)}[block]   # with ext_acc: ext_acc_stationary
+                "ext_acc_lp": np.zeros(3), "ext_acc_lp2": np.zeros(3),
+                "gyro_temp_bias": np.full(3, self.prior_gyro_temp_bias_rad_s_c),
+                "gyro_temp_scale": np.full(3, self.prior_gyro_temp_scale_per_c),
+                "gyro_g_sens": np.full(3, self.prior_gyro_g_sens_rad_s_per_m_s2)}[block]   # with ext_acc: ext_acc_stationary
 
     def ext_acc_stationary(self) -> np.ndarray:
         """Stationary covariance (k, k) of one nav axis's (x, z[, z₂]) (k = 1 + high-pass order; k = 1 for
@@ -396,9 +426,9 @@ class ZhouFilter:
 
     def __init__(self, config: FilterConfig, quat0_nb: np.ndarray, rate_hz: float, layout: StateLayout = PAPER,
                  theta0: np.ndarray | None = None, p0: np.ndarray | None = None, x0: np.ndarray | None = None) -> None:
-        if layout.models_hand:
-            raise ValueError("the hand's blocks (lever arm, external acceleration) run in the compiled filter only "
-                             "(calib.fastkf.run_filter)")
+        if layout.models_hand or layout.models_temperature or layout.models_g_sensitivity:
+            raise ValueError("the hand's blocks (lever arm, external acceleration) and the temperature blocks run in "
+                             "the compiled filter only (calib.fastkf.run_filter)")
         self.config = config
         self.layout = layout
         n = layout.n

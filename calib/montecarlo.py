@@ -53,8 +53,8 @@ from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
-from .handkf import white_density
-from .kalman import HAND, HAND_BIAS, JOINT, PAPER, FilterConfig, initial_covariance
+from .handkf import scale_at_temperature, session_temperature, white_density
+from .kalman import G_SENS_BLOCKS, HAND, HAND_BIAS, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -158,13 +158,19 @@ def _estimator(method: str, accelerometer: str) -> Callable:
 def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, quat_true_nb: np.ndarray,
               t_s: np.ndarray, theta_true: np.ndarray, config: FilterConfig, rate_hz: float, sigma_s_m_s2: float,
               tau_s: float, vague: float = 10.0, highpass_tau_s: float = math.inf,
-              bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1) -> np.ndarray:
+              bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1,
+              temperature_rel_c: np.ndarray | None = None, g_sensitivity: bool = False) -> np.ndarray:
     """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.kalman.HAND` states (module
     docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
     rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
     tremor-free measurement of :mod:`calib.handkf` (every D-th sample, R = σ_f²/D); with
     ``bias_rw_rad_s_sqrt_s`` > 0 the gyro bias is a random-walk state as in ``kf_hand`` (prior: the rest
-    average's σ in ``config``).  S, G are rows 3:9 of the result either way."""
+    average's σ in ``config``); with ``temperature_rel_c`` (N,), T − T₀ (°C), the scale factor's temperature
+    coefficient s_T is three more nuisance states with a vague prior, S_i(T) = S_i(T₀) + s_T,i (T − T₀), as in
+    ``kf_hand`` on a session whose temperature moved (:func:`calib.handkf.scale_at_temperature` maps the result to
+    S at the temperatures the session determined it); ``g_sensitivity``: the gyro's g-sensitivity (diagonal,
+    b_g,i = b_i + k_i f_i with f the true specific force) is three more nuisance states with a vague prior, as in
+    ``kf_hand``.  S, G are rows 3:9 of the result either way (S at T₀)."""
     from .handkf import _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
@@ -178,15 +184,46 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
                   ext_acc_highpass_tau_s=highpass_tau_s, ext_acc_highpass_order=int(highpass_order),
                   gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s)
     layout = HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND
+    layout = StateLayout(layout.blocks + (("gyro_temp_scale",) if temperature_rel_c is not None else ())
+                         + (G_SENS_BLOCKS if g_sensitivity else ()))
     p0 = initial_covariance(layout, cfg)
     p0[3:9, 3:9] = np.eye(6) * vague**2
     o = layout.offset("lever_arm")
     p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
+    # vague priors of the nuisance blocks in their own units: 0.1/°C (10 %/°C) for s_T, 0.01 rad/s per m/s²
+    # (5.6 °/s/g) for the g-sensitivity — fifty times any MEMS datasheet; ``vague`` itself (10 rad/s per m/s²)
+    # would put ~100 rad/s in the bias's direction and lose the recursion's precision
+    for blk, sd in (("gyro_temp_scale", 0.1), ("gyro_g_sens", 0.01)):
+        if layout.has(blk):
+            ot = layout.offset(blk)
+            p0[ot:ot + 3, ot:ot + 3] = np.eye(3) * sd**2
     r_var = config.vrw_m_s2_sqrt_hz**2 * rate_hz / dec
     run = run_filter(gyro[None], np.asarray(f_gravity_body_m_s2)[None], t_s, np.asarray(quat_true_nb[0], float)[None],
                      th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
-                     lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz))
+                     lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz),
+                     temperature_rel_c=temperature_rel_c,
+                     specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if g_sensitivity else None)
     return run.p[0]
+
+
+def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
+    """The simulated device's gyro scale factor change (3,) at the temperatures ``t_c`` (°C, one per axis)
+    relative to its preset reference: Σ_p c_ip (T_i − T_ref)^p of its ``temperature_scale`` effects (scoring
+    only: it reads the truth).  A calibration that says at which temperature its S holds
+    (``diagnostics["temperature"]``, :func:`calib.handkf.scale_at_temperature`) is scored against the device's
+    S at that temperature; the oracle's S (:func:`gyrosim.calibration.truth_calibration`) is the one at T_ref."""
+    from gyrosim.sensor_model import stored_sensor_model
+
+    model = stored_sensor_model(rec.meta or {})
+    out = np.zeros(3)
+    if model is None:
+        return out
+    t = np.asarray(t_c, float)
+    for e in model.gyro:
+        if e.kind == "temperature_scale":
+            c = np.asarray(e.coefficients, float)
+            out += np.array([sum(c[i, p] * (t[i] - e.t_ref_c) ** (p + 1) for p in range(c.shape[1])) for i in range(3)])
+    return out
 
 
 def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.ndarray, statuses: list[str],
@@ -242,6 +279,9 @@ def monte_carlo(
     cov = {m: [] for m in methods}
     status = {m: [] for m in methods}
     truths = []
+    truth_m = {m: [] for m in methods}          # per method: S at the temperature its calibration states, if it does
+    t_ref_m = {m: [] for m in methods}
+    gs_m = {m: False for m in methods}
     first = None
     for k in range(seeds):
         seed = first_seed + k
@@ -265,6 +305,14 @@ def monte_carlo(
                     f"--accelerometer estimate scores the accelerometer's parameters, but {m!r} does not estimate them "
                     "(it assumes a calibrated accelerometer: no σ for them). Use a joint method (kf_session, "
                     "iterated_session: calib run's filter) or --accelerometer calibrated")
+            tm = truths[-1].copy()
+            temp = c.diagnostics.get("temperature", {})
+            if temp.get("modelled"):
+                t_r = np.asarray(temp["scale_reference_temperature_c"], float)
+                tm[3:6] += truth_scale_at_temperature(rec, t_r)
+                t_ref_m[m].append(t_r)
+            truth_m[m].append(tm)
+            gs_m[m] = gs_m[m] or "gyro_g_sensitivity" in c.diagnostics
             est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))
             cov[m].append(block)
             status[m].append(c.status)
@@ -315,13 +363,29 @@ def monte_carlo(
         else:
             hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0, "highpass_tau_s": math.inf, "highpass_order": 1,
                         "bias_rw_rad_s_sqrt_s": 0.0}
+        # a method that models the scale factor's temperature dependence (kf_hand on a session that warmed) reports
+        # S at the temperatures the session determined it: the bound is that of the same quantity, with s_T nuisance
+        thermal = session_temperature(rec0.temp_c[start:], rate_hz) if (
+            rec0.temp_c is not None and any(t_ref_m[m] for m in methods)) else None
+        # and its g-sensitivity, when a method estimated it (kf_hand): three nuisance states of the same model
+        g_sens = any(gs_m[m] for m in methods)
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
                        hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
-                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"])
+                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"],
+                       temperature_rel_c=None if thermal is None else thermal[0], g_sensitivity=g_sens)
+        sd_sg = np.sqrt(np.diag(ph))[3:9]
+        if thermal is not None:
+            base = HAND_BIAS if hand_psd["bias_rw_rad_s_sqrt_s"] > 0 else HAND
+            t_r, jt = scale_at_temperature(ph, StateLayout(base.blocks + ("gyro_temp_scale",)
+                                                           + (G_SENS_BLOCKS if g_sens else ())), thermal[1])
+            sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
+            hand_psd["scale_reference_temperature_c"] = t_r.tolist()      # the bound's; the estimates' median beside it
+            hand_psd["scale_reference_temperature_c_estimates"] = np.median(
+                np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
         if not math.isfinite(hand_psd["highpass_tau_s"]):
             hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
-        sqrt_hand = np.concatenate([bias_crlb, np.sqrt(np.diag(ph))[3:9]])
-    result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), truths_arr, sqrt_crlb, status[m], slice(3, 9), sqrt_hand)
-              for m in methods}
+        sqrt_hand = np.concatenate([bias_crlb, sd_sg])
+    result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
+                        sqrt_hand) for m in methods}
     return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
                             accelerometer, names, sqrt_hand, hand_psd)

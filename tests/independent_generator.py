@@ -142,7 +142,8 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     field_enu_ut=None, mag_noise_ut: float = 0.0,
                     lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
                     sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
-                    bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0)) -> dict:
+                    bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
+                    temperature_c=None, scale_per_c=(0.0, 0.0, 0.0)) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
@@ -158,7 +159,12 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
 
     A drifting gyro bias (a consumer gyro warming up): ``bias_ramp_rad_s2`` adds a linear trend per axis
     and ``bias_walk_rad_s_sqrt_s`` K a random walk (Euler sum of N(0, K² Δt) steps per sample, its own
-    random stream); ``bias_rad_s`` in the result stays the bias at t = 0, ``bias_path_rad_s`` the whole path."""
+    random stream); ``bias_rad_s`` in the result stays the bias at t = 0, ``bias_path_rad_s`` the whole path.
+
+    A warming sensor: ``temperature_c`` (N,) the sensor temperature (°C, recorded in ``temp_c``) and
+    ``scale_per_c`` (3,) the scale factor's temperature coefficient (1/°C): the gyro's scale is
+    S + scale_per_c (T − T[0]) sample by sample (``scale_factor`` in the result is S at T[0]), applied as
+    ω_i (1 + ΔS_i(t)) on top of M ω."""
     rng = np.random.default_rng(seed)
     t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
     n = omega.shape[0]
@@ -183,6 +189,10 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
         steps_rw[0] = 0.0
         bias_path = bias_path + np.cumsum(steps_rw, axis=0)
     clean = omega @ _m(scale, nonortho).T + bias_path
+    temp = None
+    if temperature_c is not None:
+        temp = np.asarray(temperature_c, float)
+        clean = clean + omega * (temp - temp[0])[:, None] * np.asarray(scale_per_c, float)[None, :]
     if g_sensitivity is not None:
         clean = clean + gravity_body @ np.asarray(g_sensitivity, float).T
     if delay_s:
@@ -198,7 +208,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
             "bias_rad_s": bias, "bias_path_rad_s": bias_path, "scale_factor": np.asarray(scale, float), "nonorthogonality": np.asarray(nonortho, float),
             "acc_bias_m_s2": acc_bias, "acc_scale_factor": np.asarray(acc_scale, float),
             "acc_nonorthogonality": np.asarray(acc_nonortho, float),
-            "gyro_noise_rad_s": math.radians(gyro_noise_deg_s), "acc_noise_m_s2": acc_noise_g * G}
+            "gyro_noise_rad_s": math.radians(gyro_noise_deg_s), "acc_noise_m_s2": acc_noise_g * G, "temp_c": temp}
 
 
 def write_csv(path: Path, data: dict) -> Path:
