@@ -30,7 +30,7 @@ from numba import njit
 
 from gyrosim.rotations import quat_to_matrix
 
-from .kalman import PAPER, FilterConfig, StateLayout, initial_covariance, leave_out_means, theta_slice
+from .kalman import PAPER, SENSOR_EXTRA_BLOCKS, FilterConfig, StateLayout, initial_covariance, leave_out_means, theta_slice
 
 __all__ = ["BatchResult", "FilterRun", "run_batch", "run_filter", "crlb", "crlb_joint", "regressor_half_window"]
 
@@ -132,12 +132,12 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=False)
 def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
-            kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg):  # pragma: no cover
+            kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg, offs_x, sens0):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
-    hand = hand0.copy()                                        # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12),
-    #                                                            the gyro's temperature coefficients c_b (12:15), s_T (15:18)
+    hand = hand0.copy()                                        # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
+    sens = sens0.copy()                                        # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9): calib.kalman.SENSOR_EXTRA_BLOCKS
     P = P0.copy()
     qout = np.zeros((B, 4))
     nis_out = np.full((B, N - 1), np.nan)
@@ -149,7 +149,7 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     o_sg, o_gg, o_bg, o_ba, o_sa, o_ga = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6]
     o_lv, o_ea, o_el = offs[7], offs[8], offs[9]
     o_e2 = offs[10] if hp_order >= 2 else -1
-    o_tb, o_ts, o_gs = offs[11], offs[12], offs[13]
+    o_tb, o_ts, o_gs = offs_x[0], offs_x[1], offs_x[2]
     acc_states = o_ba >= 0
     E = np.zeros((3, 18))
     ecols = np.zeros(18, dtype=np.int64)
@@ -179,12 +179,13 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
             # ---- propagation: nominal attitude with the compensated rate (trapezoid + coning); the
             # temperature blocks' nominals at the step's mid temperature (T − T₀; zero without them)
             dtm = 0.5 * (dtemp[b, k - 1] + dtemp[b, k])
-            Mi = _nb_minv(th[0:3] + hd[15:18] * dtm, th[3:6])
-            bg = th[6:9] + hd[12:15] * dtm
+            sx = sens[b]
+            Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
+            bg = th[6:9] + sx[0:3] * dtm
             fm = np.zeros(3)
             if o_gs >= 0:                                      # g-sensitivity: b_g,i += k_i f_i (f the specific force, body)
                 fm = 0.5 * (freg[b, k - 1] + freg[b, k])
-                bg = bg + hd[18:21] * fm
+                bg = bg + sx[6:9] * fm
             wp = Mi @ (g[b, k - 1] - bg)
             wn = Mi @ (g[b, k] - bg)
             cr = np.array([wp[1] * wn[2] - wp[2] * wn[1], wp[2] * wn[0] - wp[0] * wn[2], wp[0] * wn[1] - wp[1] * wn[0]])
@@ -407,11 +408,11 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                         if o_e2 >= 0:
                             hd[9 + j] += x[o_e2 + j]
                         if o_tb >= 0:
-                            hd[12 + j] += x[o_tb + j]
+                            sx[j] += x[o_tb + j]
                         if o_ts >= 0:
-                            hd[15 + j] += x[o_ts + j]
+                            sx[3 + j] += x[o_ts + j]
                         if o_gs >= 0:
-                            hd[18 + j] += x[o_gs + j]
+                            sx[6 + j] += x[o_gs + j]
                     q = _nb_qmul(_nb_qexp(x[0:3]), q)
                     q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
             if keep:
@@ -420,17 +421,18 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 for i in range(18):
                     hth[b, k - 1, i] = th[i]
         qout[b] = q
-    return theta, P, qout, nis_out, inn_out, hsd, hth, hand, wht_out
+    return theta, P, qout, nis_out, inn_out, hsd, hth, hand, wht_out, sens
 
 
 @dataclass(frozen=True)
 class FilterRun:
     """B filter runs: final nominal parameters θ̂ (B, 18, ``THETA`` order) and covariance (B, n, n),
     final attitude (B, 4), per-step NIS and innovations (B, N−1[, 3]; NaN where no update), and when
-    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, 18: lever arm r
-    (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂), the gyro's
-    temperature coefficients c_b (rad/s/°C), s_T (1/°C)) and the whitened innovations L⁻¹ν of the two
-    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model)."""
+    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, 12: lever arm r
+    (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂)) and the whitened innovations L⁻¹ν of the two
+    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 9): the gyro's
+    temperature coefficients c_b (rad/s/°C), s_T (1/°C) and g-sensitivity k (rad/s per m/s²), with a layout
+    that has those blocks (:data:`calib.kalman.SENSOR_EXTRA_BLOCKS`)."""
 
     layout: StateLayout
     theta: np.ndarray
@@ -442,6 +444,7 @@ class FilterRun:
     theta_history: np.ndarray | None = None
     hand: np.ndarray | None = None
     whitened: np.ndarray | None = None
+    sensor_extra: np.ndarray | None = None
 
     def block(self, name: str) -> np.ndarray:
         """Nominal of a parameter block (B, 3)."""
@@ -458,7 +461,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
                keep_history: bool = False, gate_nis: float = 0.0, half_window: int | None = None,
                rest_mask: np.ndarray | None = None, x0: np.ndarray | None = None, rows: int = 2,
                lever_regressor: np.ndarray | None = None, hand0: np.ndarray | None = None,
-               temperature_rel_c: np.ndarray | None = None, specific_force_m_s2: np.ndarray | None = None) -> FilterRun:
+               temperature_rel_c: np.ndarray | None = None, specific_force_m_s2: np.ndarray | None = None,
+               sensor0: np.ndarray | None = None) -> FilterRun:
     """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
 
     ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even
@@ -473,10 +477,13 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] + [ω×]² per sample (body), needed by a
     layout with ``lever_arm``; ``hand0`` (≤ 12,) or (B, ≤ 12): the nominal lever arm, external acceleration
     x and its low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the Gauss–Markov σ, τ and
-    the high-pass τ_h from ``config``), then (12:18) the gyro's temperature coefficients c_b, s_T.
+    the high-pass τ_h from ``config``).  ``sensor0`` (9,) or (B, 9): the nominal c_b, s_T, k of the gyro's extra
+    blocks (default 0).
     ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), the sensor temperature relative to the filter's
     reference, needed by a layout with ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then
-    ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T − T₀) + ε (:mod:`calib.kalman`, ``THERMAL_BLOCKS``).
+    ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T − T₀) + ε (:mod:`calib.kalman`, ``THERMAL_BLOCKS``);
+    ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²), needed by a layout with ``gyro_g_sens``:
+    b_g,i += k_i f_i (:data:`calib.kalman.G_SENS_BLOCKS`).
     """
     if rows not in (2, 3):
         raise ValueError(f"rows must be 2 or 3, got {rows}")
@@ -512,10 +519,12 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         kreg = arr(np.broadcast_to(np.asarray(lever_regressor, float), (B, N, 3, 3)))
     else:
         kreg = np.zeros((B, 1, 3, 3))
-    h = np.zeros(21) if hand0 is None else np.asarray(hand0, float)
-    if h.shape[-1] < 21:                                   # lever arm and x (and z) only: the rest start at 0
-        h = np.concatenate([h, np.zeros(h.shape[:-1] + (21 - h.shape[-1],))], axis=-1)
-    hand0 = arr(np.broadcast_to(h, (B, 21)))
+    h = np.zeros(12) if hand0 is None else np.asarray(hand0, float)
+    if h.shape[-1] < 12:                                   # lever arm and x (and z) only: the low-passes start at 0
+        h = np.concatenate([h, np.zeros(h.shape[:-1] + (12 - h.shape[-1],))], axis=-1)
+    hand0 = arr(np.broadcast_to(h, (B, 12)))
+    sens0 = arr(np.broadcast_to(np.zeros(9) if sensor0 is None else np.asarray(sensor0, float), (B, 9)))
+    offs_x = np.array([layout.offset(b) for b in SENSOR_EXTRA_BLOCKS], dtype=np.int64)
     if layout.models_g_sensitivity:
         if specific_force_m_s2 is None:
             raise ValueError("a layout with the gyro's g-sensitivity needs specific_force_m_s2 (N, 3), body, m/s²")
@@ -528,14 +537,15 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         dtemp = arr(np.broadcast_to(np.asarray(temperature_rel_c, float), (B, N)))
     else:
         dtemp = np.zeros((B, N))
-    theta, p, q, nis, inn, hsd, hth, hand, wht = _kernel(
+    theta, p, q, nis, inn, hsd, hth, hand, wht, sens = _kernel(
         g, a, arr(greg), arr(still, np.bool_), arr(t_s), arr(q0), arr(theta0), arr(x0), arr(p0), layout.offsets(),
         config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
         float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
         float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
-        int(config.ext_acc_highpass_order), dtemp, freg)
+        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0)
     return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
-                     hand if (layout.models_hand or layout.models_temperature or layout.models_g_sensitivity) else None, wht)
+                     hand if layout.models_hand else None, wht,
+                     sens if (layout.models_temperature or layout.models_g_sensitivity) else None)
 
 
 @dataclass(frozen=True)

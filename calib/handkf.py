@@ -26,15 +26,28 @@ nav ENU; f the specific force, g_b gravity in the body):
   of attitude, bias instability): a random-walk state, ḃ_g = w, E w² = q_b, q_b from the rests' own
   bias change (:func:`bias_drift`; 0 when the rests agree within their white noise), prior the first
   rest's average.  The filter starts after that rest (its gyro samples would otherwise inform the bias
-  twice), the tilt prior the rest's accelerometer mean's σ.
+  twice), the tilt prior the rest's accelerometer mean's σ;
+* the gyro's g-sensitivity (a MEMS gyro's "linear acceleration sensitivity", 0.1 °/s/g for the MPU-9250
+  family): b_g,i = b_i + k_i f_i with f the (calibrated, low-passed) specific force — a bias step after every
+  change of attitude, which a random walk can only cover by inflating σ; three states, prior σ 1e-3 rad/s
+  per m/s² (0.56 °/s/g), reported in ``diagnostics["gyro_g_sensitivity"]``;
+* the scale factor's temperature dependence (``gyro_temp_scale``), when the recording has a temperature
+  channel that moved ≥ ``THERMAL_MIN_SPAN_C`` (a board warming after power-on): S_i(T) = S_i(T₀) +
+  s_T,i (T − T₀), three states with a vague prior.  A session spanning a degree cannot measure s_T, but it
+  does pin S_i at the temperature where axis i's rotations happened (:func:`scale_at_temperature`), and
+  that is what is reported, with the temperatures, in ``diagnostics["temperature"]`` — a scale factor
+  holds at a temperature (measured on the MPU-9250 preset, zhou2020 schedule: 25.40, 25.24, 25.62 °C
+  for x, y, z in a session warming from 25.0 to 25.85 °C; the constant-S filter's estimates are S at
+  the same temperatures, it just did not say so).
 
 Noise levels from the data, as every estimator here (:mod:`calib.noiselevels`), but from the first
 rest's spectrum *above* the tremor band (:func:`white_density`): a hand's rest is not still, and its
 standard deviation would count the tremor as sensor noise (and make σ pessimistic by that much).
 
 Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
-:func:`calib.fastkf.run_filter` with the :data:`calib.kalman.HAND_BIAS` layout: attitude, S, G, gyro
-bias, lever arm, x, z, z₂ — 24 states, the unused z₂ (m = 1) or z (no high-pass) inert):
+:func:`calib.fastkf.run_filter` with the :func:`hand_layout`: attitude, S, G, gyro bias, lever arm,
+x, z, z₂ (:data:`calib.kalman.HAND_BIAS`), [s_T], g-sensitivity — 27 or 30 states, the unused z₂
+(m = 1) or z (no high-pass) inert):
 
 1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, no high-pass, r̂ = 0;
 2. passes 2 and 3: (σ_s, τ, τ_h, m) from the previous pass's lever arm: e = |f_lp − K r̂| − g is the
@@ -74,7 +87,7 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import _tilt_sigma, prepare, rest_mask
 from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
 from .fastkf import run_filter
-from .kalman import G_SENS_BLOCKS, HAND_BIAS, StateLayout, initial_covariance, m_matrix, theta_slice
+from .kalman import G_SENS_BLOCKS, HAND_BIAS, SENSOR_EXTRA_BLOCKS, StateLayout, initial_covariance, m_matrix, theta_slice
 
 __all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
            "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature"]
@@ -331,6 +344,7 @@ def kf_hand(rec: Recording) -> Calibration:
     r_var = sigma_f2 / dec
     theta = prep.theta0.copy()
     hand0 = np.zeros(6)
+    sens0 = np.zeros(9)                 # the gyro's extra blocks' nominals: c_b, s_T, k (calib.kalman.SENSOR_EXTRA_BLOCKS)
     # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed)
     f_lp0 = _lowpass(rec.acc_m_s2[a:], fs)
     along = float(np.mean((np.linalg.norm(f_lp0, axis=1) - cfg0.gravity_m_s2) ** 2)) - sigma_f2 * rho
@@ -357,20 +371,16 @@ def kf_hand(rec: Recording) -> Calibration:
         x0 = np.zeros(layout.n)
         x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
         x0[layout.offset("lever_arm"):layout.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
-        h0 = np.concatenate([hand0[:3], np.zeros(9), hand0[12:21] if hand0.size >= 21 else np.zeros(9)])
-        og = layout.offset("gyro_g_sens")
-        if og >= 0:
-            x0[og:og + 3] = -h0[18:21]                            # prior k = 0 seen from the linearisation point
-        ot = layout.offset("gyro_temp_scale")
-        if ot >= 0:
-            x0[ot:ot + 3] = -h0[15:18]                            # prior s_T = 0 seen from the linearisation point
+        h0 = np.concatenate([hand0[:3], np.zeros(9)])
+        _sensor_extra_prior(x0, layout, sens0)
         out = run_filter(rec.gyro_rad_s[None, a:], f_lp[None], t, prep.quat0_nb[None], theta[None], p0,
                          layout, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
                          x0=x0[None], lever_regressor=kreg, hand0=h0,
                          temperature_rel_c=None if thermal is None else thermal[0],
-                         specific_force_m_s2=f_lp)
+                         specific_force_m_s2=f_lp, sensor0=sens0)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
+        sens0 = out.sensor_extra[0].copy()
     P = out.p[0]
     ol = LAYOUT.offset("lever_arm")
     _confounding(P, ol)
@@ -380,9 +390,9 @@ def kf_hand(rec: Recording) -> Calibration:
     # the temperature block (thermal is not None): S is reported at the temperature the session pinned it best
     t_ref, jt = scale_at_temperature(P, layout, thermal[1] if thermal is not None else float("nan"))
     cov[3:, 3:] = (jt @ P @ jt.T) * infl.factor
-    temperature = _temperature_report(thermal, t_ref, hand0, P, layout, infl.factor)
+    temperature = _temperature_report(thermal, t_ref, sens0, P, layout, infl.factor)
     if thermal is not None:
-        theta[theta_slice("gyro_scale")] += hand0[15:18] * (t_ref - thermal[1])   # S_i(T_r,i) = S_i(T₀) + s_T,i (T_r,i − T₀)
+        theta[theta_slice("gyro_scale")] += sens0[3:6] * (t_ref - thermal[1])   # S_i(T_r,i) = S_i(T₀) + s_T,i (T_r,i − T₀)
     values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
     status, notes_v = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
@@ -429,13 +439,21 @@ def kf_hand(rec: Recording) -> Calibration:
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": drift.to_dict(),
                                                 "temperature": {k: v for k, v in temperature.items() if k != "note"},
-                                                "gyro_g_sensitivity": _g_sensitivity_report(hand0, P, layout, infl.factor),
+                                                "gyro_g_sensitivity": _g_sensitivity_report(sens0, P, layout, infl.factor),
                                                 "filter": {"states": list(layout.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
 
 
-def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.ndarray, hand: np.ndarray, P: np.ndarray,
+def _sensor_extra_prior(x0: np.ndarray, layout, sens: np.ndarray) -> None:
+    """Prior mean 0 of the gyro's extra blocks (c_b, s_T, k) seen from the linearisation point ``sens`` (9,)."""
+    for i, blk in enumerate(SENSOR_EXTRA_BLOCKS):
+        o = layout.offset(blk)
+        if o >= 0:
+            x0[o:o + 3] = -sens[3 * i:3 * i + 3]
+
+
+def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.ndarray, sens: np.ndarray, P: np.ndarray,
                         layout, inflation: float) -> dict:
     """``diagnostics["temperature"]``: the temperature S is reported at and the scale factor's temperature
     coefficient found (a finding for the user: it says how far from this temperature the calibration holds)."""
@@ -443,7 +461,7 @@ def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.nd
         return {"modelled": False, "reason": f"no temperature channel, or it moved less than {THERMAL_MIN_SPAN_C} °C"}
     dT, t0 = thermal
     o = layout.offset("gyro_temp_scale")
-    s_t = hand[15:18]
+    s_t = sens[3:6]
     s_sd = np.sqrt(np.diag(P[o:o + 3, o:o + 3]) * inflation)
     return {"modelled": True, "scale_reference_temperature_c": np.asarray(t_ref_c).tolist(),
             "filter_reference_temperature_c": t0,
@@ -457,14 +475,14 @@ def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.nd
                     "spanning a degree cannot measure it: a calibration at two temperatures can)"}
 
 
-def _g_sensitivity_report(hand: np.ndarray, P: np.ndarray, layout, inflation: float) -> dict:
+def _g_sensitivity_report(sens: np.ndarray, P: np.ndarray, layout, inflation: float) -> dict:
     """``diagnostics["gyro_g_sensitivity"]``: the gyro's sensitivity to specific force along its own axis k_i
     (b_g,i = b_i + k_i f_i) with its σ, in rad/s per m/s² and °/s/g (a datasheet's "linear acceleration
     sensitivity").  The common part k_x = k_y = k_z is a bias along gravity — a rate about the vertical, which a
     levelling measurement cannot see — so it stays near its prior σ; the differences are what the session
     measured."""
     o = layout.offset("gyro_g_sens")
-    k = hand[18:21]
+    k = sens[6:9]
     sd = np.sqrt(np.clip(np.diag(P)[o:o + 3], 0.0, None) * inflation)
     to_deg_g = math.degrees(1.0) * 9.80665
     return {"model": "b_g,i = b_i + k_i f_i (f the specific force, body; diagonal g-sensitivity)",

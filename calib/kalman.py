@@ -79,7 +79,7 @@ from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
-           "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "HAND_BIAS_TS", "HAND_BIAS_THERMAL",
+           "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "SENSOR_EXTRA_BLOCKS", "HAND_BIAS_TS", "HAND_BIAS_THERMAL",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
 
@@ -104,6 +104,7 @@ THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:11]
 THERMAL_BLOCKS = BLOCKS[11:13]
 G_SENS_BLOCKS = BLOCKS[13:14]   # the gyro's g-sensitivity, diagonal K = diag(k) (rad/s per m/s²): b_g,i += k_i f_i
+SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS   # their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k)
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
           "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
           "ext_acc_lp2": "ael2", "gyro_temp_bias": "cb", "gyro_temp_scale": "sT",
