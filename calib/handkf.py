@@ -345,6 +345,7 @@ def kf_hand(rec: Recording) -> Calibration:
     theta = prep.theta0.copy()
     hand0 = np.zeros(6)
     sens0 = np.zeros(9)                 # the gyro's extra blocks' nominals: c_b, s_T, k (calib.kalman.SENSOR_EXTRA_BLOCKS)
+    f_rest = np.mean(rec.acc_m_s2[ra:rb], axis=0)    # the specific force during the rest that gave the bias's prior
     # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed)
     f_lp0 = _lowpass(rec.acc_m_s2[a:], fs)
     along = float(np.mean((np.linalg.norm(f_lp0, axis=1) - cfg0.gravity_m_s2) ** 2)) - sigma_f2 * rho
@@ -368,6 +369,7 @@ def kf_hand(rec: Recording) -> Calibration:
         cfg = type(cfg0)(**{**cfg0.__dict__, "external_acc_allowance_m_s2": 0.0, "ext_acc_rms_m_s2": sigma_s,
                             "ext_acc_tau_s": tau, "ext_acc_highpass_tau_s": tau_hp, "ext_acc_highpass_order": hp_order})
         p0 = initial_covariance(layout, cfg, tilt_sigma_rad=tilt)
+        _g_sensitivity_prior(p0, layout, f_rest)
         x0 = np.zeros(layout.n)
         x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
         x0[layout.offset("lever_arm"):layout.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
@@ -445,6 +447,24 @@ def kf_hand(rec: Recording) -> Calibration:
                                                            "start_s": float(rec.t_s[a])}})
 
 
+def _g_sensitivity_prior(p0: np.ndarray, layout, f_rest_m_s2: np.ndarray) -> None:
+    """The bias's prior comes from a rest, where the gyro read b + diag(k) f̄ (f̄ that rest's specific force): so
+    b = b̄ − diag(f̄) k, and with k ~ N(0, P_k) the prior of (b, k) is correlated,
+
+        P_bb = s² + F P_k F,   P_bk = −F P_k,   F = diag(f̄).
+
+    Independent priors would pin b at the rest's reading and misread every change of attitude afterwards
+    (measured on the independent generator with 0.3 °/s/g: innovations ×15 their model, "diverged")."""
+    og, ob = layout.offset("gyro_g_sens"), layout.offset("gyro_bias")
+    if og < 0 or ob < 0:
+        return
+    F = np.diag(np.asarray(f_rest_m_s2, float))
+    pk = p0[og:og + 3, og:og + 3].copy()
+    p0[ob:ob + 3, ob:ob + 3] += F @ pk @ F
+    p0[ob:ob + 3, og:og + 3] = -F @ pk
+    p0[og:og + 3, ob:ob + 3] = -pk @ F
+
+
 def _sensor_extra_prior(x0: np.ndarray, layout, sens: np.ndarray) -> None:
     """Prior mean 0 of the gyro's extra blocks (c_b, s_T, k) seen from the linearisation point ``sens`` (9,)."""
     for i, blk in enumerate(SENSOR_EXTRA_BLOCKS):
@@ -485,8 +505,9 @@ def _g_sensitivity_report(sens: np.ndarray, P: np.ndarray, layout, inflation: fl
     k = sens[6:9]
     sd = np.sqrt(np.clip(np.diag(P)[o:o + 3], 0.0, None) * inflation)
     to_deg_g = math.degrees(1.0) * 9.80665
+    cov = P[o:o + 3, o:o + 3] * inflation
     return {"model": "b_g,i = b_i + k_i f_i (f the specific force, body; diagonal g-sensitivity)",
-            "k_rad_s_per_m_s2": k.tolist(), "std_rad_s_per_m_s2": sd.tolist(),
+            "k_rad_s_per_m_s2": k.tolist(), "std_rad_s_per_m_s2": sd.tolist(), "covariance_rad2_s2_per_m2_s4": cov.tolist(),
             "k_deg_s_per_g": (k * to_deg_g).tolist(), "std_deg_s_per_g": (sd * to_deg_g).tolist()}
 
 

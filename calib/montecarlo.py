@@ -171,7 +171,7 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     S at the temperatures the session determined it); ``g_sensitivity``: the gyro's g-sensitivity (diagonal,
     b_g,i = b_i + k_i f_i with f the true specific force) is three more nuisance states with a vague prior, as in
     ``kf_hand``.  S, G are rows 3:9 of the result either way (S at T₀)."""
-    from .handkf import _variance_ratio, lever_regressor
+    from .handkf import _g_sensitivity_prior, _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
     m = np.eye(3) + np.diag(th[0:3]) + np.array([[0, th[5], th[4]], [th[5], 0, th[3]], [th[4], th[3], 0]])
@@ -197,6 +197,8 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
         if layout.has(blk):
             ot = layout.offset(blk)
             p0[ot:ot + 3, ot:ot + 3] = np.eye(3) * sd**2
+    if g_sensitivity and layout.has("gyro_bias"):   # the bias's prior is a rest's reading b + diag(k) f̄, as in kf_hand
+        _g_sensitivity_prior(p0, layout, np.asarray(f_gravity_body_m_s2)[0])
     r_var = config.vrw_m_s2_sqrt_hz**2 * rate_hz / dec
     run = run_filter(gyro[None], np.asarray(f_gravity_body_m_s2)[None], t_s, np.asarray(quat_true_nb[0], float)[None],
                      th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
