@@ -268,7 +268,9 @@ def monte_carlo(
     ``kf`` assumes a calibrated accelerometer and has no σ for its parameters."""
     if methods is None:
         methods = ("kf_session" if accelerometer == "estimate" else "kf", "iterated_session")
-    sched, hnd, model = load_schedule(schedule), load_hand(hand), load_sensor(sensor)
+    # ``sensor``: a preset name or path, or a SensorModel (an ablation: benchmarks/mpu9250_ablation.py)
+    sched, hnd = load_schedule(schedule), load_hand(hand)
+    model = load_sensor(sensor) if isinstance(sensor, (str, bytes)) or hasattr(sensor, "__fspath__") else sensor
     if calibrated_accelerometer:
         model = replace(model, name=f"{model.name} (accelerometer calibrated)",
                         accelerometer=tuple(e for e in model.accelerometer if e.is_white_noise))
