@@ -41,8 +41,8 @@ P is multiplied by κ = 2π S_u(0), the long-run variance of u.  κ is estimated
 saying by how much the filter's own σ was understated.
 
 **Parameters the filter holds fixed.**  The paper's 9-state filter compensates the gyro with the
-static bias b̂ of the first rest (§3.2) and treats it as exact; its error δb (σ_b = ARW/√T_rest, ~0.9 σ_f/g
-per 4 s of tilt drift with the consumer preset) drives a coherent tilt drift the accelerometer keeps
+static bias b̂ of the first rest (§3.2) and treats it as exact; its error δb (σ_b = ARW/√T_rest; with the
+consumer preset and a 9-s rest σ_b·4 s ≈ 1.3 σ_f/g) drives a coherent tilt drift the accelerometer keeps
 correcting, so the innovations carry u = u₀ + H_b δb with u₀ white and H_b = ∂u/∂b.  That is part of the
 method's own model (b̂'s σ is reported), not a disturbance; a test that ignores it fires in 40–44 % of
 ideal-hand sessions instead of 5 % (measured: κ̂ 1.29 on average over 50 seeds, 1.01 with the true bias
