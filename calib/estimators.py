@@ -212,8 +212,8 @@ def kf_lever_arm(rec: Recording) -> Calibration:
 
 
 kf_lever_arm.deprecated_alias_of = "kf_hand"  # type: ignore[attr-defined]  (gyrosim.estimator warns on load)
-kf_lever_arm.deprecation_note = ("a retired method: this name runs kf_hand, whose σ is never optimistic with a "  # type: ignore[attr-defined]
-                                 "hand; the two-pass lever-arm fit's was, with 'ok' status")
+kf_lever_arm.deprecation_note = ("a retired method: this name runs kf_hand; the two-pass lever-arm fit's σ was "  # type: ignore[attr-defined]
+                                 "optimistic with a hand while it said 'ok'")
 
 
 def lever_arm_two_pass(rec: Recording) -> Calibration:
