@@ -210,21 +210,28 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
 
 def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     """The simulated device's gyro scale factor change (3,) at the temperatures ``t_c`` (°C, one per axis)
-    relative to its preset reference: Σ_p c_ip (T_i − T_ref)^p of its ``temperature_scale`` effects (scoring
-    only: it reads the truth).  A calibration that says at which temperature its S holds
-    (``diagnostics["temperature"]``, :func:`calib.handkf.scale_at_temperature`) is scored against the device's
-    S at that temperature; the oracle's S (:func:`gyrosim.calibration.truth_calibration`) is the one at T_ref."""
+    relative to the oracle's S: Σ ∂δ_i/∂x_i at x = 0 of its deterministic, non-affine error effects (a
+    temperature-dependent scale — the MPU-9250's ``temperature_scale`` — contributes its polynomial in
+    T − T_ref; a nonlinearity k x|x| or a bias-like term nothing), evaluated at T_i (scoring only: it reads the
+    truth).  A calibration that says at which temperature its S holds (``diagnostics["temperature"]``,
+    :func:`calib.handkf.scale_at_temperature`) is scored against the device's S at that temperature; the oracle's
+    S (:func:`gyrosim.calibration.truth_calibration`) is the one at the preset's reference."""
+    from gyrosim.effects import SignalContext
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
     out = np.zeros(3)
     if model is None:
         return out
-    t = np.asarray(t_c, float)
-    for e in model.gyro:
-        if e.kind == "temperature_scale":
-            c = np.asarray(e.coefficients, float)
-            out += np.array([sum(c[i, p] * (t[i] - e.t_ref_c) ** (p + 1) for p in range(c.shape[1])) for i in range(3)])
+    zero = np.zeros((2, 3))                     # two samples at T_i (a context's rate needs a step)
+    for i, t in enumerate(np.asarray(t_c, float)):
+        ctx = SignalContext(np.array([0.0, 0.01]), zero, zero, temperature_c=np.full(2, t))
+        for e in model.gyro:
+            if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:
+                continue
+            d = e.delta_dx(zero, ctx)
+            if d is not None:
+                out[i] += float(d[0, i, i])
     return out
 
 
