@@ -4,6 +4,8 @@
     python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf_hand --seeds 50 --out docs/hand_mpu9250.json
     python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf --seeds 20 --out docs/hand_kf_mpu9250.json
     python benchmarks/hand_campaign.py --table docs/hand_*.json --plot docs/hand_rmse.png   # docs/hand.md's table
+    python benchmarks/hand_campaign.py --sensor mpu9250 --accelerometer estimate --methods kf_hand_joint,kf_session \
+        --seeds 20 --out docs/hand_joint_mpu9250.json          # raw sensor: the joint methods (calib run's setting)
 
 (cells already in --out are kept: a campaign can be run hand by hand; ``--methods kf_hand`` runs the
 hand-aware method's cells alone — each cell's bounds cost one Riccati recursion, ~1 s, beside its seeds)
@@ -28,21 +30,26 @@ from calib.outputs import write_json_atomic
 HANDS = ("ideal", "steady", "typical", "shaky")
 
 
-def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tuple[str, ...] = HANDS) -> None:
-    """Run the cells of ``hands``; cells already in ``out`` (same sensor and methods) are kept."""
+def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tuple[str, ...] = HANDS,
+        accelerometer: str = "calibrated") -> None:
+    """Run the cells of ``hands``; cells already in ``out`` (same sensor, methods, accelerometer mode) are kept.
+    ``accelerometer="estimate"``: the raw sensor (its accelerometer errors kept) and the methods' joint form
+    (calib run's default setting)."""
     cells = {}
     if Path(out).exists():
         old = json.loads(Path(out).read_text())
-        if old.get("sensor") == sensor and old.get("methods") == list(methods):
+        if (old.get("sensor") == sensor and old.get("methods") == list(methods)
+                and old.get("accelerometer", "calibrated") == accelerometer):
             cells = old["cells"]
     for hand in hands:
         t0 = time.time()
         with tqdm(total=seeds, desc=f"{sensor} {hand}", unit="seed") as bar:
             r = monte_carlo("zhou2020", hand, sensor, seeds, 100.0, methods, progress=bar.update,
-                            calibrated_accelerometer=True, accelerometer="calibrated")
+                            calibrated_accelerometer=accelerometer == "calibrated", accelerometer=accelerometer)
         cells[hand] = {**r.to_dict(), "seconds": time.time() - t0}
         print(r.summary(), flush=True)
-        write_json_atomic(out, {"sensor": sensor, "seeds": seeds, "methods": list(methods), "cells": cells})
+        write_json_atomic(out, {"sensor": sensor, "seeds": seeds, "methods": list(methods), "cells": cells,
+                                "accelerometer": accelerometer})
 
 
 def table(paths: list[str]) -> str:
@@ -106,6 +113,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--methods", default="kf,kf_lever_arm,kf_hand")
     ap.add_argument("--hands", default=",".join(HANDS), help="comma-separated hand presets (default all four)")
+    ap.add_argument("--accelerometer", default="calibrated", choices=("calibrated", "estimate"),
+                    help="calibrated: the sensor's accelerometer errors removed, the methods' calibrated form (default); "
+                         "estimate: the raw sensor and the joint methods (kf_session, kf_hand_joint)")
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="*")
     ap.add_argument("--plot", help="with --table: also write this PNG")
@@ -115,7 +125,7 @@ def main() -> None:
         if a.plot:
             plot(a.table, a.plot)
         return
-    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out, tuple(a.hands.split(",")))
+    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out, tuple(a.hands.split(",")), a.accelerometer)
 
 
 if __name__ == "__main__":
