@@ -72,7 +72,7 @@ from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import _initial_attitude, _tilt_sigma, prepare, rest_mask
-from .consistency import (check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
+from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
 from .fastkf import regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity
@@ -92,6 +92,11 @@ LAYOUT = HAND_BIAS         # kf_hand (accelerometer calibrated); kf_hand_joint: 
 # the registered estimator each accelerometer mode of :func:`kf_hand` is (the label its result carries)
 REGISTERED_NAME = {"calibrated": "kf_hand", "estimate": "kf_hand_joint"}
 DRIFT_QUANTILE = 0.95      # the rests' bias differences must exceed their white-noise χ² quantile to be drift
+# kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
+# linearisation point, the filter's vertical row the information (the same data would otherwise count twice,
+# and the fit's white-residual covariance is optimistic with a hand's sway: its err/σ RMS 2–5 on the
+# independent generator).  A vague prior (the consumer ±1 m/s², ±5 %) diverged on the MPU-9250 (4 of 8 seeds)
+FIT_PRIOR_INFLATION = 100.0
 
 
 def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -269,7 +274,10 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     as ``iterated_session`` does."""
     estimate = accelerometer == "estimate"
     layout = HAND_JOINT if estimate else HAND_BIAS
-    rows = 2   # the levelling rows; with the accelerometer estimated the |f| = g fit carries the vertical (prior)
+    # the levelling rows; with the accelerometer estimated also the vertical one, which carries the |f| = g
+    # information with the hand in the model (a_e's vertical component, the lever arm) — kf_session leaves it
+    # to its |f| = g fit, whose white-residual covariance is optimistic with a hand (below)
+    rows = 3 if estimate else 2
     prep = prepare(rec, accelerometer=accelerometer, gravity_m_s2=gravity_m_s2)
     ra, rb = prep.rest_range
     nz = prep.noise
@@ -330,11 +338,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         x0 = np.zeros(layout.n)
         x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
         x0[layout.offset("lever_arm"):layout.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
-        if estimate:   # the accelerometer's prior: the |f| = g fit (kf_session's), without the lever arm's K r̂
+        if estimate:   # the accelerometer's weak prior: the |f| = g fit (kf_session's) without the lever arm's K r̂,
             gfit = prep.gravity_fit if p == 0 else _gravity_fit_lever_free(rec, prep, a, kreg, hand0[:3], th_a)
             oa = layout.offset("acc_bias")
             x0[oa:oa + 9] = gfit.theta - th_a
-            p0 = initial_covariance(layout, cfg, q0, f0, mi_a, gfit.covariance, tilt)
+            p0 = initial_covariance(layout, cfg, q0, f0, mi_a, gfit.covariance * FIT_PRIOR_INFLATION, tilt)
         else:
             p0 = initial_covariance(layout, cfg, tilt_sigma_rad=tilt)
         # the kernel compensates at θ̂_a again
@@ -425,7 +433,10 @@ def _gravity_fit_lever_free(rec: Recording, prep, start: int, kreg: np.ndarray, 
     prior) on f̃ − K(ω, ω̇) r̂ (the rest itself uncorrected: ω = 0 there): a hand's steady turn about a
     pivot adds a constant centripetal ω × (ω × r) that a quasi-static |f| = g fit reads as accelerometer
     bias (measured: b_y off by 0.05 m/s², 27 of its σ, with the typical hand's 6 cm).  The lever arm's
-    acceleration in raw units is M_a K r̂ ≈ K r̂ (the difference is second order: S_a · K r̂)."""
+    acceleration in raw units is M_a K r̂ ≈ K r̂ (the difference is second order: S_a · K r̂).  The hand's
+    sway and tremor stay in the residuals, correlated over seconds: the covariance is the fit's block-sum
+    sandwich over ``INFLATION_BLOCK_S`` blocks (the white-residual one was ~2× optimistic in σ for the
+    accelerometer on the independent generator's hand)."""
     ra, _ = prep.rest_range
     cfg = prep.config
     fs = rec.rate_hz
