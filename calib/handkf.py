@@ -66,12 +66,13 @@ import numpy as np
 from scipy import signal as sp_signal
 
 from gyrosim.calibration import Calibration
+from gyrosim.effects import WhiteNoise
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
-from .calibrate import _initial_attitude, _tilt_sigma, prepare, rest_mask
+from .calibrate import _apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare, rest_mask
 from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
 from .fastkf import regressor_half_window, run_filter
@@ -317,6 +318,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     tremor_rms = math.sqrt(max(float(np.mean(np.sum((acc0 - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
     still = rest_mask(prep, n)
     q0 = prep.quat0_nb
+    obs_notes: list[str] = []
     for p in range(PASSES):
         theta[theta_slice("gyro_bias")] = prep.theta0[theta_slice("gyro_bias")]   # each pass starts at the rest's bias
         m = m_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")])
@@ -353,6 +355,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                          x0=x0[None], lever_regressor=kreg, hand0=h0, rows=rows)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
+        if estimate and p == 0:   # calib run's observability check: gyro warnings, an undetermined accelerometer refused
+            _apply_observability(prep, _observability(replace(prep, layout=layout), out, p0), obs_notes)
     P = out.p[0]
     global _LAST
     _LAST = (out, t, upd)
@@ -413,9 +417,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                  "gravity_fit": {"bias_m_s2": gf.bias_m_s2, "scale_factor": gf.scale_factor,
                                  "nonorthogonality": gf.nonorthogonality, "std": np.sqrt(np.diag(gf.covariance)),
                                  "residual_rms_m_s2": gf.residual_rms_m_s2, "samples": gf.samples}}
-    return Calibration.from_linear(gyro=gyro, accelerometer=acc_params, covariance=cov, status=status,
-                                   warnings=prep.warnings + tuple(notes), method=REGISTERED_NAME[accelerometer],
-                                   diagnostics={"hand": hand, "consistency": {"sigma_inflation": infl.to_dict()},
+    cal = Calibration.from_linear(gyro=gyro, accelerometer=acc_params, covariance=cov, status=status,
+                                  warnings=prep.warnings + tuple(obs_notes + notes), method=REGISTERED_NAME[accelerometer],
+                                  diagnostics={"hand": hand, "consistency": {"sigma_inflation": infl.to_dict()},
                                                 "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
@@ -425,6 +429,10 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                                 "filter": {"states": list(layout.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
+    if estimate:   # the noise densities among the effects too, as calib run's joint filter (calib export reads them)
+        cal = replace(cal, gyro=cal.gyro + (WhiteNoise(density=np.full(3, cfg0.arw_rad_s_sqrt_hz)),),
+                      accelerometer=cal.accelerometer + (WhiteNoise(density=np.full(3, cfg0.vrw_m_s2_sqrt_hz)),))
+    return cal
 
 
 def _gravity_fit_lever_free(rec: Recording, prep, start: int, kreg: np.ndarray, r_m: np.ndarray,
