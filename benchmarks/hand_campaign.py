@@ -57,23 +57,28 @@ def table(paths: list[str]) -> str:
             "eff. vs hand bound (max S, G) | NEES (6) | 95 % band | NEES vs band | statuses |", "|" + "---|" * 11]
     # the hand-aware bound needs kf_hand's PSD: a file without kf_hand borrows the bound of a file with it
     # (same sensor and hand), else its column would be the hand-free bound
+    # (kf_hand's with the accelerometer calibrated, kf_hand_joint's with it estimated: the key has the mode)
     bounds = {}
     for p in paths:
         d = json.load(open(p))
-        if "kf_hand" in d["methods"]:
+        mode = d.get("accelerometer", "calibrated")
+        if any(m.startswith("kf_hand") for m in d["methods"]):
             for hand, c in d["cells"].items():
-                bounds[(d["sensor"], hand)] = np.array(c["sqrt_crlb_hand"][3:9])
+                if c.get("sqrt_crlb_hand"):
+                    bounds[(d["sensor"], hand, mode)] = np.array(c["sqrt_crlb_hand"][3:9])
     for p in paths:
         d = json.load(open(p))
+        mode = d.get("accelerometer", "calibrated")
         for m in d["methods"]:
             base = max(d["cells"]["ideal"]["methods"][m]["rmse"][3:9]) if "ideal" in d["cells"] else float("nan")
             for hand, c in d["cells"].items():
                 st = c["methods"][m]
                 rm = max(st["rmse"][3:9])
                 eh = max(st["efficiency_hand"][3:9]) if st["efficiency_hand"] else float("nan")
-                if "kf_hand" not in d["methods"] and (d["sensor"], hand) in bounds:
-                    eh = float(np.max(np.array(st["rmse"][3:9]) / bounds[(d["sensor"], hand)]))
-                rows.append(f"| {d['sensor']} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
+                if not any(x.startswith("kf_hand") for x in d["methods"]) and (d["sensor"], hand, mode) in bounds:
+                    eh = float(np.max(np.array(st["rmse"][3:9]) / bounds[(d["sensor"], hand, mode)]))
+                sensor = d["sensor"] + (" (raw)" if mode == "estimate" else "")
+                rows.append(f"| {sensor} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
                             f"{eh:.2f} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
                             f"{_where(st['nees_mean'], st['nees_band'])} | "
                             + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
@@ -97,10 +102,11 @@ def plot(paths: list[str], out: str) -> None:
         hands = [h for h in HANDS if h in d["cells"]]
         for m in d["methods"]:
             ax.plot(hands, [max(d["cells"][h]["methods"][m]["rmse"][3:9]) for h in hands], marker="o",
-                    label=f"{d['sensor']}: {m}")
+                    label=f"{d['sensor']}{' (raw)' if d.get('accelerometer') == 'estimate' else ''}: {m}")
     ax.set_yscale("log")
     ax.set_ylabel("RMS error, max over S and G")
-    ax.set_title("zhou2020 schedule, accelerometer calibrated")
+    modes = {json.load(open(p)).get("accelerometer", "calibrated") for p in paths}
+    ax.set_title("zhou2020 schedule, accelerometer " + (modes.pop() if len(modes) == 1 else "calibrated / estimated (raw)"))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
