@@ -288,9 +288,10 @@ def monte_carlo(
     rec0, c0 = first
     prep0 = prepare(rec0, accelerometer=accelerometer)
     noise = prep0.config
-    if hnd.is_ideal or estimate:   # the calibration's own noise levels, as before
+    if hnd.is_ideal:   # the calibration's own noise levels, as before
         config = noise
-    else:                          # a hand's rest is not still: the sensor's white noise from above the tremor band
+    else:              # a hand's rest is not still: the sensor's white noise from above the tremor band (both
+        # accelerometer modes: with the rest's spread the bounds counted the tremor as sensor noise, efficiency < 1)
         ra, rb = prep0.rest_range
         arw, vrw = white_density(rec0.gyro_rad_s[ra:rb], rate_hz), white_density(rec0.acc_m_s2[ra:rb], rate_hz)
         config = replace(noise, external_acc_allowance_m_s2=0.0, arw_rad_s_sqrt_hz=arw or noise.arw_rad_s_sqrt_hz,
