@@ -123,8 +123,8 @@ JOINT_NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_cons
 @pytest.mark.parametrize("key", sorted(JOINT_NEES_SIDE))
 def test_kf_hand_joint_campaign_claims(key):
     """The docs/hand.md joint table (50 seeds, raw sensor): no seed diverged; NEES inside its 95 % band
-    χ²(300)/50 where the docs say "in" (a correct σ fails this 5 % of the time); where "low", never optimistic and at most ×1.5 pessimistic in σ
-    (NEES above the band's bottom / 1.5²); where "high" (the MPU-9250's accelerometer temperature drift,
+    χ²(300)/50 where the docs say "in" (a correct σ fails this 5 % of the time); where "low", never
+    optimistic and at most ×1.5 pessimistic in σ (NEES above the band's bottom / 1.5²); where "high" (the MPU-9250's accelerometer temperature drift,
     unmodelled), at most ×1.25 optimistic in σ (NEES below the band's top × 1.25²)."""
     from calib.montecarlo import monte_carlo
 
