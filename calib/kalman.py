@@ -79,7 +79,8 @@ from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
-           "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "SENSOR_EXTRA_BLOCKS", "HAND_BIAS_TS", "HAND_BIAS_THERMAL",
+           "HAND_JOINT", "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "SENSOR_EXTRA_BLOCKS", "HAND_BIAS_TS",
+           "HAND_BIAS_THERMAL",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
 
@@ -179,6 +180,7 @@ HAND_BIAS = StateLayout(BLOCKS[:4] + HAND_BLOCKS)  # kf_hand: HAND + the gyro bi
 # kf_hand on a recording whose temperature moved: + the scale factor's temperature coefficient s_T: 27 states
 HAND_BIAS_TS = StateLayout(BLOCKS[:4] + HAND_BLOCKS + ("gyro_temp_scale",))
 HAND_BIAS_THERMAL = StateLayout(BLOCKS[:4] + HAND_BLOCKS + THERMAL_BLOCKS)   # + c_b too: 30 states
+HAND_JOINT = StateLayout(BLOCKS[:11])    # kf_hand_joint: HAND_BIAS + the accelerometer's 9 parameters: 33 states
 
 
 def theta_slice(block: str) -> slice:

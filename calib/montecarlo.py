@@ -23,7 +23,8 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
   :func:`calib.calibrate.calibrate`, with the ``accelerometer`` mode asked).  A name means the same
   algorithm here, in ``calib run`` and in a campaign.  Each sees only the recording, as a user's file would be
   (:func:`as_user_file`: samples and rate; no truth, no sensor model, no hand).
-* The hand-aware bound, with the accelerometer calibrated: the same Riccati recursion with
+* The hand-aware bound (with the accelerometer estimated: when a hand-aware method ran, with the
+  accelerometer's nine states vague — :func:`hand_crlb`'s ``estimate_accelerometer``): the same Riccati recursion with
   the :data:`calib.kalman.HAND` layout — the lever arm as three nuisance parameters with a vague
   prior, the slow external acceleration a Gauss–Markov process with the PSD ``kf_hand`` estimated on
   the first seed (median σ_s, τ over the seeds), the measurement the tremor-free, decimated one
@@ -54,7 +55,7 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
 from .handkf import scale_at_temperature, session_temperature, white_density
-from .kalman import G_SENS_BLOCKS, HAND, HAND_BIAS, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
+from .kalman import G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -159,7 +160,8 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
               t_s: np.ndarray, theta_true: np.ndarray, config: FilterConfig, rate_hz: float, sigma_s_m_s2: float,
               tau_s: float, vague: float = 10.0, highpass_tau_s: float = math.inf,
               bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1,
-              temperature_rel_c: np.ndarray | None = None, g_sensitivity: bool = False) -> np.ndarray:
+              temperature_rel_c: np.ndarray | None = None, g_sensitivity: bool = False,
+              estimate_accelerometer: bool = False) -> np.ndarray:
     """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.kalman.HAND` states (module
     docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
     rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
@@ -170,7 +172,10 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     ``kf_hand`` on a session whose temperature moved (:func:`calib.handkf.scale_at_temperature` maps the result to
     S at the temperatures the session determined it); ``g_sensitivity``: the gyro's g-sensitivity (diagonal,
     b_g,i = b_i + k_i f_i with f the true specific force) is three more nuisance states with a vague prior, as in
-    ``kf_hand``.  S, G are rows 3:9 of the result either way (S at T₀)."""
+    ``kf_hand``.  ``estimate_accelerometer``: ``kf_hand_joint``'s model — the
+    :data:`calib.kalman.HAND_JOINT` states, the accelerometer's nine with a vague prior, the true device's
+    accelerometer reading M_a f + b_a and all three measurement rows (without the temperature and g-sensitivity
+    blocks, which ``kf_hand_joint`` does not carry).  S, G are rows 3:9 of the result either way (S at T₀)."""
     from .handkf import _g_sensitivity_prior, _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
@@ -183,13 +188,16 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s,
                   ext_acc_highpass_tau_s=highpass_tau_s, ext_acc_highpass_order=int(highpass_order),
                   gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s)
-    layout = HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND
-    layout = StateLayout(layout.blocks + (("gyro_temp_scale",) if temperature_rel_c is not None else ())
-                         + (G_SENS_BLOCKS if g_sensitivity else ()))
+    layout = HAND_JOINT if estimate_accelerometer else (HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND)
+    if not estimate_accelerometer:
+        layout = StateLayout(layout.blocks + (("gyro_temp_scale",) if temperature_rel_c is not None else ())
+                             + (G_SENS_BLOCKS if g_sensitivity else ()))
     p0 = initial_covariance(layout, cfg)
     p0[3:9, 3:9] = np.eye(6) * vague**2
-    o = layout.offset("lever_arm")
-    p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
+    vague_blocks = ("lever_arm", "acc_bias", "acc_scale", "acc_nonorth") if estimate_accelerometer else ("lever_arm",)
+    for blk in vague_blocks:
+        o = layout.offset(blk)
+        p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
     # vague priors of the nuisance blocks in their own units: 0.1/°C (10 %/°C) for s_T, 0.01 rad/s per m/s²
     # (5.6 °/s/g) for the g-sensitivity — fifty times any MEMS datasheet; ``vague`` itself (10 rad/s per m/s²)
     # would put ~100 rad/s in the bias's direction and lose the recursion's precision
@@ -197,14 +205,19 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
         if layout.has(blk):
             ot = layout.offset(blk)
             p0[ot:ot + 3, ot:ot + 3] = np.eye(3) * sd**2
-    if g_sensitivity and layout.has("gyro_bias"):   # the bias's prior is a rest's reading b + diag(k) f̄, as in kf_hand
+    if layout.has("gyro_g_sens") and layout.has("gyro_bias"):   # the bias's prior is a rest's reading b + diag(k) f̄
         _g_sensitivity_prior(p0, layout, np.asarray(f_gravity_body_m_s2)[0])
+    acc = np.asarray(f_gravity_body_m_s2, float)
+    if estimate_accelerometer:
+        ma = np.eye(3) + np.diag(th[12:15]) + np.array([[0, th[17], th[16]], [th[17], 0, th[15]], [th[16], th[15], 0]])
+        acc = acc @ ma.T + th[9:12]
     r_var = config.vrw_m_s2_sqrt_hz**2 * rate_hz / dec
-    run = run_filter(gyro[None], np.asarray(f_gravity_body_m_s2)[None], t_s, np.asarray(quat_true_nb[0], float)[None],
+    run = run_filter(gyro[None], acc[None], t_s, np.asarray(quat_true_nb[0], float)[None],
                      th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
                      lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz),
-                     temperature_rel_c=temperature_rel_c,
-                     specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if g_sensitivity else None)
+                     rows=3 if estimate_accelerometer else 2,
+                     temperature_rel_c=temperature_rel_c if layout.has("gyro_temp_scale") else None,
+                     specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if layout.has("gyro_g_sens") else None)
     return run.p[0]
 
 
@@ -335,9 +348,10 @@ def monte_carlo(
     rec0, c0 = first
     prep0 = prepare(rec0, accelerometer=accelerometer)
     noise = prep0.config
-    if hnd.is_ideal or estimate:   # the calibration's own noise levels, as before
+    if hnd.is_ideal:   # the calibration's own noise levels, as before
         config = noise
-    else:                          # a hand's rest is not still: the sensor's white noise from above the tremor band
+    else:              # a hand's rest is not still: the sensor's white noise from above the tremor band (both
+        # accelerometer modes: with the rest's spread the bounds counted the tremor as sensor noise, efficiency < 1)
         ra, rb = prep0.rest_range
         arw, vrw = white_density(rec0.gyro_rad_s[ra:rb], rate_hz), white_density(rec0.acc_m_s2[ra:rb], rate_hz)
         config = replace(noise, external_acc_allowance_m_s2=0.0, arw_rad_s_sqrt_hz=arw or noise.arw_rad_s_sqrt_hz,
@@ -363,7 +377,7 @@ def monte_carlo(
         crlb.append(sd[12:21])
     sqrt_crlb = np.concatenate(crlb)
     sqrt_hand, hand_psd = np.zeros(0), {}
-    if not estimate:
+    if psd or not estimate:   # with the accelerometer estimated: when a hand-aware method gave the hand's PSD
         if psd:
             hp = [d.get("highpass_tau_s") for d in psd]
             hand_psd = {"rms_m_s2": float(np.median([d["rms_m_s2"] for d in psd])),
@@ -383,9 +397,11 @@ def monte_carlo(
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
                        hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
                        bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"],
-                       temperature_rel_c=None if thermal is None else thermal[0], g_sensitivity=g_sens)
-        sd_sg = np.sqrt(np.diag(ph))[3:9]
-        if thermal is not None:
+                       temperature_rel_c=None if thermal is None else thermal[0], g_sensitivity=g_sens,
+                       estimate_accelerometer=estimate)
+        sdh = np.sqrt(np.diag(ph))
+        sd_sg = sdh[3:9]
+        if thermal is not None and not estimate:
             base = HAND_BIAS if hand_psd["bias_rw_rad_s_sqrt_s"] > 0 else HAND
             t_r, jt = scale_at_temperature(ph, StateLayout(base.blocks + ("gyro_temp_scale",)
                                                            + (G_SENS_BLOCKS if g_sens else ())), thermal[1])
@@ -395,7 +411,9 @@ def monte_carlo(
                 np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
         if not math.isfinite(hand_psd["highpass_tau_s"]):
             hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
-        sqrt_hand = np.concatenate([bias_crlb, sd_sg])
+        oa = HAND_JOINT.offset("acc_bias")
+        # kf_hand(_joint) reports the rest-average gyro bias: its bound is the static one in both modes
+        sqrt_hand = np.concatenate([bias_crlb, sd_sg] + ([sdh[oa:oa + 9]] if estimate else []))
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
                         sqrt_hand) for m in methods}
     return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
