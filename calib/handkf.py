@@ -74,6 +74,7 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import _tilt_sigma, prepare, rest_mask
 from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
 from .fastkf import run_filter
+from .handchecks import check_hand_assumptions
 from .kalman import HAND_BIAS, initial_covariance, m_matrix, theta_slice
 
 __all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
@@ -318,8 +319,8 @@ def kf_hand(rec: Recording) -> Calibration:
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
     status, notes = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
                             check_estimate(values, cov, cfg0.gravity_m_s2))
-    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
-    if prep.noise.at_floor and status != "ok":
+    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
+    if prep.noise.noise_free and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
         # 5.8 σ) — refused, but the advice about a hand's acceleration would mislead, so say what it is
@@ -334,6 +335,12 @@ def kf_hand(rec: Recording) -> Calibration:
                      "stable sensor gives a smaller σ")
     r_hat = hand0[:3]
     r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl.factor)
+    # kf_hand's own assumptions on this recording (calibrated accelerometer, a hand's tremor and lever arm)
+    assumptions = check_hand_assumptions(rec.acc_m_s2, rec.t_s, prep.rest.index_ranges, np.sqrt(np.diag(cov[3:, 3:])),
+                                         tremor_rms, r_hat, r_sd)
+    notes.extend(assumptions.warnings)
+    if not assumptions.trustworthy and status == "ok":
+        status = "inconsistent"
     hand = {"lever_arm_m": r_hat.tolist(), "lever_arm_std_m": r_sd.tolist(),
             "external_acc_psd": {"model": "a_e = a first-order Gauss–Markov x (rms_m_s2, tau_s) per nav axis after the tremor "
                                           "low-pass, high-passed (highpass_tau_s, highpass_order m; null: none): "
@@ -358,6 +365,7 @@ def kf_hand(rec: Recording) -> Calibration:
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": drift.to_dict(),
+                                                "assumptions": assumptions.to_dict(),
                                                 "filter": {"states": list(LAYOUT.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
