@@ -70,12 +70,12 @@ def optical_attitude_error_deg(rec, gyro_rad_s: np.ndarray, window_s: float = 5.
 ATTITUDE_TOLERANCE = 1.25
 
 
-def _broad_verdict(name: str) -> tuple[str, float, float]:
+def _broad_verdict(name: str):
     rec = _load(name)
     cal = _hand(rec)
     before = optical_attitude_error_deg(rec, rec.gyro_rad_s - cal.bias_rad_s)
     after = optical_attitude_error_deg(rec, cal.compensate(rec).gyro_rad_s)
-    return cal.status, before, after
+    return cal, before, after
 
 
 @needs("broad/25_disturbed_tapping_B")
@@ -83,17 +83,19 @@ def test_broad_tapping_is_not_ok():
     """The trial that made kf_hand's "ok" untrustworthy: taps (4.8 m/s² RMS above 4 Hz) made it return S_y, G_y
     4.6 σ and 7.8 σ from a maker-calibrated IMU's ≈ 0 with status ok, and the optical attitude error ×5.8
     after the calibration.  Now the tremor-band check says inconsistent."""
-    status, before, after = _broad_verdict("broad/25_disturbed_tapping_B")
+    cal, before, after = _broad_verdict("broad/25_disturbed_tapping_B")
     assert after > ATTITUDE_TOLERANCE * before          # the estimate really is bad (truth-based) …
-    assert status != "ok"                               # … and the status says so
+    assert cal.status != "ok"                             # … and the status says so
 
 
 @needs("broad/02_undisturbed_slow_rotation_B")
 def test_broad_slow_rotation_status_matches_truth():
-    """ok ⇒ the calibration does not worsen the optical attitude error beyond the score's noise."""
-    status, before, after = _broad_verdict("broad/02_undisturbed_slow_rotation_B")
-    assert status == "ok" and after <= ATTITUDE_TOLERANCE * before or status != "ok"
+    """ok ⇒ the calibration does not worsen the optical attitude error beyond the score's noise (measured:
+    0.62° → 0.80°, ×1.29, and the status is inconsistent); the lever arm of this hand-held trial is a hand's."""
+    cal, before, after = _broad_verdict("broad/02_undisturbed_slow_rotation_B")
     assert np.isfinite(before) and np.isfinite(after)
+    assert cal.status != "ok" or after <= ATTITUDE_TOLERANCE * before, (cal.status, before, after)
+    assert np.linalg.norm(cal.diagnostics["hand"]["lever_arm_m"]) < LEVER_ARM_MAX_M
 
 
 @pytest.mark.slow
@@ -101,8 +103,8 @@ def test_broad_slow_rotation_status_matches_truth():
 @pytest.mark.parametrize("name", BROAD)
 def test_broad_every_trial_ok_only_when_truth_agrees(name):
     """Every BROAD trial: an "ok" must not worsen the optical attitude error beyond its noise."""
-    status, before, after = _broad_verdict(name)
-    if status == "ok":
+    cal, before, after = _broad_verdict(name)
+    if cal.status == "ok":
         assert after <= ATTITUDE_TOLERANCE * before, (name, before, after)
 
 
