@@ -58,7 +58,7 @@ from .handkf import kf_hand  # noqa: F401  (registered: the hand-aware method)
 from .kalman import PAPER, initial_covariance, theta_slice
 
 __all__ = ["kf", "iterated", "smoother", "kf_session_r", "iterated_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
-           "kf_joint", "iterated_joint", "kf_hand"]
+           "kf_joint", "iterated_joint", "kf_hand", "kf_hand_joint"]
 
 GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
@@ -191,6 +191,13 @@ def iterated_joint(rec: Recording) -> Calibration:
     return calibrate(rec, "iterated_session", accelerometer="estimate", keep_history=False)
 
 
+def kf_hand_joint(rec: Recording) -> Calibration:
+    """``kf_hand`` with the accelerometer estimated jointly (33 states: + its bias, scale factor and
+    non-orthogonality; :func:`calib.handkf.kf_hand` with ``accelerometer="estimate"``) — for a raw
+    accelerometer, as ``calib run`` has by default."""
+    return kf_hand(rec, accelerometer="estimate")
+
+
 LEVER_ARM_RETIRED = (
     "kf_lever_arm is retired and now runs kf_hand: its σ could not be made honest — with the typical hand "
     "(zhou2020_sim_consumer, 10 seeds) NEES 9.36 above its 95 % band [4.05, 8.33] while 8 of 10 seeds said "
@@ -298,6 +305,6 @@ def lever_arm_two_pass(rec: Recording) -> Calibration:
 for _f in (kf, iterated, smoother, kf_session_r, iterated_session_r, kf_adaptive, kf_gated, kf_adaptive_gated,
            kf_lever_arm, lever_arm_two_pass, kf_hand):
     _f.estimates = ("gyro",)  # type: ignore[attr-defined]
-for _f in (kf_joint, iterated_joint):
+for _f in (kf_joint, iterated_joint, kf_hand_joint):
     _f.estimates = ("gyro", "accelerometer")  # type: ignore[attr-defined]
 del _f

@@ -81,15 +81,17 @@ def _rest_means(acc_m_s2: np.ndarray, t_s: np.ndarray, rests) -> tuple[np.ndarra
 
 def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_sg: np.ndarray,
                            tremor_band_rms_m_s2: float, lever_arm_m: np.ndarray,
-                           lever_arm_std_m: np.ndarray) -> HandAssumptions:
+                           lever_arm_std_m: np.ndarray, check_accelerometer: bool = True) -> HandAssumptions:
     """The three checks of the module docstring.  ``rests``: (start, stop) sample ranges; ``sigma_sg``:
-    σ of the six S, G the estimator reports; the rest from ``kf_hand``'s hand diagnostics."""
+    σ of the six S, G the estimator reports; the rest from ``kf_hand``'s hand diagnostics.
+    ``check_accelerometer`` False: the accelerometer is estimated with the gyro (``kf_hand_joint``), whose
+    own |f̂| = g test at the rests replaces check 1."""
     notes: list[str] = []
     ok = True
     details: dict = {}
     means, se = _rest_means(np.asarray(acc_m_s2, float), np.asarray(t_s, float), rests)
     eps = spread = None
-    if means.shape[0] >= 2:
+    if check_accelerometer and means.shape[0] >= 2:
         norms = np.linalg.norm(means, axis=1)
         dirs = means / norms[:, None]
         spread = float(np.degrees(np.arccos(np.clip((dirs @ dirs.T).min(), -1.0, 1.0))))
