@@ -13,7 +13,8 @@ Ferraris calibration of the same file (docs/real_imu.md's imucal table).
 
 Methods: ``kf_hand`` (``calib run --method hand --accelerometer calibrated``); ``kf_hand, acc. first``
 (the same, the accelerometer compensated by the joint estimate's accelerometer part first — a library
-call, no CLI spelling); ``kf_session_r`` (``calib run --accelerometer calibrated``); ``kf_joint``
+call, no CLI spelling); ``kf_hand_joint`` (``calib run --method hand``: the accelerometer estimated in the
+hand-aware filter); ``kf_session_r`` (``calib run --accelerometer calibrated``); ``kf_joint``
 (``calib run``, the default).
 """
 
@@ -65,6 +66,7 @@ def _acc_first(rec):
 METHODS = {
     "kf_hand": kf_hand,
     "kf_hand, acc. first": _acc_first,
+    "kf_hand_joint": lambda r: kf_hand(r, accelerometer="estimate"),
     "kf_session_r": lambda r: calibrate(r, accelerometer="calibrated"),
     "kf_joint (default)": lambda r: calibrate(r),
 }
