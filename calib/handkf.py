@@ -79,6 +79,7 @@ from .fastkf import regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity
 from .kalman import (BLOCK_LABELS, HAND_BIAS, HAND_JOINT, StateLayout, initial_covariance, leave_out_means, m_matrix,
                      theta_slice)
+from .handchecks import check_hand_assumptions
 
 __all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
            "bias_drift"]
@@ -375,8 +376,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         checks.append(rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg0.gravity_m_s2,
                                    math.sqrt(prep.config.r_var(fs))))
     status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer)
-    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
-    if prep.noise.at_floor and status != "ok":
+    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
+    if prep.noise.noise_free and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
         # 5.8 σ) — refused, but the advice about a hand's acceleration would mislead, so say what it is
@@ -391,6 +392,12 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                      "stable sensor gives a smaller σ")
     r_hat = hand0[:3]
     r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl.factor)
+    # kf_hand's own assumptions on this recording (calibrated accelerometer, a hand's tremor and lever arm)
+    assumptions = check_hand_assumptions(rec.acc_m_s2, rec.t_s, prep.rest.index_ranges, np.sqrt(np.diag(cov[3:9, 3:9])),
+                                         tremor_rms, r_hat, r_sd, check_accelerometer=not estimate)
+    notes.extend(assumptions.warnings)
+    if not assumptions.trustworthy and status == "ok":
+        status = "inconsistent"
     hand = {"lever_arm_m": r_hat.tolist(), "lever_arm_std_m": r_sd.tolist(),
             "external_acc_psd": {"model": "a_e = a first-order Gauss–Markov x (rms_m_s2, tau_s) per nav axis after the tremor "
                                           "low-pass, high-passed (highpass_tau_s, highpass_order m; null: none): "
@@ -425,6 +432,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": drift.to_dict(),
+                                                "assumptions": assumptions.to_dict(),
                                                 **extra,
                                                 "filter": {"states": list(layout.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
