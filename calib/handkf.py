@@ -504,7 +504,7 @@ def hand_cross_check(rec: Recording, gyro_params: np.ndarray, cov_sg: np.ndarray
     99.9 % quantile *or* any |δ_i| > 3σ_i (C = the hand-blind covariance alone).  The two filters read the
     same samples, so their errors share the noise's part: without a hand δ's spread is ~1 % of C + C_hand
     (measured, mean δᵀ(C + C_hand)⁻¹δ / 6 = 0.006–0.01 on the independent generator; docs/hand.md), and
-    C + C_hand left wrong "ok" answers pass (17 and 15 of 50 shaky-hand seeds).  δ is then the hand-caused
+    C + C_hand let wrong "ok" answers pass (17 and 15 of 45 shaky-hand "ok" seeds).  δ is then the hand-caused
     error of the hand-blind answer up to a small fraction of its σ.
 
     Returns (warnings — empty when consistent or when ``kf_hand`` cannot run on this recording —,
