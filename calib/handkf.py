@@ -41,8 +41,11 @@ bias, lever arm, x, z, z₂ — 24 states, the unused z₂ (m = 1) or z (no high
    component of a_e along gravity (attitude-free, so the gyro's own errors do not enter; for an
    isotropic a_e its variance is one axis's), fitted to e's spectrum (:func:`_gm_from_residual`).
 
-The result's σ is the filter's P, inflated from the innovations when they still carry more
-low-frequency power than the model (:func:`calib.consistency.innovation_inflation`).  The hand's
+The result's σ is the filter's P scaled by κ̂, the whitened innovations' long-run variance
+(:func:`calib.consistency.innovation_inflation`, batch means over 4-s blocks), in both directions
+(:func:`_sandwich_factor`): the fitted a_e model is a first-order family that cannot follow a hand's
+band-limited sway spectrum (the simulator's: flat 0.2–1 Hz, ~30 dB lower outside), so it misstates the
+power at the rotations' low frequencies either way, and κ̂ measures by how much.  The hand's
 parameters go to ``diagnostics["hand"]``: ``lever_arm_m`` with ``lever_arm_std_m``,
 ``external_acc_psd`` (σ_s, τ, τ_h, m, a_e's RMS, the PSD at 0 Hz, the tremor-band RMS removed) — a
 finding for the user; ``diagnostics["gyro_bias_drift"]`` the bias's random walk found.
@@ -72,7 +75,8 @@ from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import _tilt_sigma, prepare, rest_mask
-from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, verdict
+from .consistency import (Inflation, apply_inflation, check_estimate, check_innovations, innovation_inflation,
+                          verdict)
 from .fastkf import run_filter
 from .kalman import HAND_BIAS, initial_covariance, m_matrix, theta_slice
 
@@ -84,6 +88,7 @@ ORDER = 4
 CONFOUND_CORRELATION = 0.98
 LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
 WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)
+WHITE_BAND2_HZ = 25.0      # … and above its second harmonic (16–24 Hz) when the rate allows (white_density)
 PASSES = 3
 LAYOUT = HAND_BIAS
 DRIFT_QUANTILE = 0.95      # the rests' bias differences must exceed their white-noise χ² quantile to be drift
@@ -234,14 +239,24 @@ def bias_drift(gyro_rad_s: np.ndarray, t_s: np.ndarray, rests: tuple[tuple[int, 
 
 def white_density(x: np.ndarray, rate_hz: float) -> float | None:
     """White-noise density N (per √Hz, mean of the axes) of rest samples ``x`` (N, 3) from their spectrum
-    above the tremor band, ``WHITE_BAND_HZ`` … 0.45 f_s (Welch; one-sided PSD 2N²): the rest segment's
-    standard deviation would count the hand's tremor as sensor noise.  None when the rate leaves no such
-    band or the rest is shorter than 2 s."""
+    above the tremor band (Welch, one-sided PSD 2N²): the rest segment's standard deviation would count the
+    hand's tremor as sensor noise.  The band starts at ``WHITE_BAND2_HZ`` (25 Hz, above the tremor's
+    second harmonic) when the rate leaves ≥ 10 Hz above it, else at ``WHITE_BAND_HZ`` (15 Hz), and ends at
+    0.45 f_s; the window is Blackman–Harris (sidelobes −92 dB).  Both because a shaky hand's tremor is
+    ~60 dB above the sensor's white floor: (i) a Hann window's sidelobes (−31 dB, falling 18 dB/octave)
+    leak it 3–7 bins away, into 15–20 Hz; (ii) what is quadratic in the tremor — the centripetal
+    ω_tr × (ω_tr × r) of the rotational tremor at the lever arm — sits at the sum frequencies, 16–24 Hz
+    for an 8–12 Hz tremor.  Measured (zhou2020_sim_consumer, true N = 1.47e-4 m/s²/√Hz, shaky hand, 3
+    seeds): Hann 15–45 Hz 1.65–1.85e-4 (R = σ_f²/D overstated ×1.25–1.6, σ pessimistic), Blackman–Harris
+    15–45 Hz 1.47–1.64e-4, Blackman–Harris 25–45 Hz 1.43–1.50e-4.  None when the rate leaves no such band
+    or the rest is shorter than 2 s."""
     hi = 0.45 * rate_hz
     if hi <= WHITE_BAND_HZ + 5.0 or x.shape[0] < 2 * rate_hz:
         return None
-    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, nperseg=int(min(x.shape[0], rate_hz)), axis=0)
-    band = (f >= WHITE_BAND_HZ) & (f <= hi)
+    lo = WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ
+    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
+                             nperseg=int(min(x.shape[0], rate_hz)), axis=0)
+    band = (f >= lo) & (f <= hi)
     return float(np.sqrt(np.mean(pxx[band]) / 2.0))
 
 
@@ -310,7 +325,8 @@ def kf_hand(rec: Recording) -> Calibration:
     P = out.p[0]
     ol = LAYOUT.offset("lever_arm")
     _confounding(P, ol)
-    infl = innovation_inflation(out.whitened[0], t[1:])
+    infl_test = innovation_inflation(out.whitened[0], t[1:])
+    infl = _sandwich_factor(infl_test)
     cov = np.zeros((9, 9))
     cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)
     cov[3:, 3:] = P[3:9, 3:9] * infl.factor
@@ -318,7 +334,7 @@ def kf_hand(rec: Recording) -> Calibration:
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
     status, notes = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
                             check_estimate(values, cov, cfg0.gravity_m_s2))
-    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+    status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.at_floor)
     if prep.noise.at_floor and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
@@ -352,7 +368,9 @@ def kf_hand(rec: Recording) -> Calibration:
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
     return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
                                    method="kf_hand",
-                                   diagnostics={"hand": hand, "consistency": {"sigma_inflation": infl.to_dict()},
+                                   diagnostics={"hand": hand, "consistency": {"sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
+                                                                      "sigma_factor": infl.sigma_factor,
+                                                                      "applied": "two-sided (kf_hand: _sandwich_factor)"}},
                                                 "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
@@ -361,6 +379,26 @@ def kf_hand(rec: Recording) -> Calibration:
                                                 "filter": {"states": list(LAYOUT.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
+
+
+def _sandwich_factor(infl: Inflation) -> Inflation:
+    """The covariance factor of ``kf_hand``: κ̂ itself, in both directions (the one-sided test ``infl`` keeps
+    its threshold for the warning and the ``inconsistent`` verdict, :func:`calib.consistency.apply_inflation`).
+
+    With whitened innovations u (unit white under the model) and θ̂ − θ ≈ Σ_k L_k u_k, the sandwich gives
+    Var θ̂ ≈ 2π S_u(0) Σ_k L_k L_kᵀ = κ P (:mod:`calib.consistency`): the equation is symmetric.  The
+    hand-blind methods apply κ̂ only above its χ² 95 % quantile (their white model can only understate a
+    coloured disturbance); ``kf_hand``'s a_e model is *fitted* to the session's residual, a first-order
+    Gauss–Markov family high-passed once or twice, which cannot follow a band-limited sway (a flat 0.2–1 Hz
+    band ~30 dB above its surroundings: the fit over- or under-states the low-frequency power, measured
+    as residual PSD vs the fitted one on a shaky-hand session), so κ̂ < 1 is as informative as κ̂ > 1.
+    Measured (20 seeds each, zhou2020_sim_consumer, calibrated accelerometer): κ̂ mean 0.79 (shaky), 0.93
+    (typical), 1.03 (steady), 1.06 (ideal); NEES(6) 3.39 → 4.63, 4.83 → 5.44, 5.48 → 5.37, 4.32 → 4.34;
+    mpu9250 shaky 4.19 → 5.61, ideal 4.73 → 4.98.  κ̂ ~ κ χ²(d)/d with d ≈ 80 blocks (its σ ~16 %: a
+    single session's σ carries ±8 %; over seeds E[1/κ̂] ≈ 1 + 2/d, +2.5 % on NEES)."""
+    if infl.dof <= 0:
+        return infl
+    return replace(infl, factor=float(infl.kappa))
 
 
 def _confounding(P: np.ndarray, ol: int) -> None:
