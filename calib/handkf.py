@@ -89,6 +89,7 @@ CONFOUND_CORRELATION = 0.98
 LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
 WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)
 WHITE_BAND2_HZ = 25.0      # … and above its second harmonic (16–24 Hz) when the rate allows (white_density)
+WHITE_SEGMENT_S = 4.0      # Welch segments of white_density (Blackman–Harris main lobe ±1 Hz)
 PASSES = 3
 LAYOUT = HAND_BIAS
 DRIFT_QUANTILE = 0.95      # the rests' bias differences must exceed their white-noise χ² quantile to be drift
@@ -242,7 +243,10 @@ def white_density(x: np.ndarray, rate_hz: float) -> float | None:
     above the tremor band (Welch, one-sided PSD 2N²): the rest segment's standard deviation would count the
     hand's tremor as sensor noise.  The band starts at ``WHITE_BAND2_HZ`` (25 Hz, above the tremor's
     second harmonic) when the rate leaves ≥ 10 Hz above it, else at ``WHITE_BAND_HZ`` (15 Hz), and ends at
-    0.45 f_s; the window is Blackman–Harris (sidelobes −92 dB).  Both because a shaky hand's tremor is
+    0.45 f_s; the window is Blackman–Harris (sidelobes −92 dB) over ``WHITE_SEGMENT_S`` = 4-s segments, so
+    that its main lobe (±4 bins) spans ±1 Hz and a 24-Hz line does not reach 25 Hz (with 1-s segments it
+    did: +6 % on N, synthetic rest of tests/test_hand.py; the same rest gives the same number of
+    independent PSD averages either way, more bins of fewer segments).  Both because a shaky hand's tremor is
     ~60 dB above the sensor's white floor: (i) a Hann window's sidelobes (−31 dB, falling 18 dB/octave)
     leak it 3–7 bins away, into 15–20 Hz; (ii) what is quadratic in the tremor — the centripetal
     ω_tr × (ω_tr × r) of the rotational tremor at the lever arm — sits at the sum frequencies, 16–24 Hz
@@ -255,7 +259,7 @@ def white_density(x: np.ndarray, rate_hz: float) -> float | None:
         return None
     lo = WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ
     f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
-                             nperseg=int(min(x.shape[0], rate_hz)), axis=0)
+                             nperseg=int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), axis=0)
     band = (f >= lo) & (f <= hi)
     return float(np.sqrt(np.mean(pxx[band]) / 2.0))
 
