@@ -104,7 +104,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sensor", default="zhou2020_sim_consumer")
     ap.add_argument("--seeds", type=int, default=50)
-    ap.add_argument("--methods", default="kf,kf_lever_arm,kf_hand")
+    ap.add_argument("--methods", default="kf,kf_hand")
     ap.add_argument("--hands", default=",".join(HANDS), help="comma-separated hand presets (default all four)")
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="*")

@@ -70,7 +70,8 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_from_two_vectors
 from gyrosim.units import G0
 
-from .consistency import check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity, verdict
+from .consistency import (FixedParameterEffect, apply_inflation, check_estimate, check_innovations,
+                          fixed_parameter_effect, innovation_inflation, rest_gravity, verdict)
 from .fastkf import FilterRun, regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows
 from .inputs import KF, check_recording
@@ -338,7 +339,18 @@ def calibrate(
                 q0, f0, mi_a = _initial_attitude(rec, theta0, a, b)
                 p0 = initial_covariance(prep.layout, prep.config, q0, f0, mi_a, prep.gravity_fit.covariance,
                                         _tilt_sigma(rec, a, b, prep.config.gravity_m_s2))
-    return _result(prep, rec, run, obs, warnings, REGISTERED_NAME[method, prep.accelerometer], passes, hand_check)
+    fixed = None
+    if not prep.layout.has("gyro_bias") and run.whitened is not None:
+        # the static bias is held fixed (the paper's 9 states): its error is part of the model, in the
+        # innovation test and in σ of S, G (calib.consistency, "Parameters the filter holds fixed")
+        def rerun(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:   # compiled either engine: equal to 1e-9, ×40 faster
+            r = _run(prep, rec, th, q0, p0, "compiled", False)
+            return r.whitened[0], r.theta[0][0:6]
+
+        fixed = fixed_parameter_effect(rerun, theta0, theta_slice("gyro_bias"), prep.bias_std_rad_s, run.whitened[0],
+                                       run.theta[0][0:6])
+    return _result(prep, rec, run, obs, warnings, REGISTERED_NAME[method, prep.accelerometer], passes, hand_check,
+                   fixed)
 
 
 def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list[str]) -> None:
@@ -363,8 +375,28 @@ def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list
             "them for this noise level; rotate longer or faster about the axes Zhou 2020 Table 5 names")
 
 
+def bias_drift_note(rec: Recording, prep: Prepared) -> str | None:
+    """Why a constant-bias filter's innovations may carry low-frequency power without any hand: the gyro
+    bias moved between the session's rests beyond their white noise (:func:`calib.handkf.bias_drift`,
+    χ² of the rests' mean differences above its 95 % quantile).  The paper's filter holds the bias at the
+    first rest's average (Zhou 2020 §3.2), so a drifting bias tilts its attitude like an unmodelled
+    disturbance — the inflation is then right to fire, and this says why."""
+    from .handkf import bias_drift
+
+    d = bias_drift(rec.gyro_rad_s, rec.t_s, prep.rest.index_ranges, prep.config.arw_rad_s_sqrt_hz)
+    if d.q_rad2_s3 <= 0 or len(d.rest_bias_rad_s) < 2:
+        return None
+    b = np.asarray(d.rest_bias_rad_s)
+    change = float(np.max(np.linalg.norm(b[1:] - b[:-1], axis=1)))
+    return (f"the gyro bias drifts: the rests' mean gyro readings differ by up to {change:.2e} rad/s (χ² {d.chi2:.0f} "
+            f"against its 95 % quantile {d.threshold:.1f}, {d.dof} dof; rate random walk ≈ {d.rrw_rad_s_sqrt_s:.1e} "
+            "rad/s/√s): this method holds the bias at the first rest's average, so the drift tilts its attitude like "
+            "an unmodelled disturbance and its σ cannot be trusted; the hand-aware method (kf_hand) models the "
+            "bias as a random walk fitted to the rests")
+
+
 def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservability | None, warnings: list[str],
-            method: str, passes: int, hand_check: bool = False) -> Calibration:
+            method: str, passes: int, hand_check: bool = False, fixed: FixedParameterEffect | None = None) -> Calibration:
     lay, cfg = prep.layout, prep.config
     estimate = lay.estimates_accelerometer
     blocks = ["gyro_bias", "gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
@@ -376,11 +408,19 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
             oi, oj = lay.offset(bi), lay.offset(bj)
             if oi >= 0 and oj >= 0:
                 cov[3 * i:3 * i + 3, 3 * j:3 * j + 3] = p[oi:oi + 3, oj:oj + 3]
-    infl = innovation_inflation(run.whitened[0], rec.t_s[prep.start + 1:]) if run.whitened is not None else None
+    infl = None
+    if run.whitened is not None:
+        infl = innovation_inflation(run.whitened[0], rec.t_s[prep.start + 1:],
+                                    sensitivity=None if fixed is None else fixed.sensitivity,
+                                    sensitivity_cov=None if fixed is None else fixed.cov)
     if infl is not None:
         cov = cov * infl.factor  # coloured residuals (consistency module docstring); the filter's states only
-    if not lay.has("gyro_bias"):  # the static average: its own variance, uncorrelated with the filter's states
+    if not lay.has("gyro_bias"):  # the static average: its own variance, and its effect on S, G (J C_b Jᵀ)
         cov[0:3, 0:3] = np.diag(prep.bias_std_rad_s**2)
+        if fixed is not None:
+            cov[3:9, 3:9] += fixed.added_covariance
+            cov[3:9, 0:3] = fixed.jacobian @ fixed.cov
+            cov[0:3, 3:9] = cov[3:9, 0:3].T
     th = run.theta[0]
     values = {BLOCK_LABELS[blk]: th[theta_slice(blk)] for blk in blocks}
     gyro = (Bias(value=th[theta_slice("gyro_bias")]), ScaleFactor(value=th[theta_slice("gyro_scale")]),
@@ -399,6 +439,8 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
     status, notes = verdict(cons, sanity, rest_g, "estimate" if estimate else "calibrated")
     if infl is not None:
         status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+        if infl.factor > 1 and not lay.has("gyro_bias") and (note := bias_drift_note(rec, prep)) is not None:
+            notes.append(note)
     cross = None
     if hand_check and status == "ok" and not prep.noise.at_floor:   # noise-free: methods differ by discretisation
         from .handkf import hand_cross_check

@@ -1080,7 +1080,7 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] (default 100)")
     mc.add_argument("--methods", default=None,
                     help="comma-separated: any registered estimator (kf = the paper's filter, iterated = it in three "
-                         "passes, kf_hand, kf_lever_arm, kf_session_r, …, or package.module:attribute) and kf_session, "
+                         "passes, kf_hand, kf_session_r, …, or package.module:attribute) and kf_session, "
                          "iterated_session (calib run's filter, with the --accelerometer mode asked); default "
                          "kf,iterated_session, or kf_session,iterated_session with --accelerometer estimate (the paper's "
                          "kf assumes a calibrated accelerometer)")

@@ -80,12 +80,13 @@ def load_estimator(spec: str) -> Callable[[Recording], Calibration]:
     """A registered name (entry-point group ``gyrosim.estimators``) or ``package.module:attribute``;
     raises :class:`GyrosimError` before any work if it cannot be loaded.  An estimator whose
     ``deprecated_alias_of`` attribute names another (a former name kept working) loads with a
-    FutureWarning naming the current one."""
+    FutureWarning naming the current one; its ``deprecation_note`` (if any) replaces the default reason
+    "the same algorithm under its one name" (a retired method whose name now runs its successor)."""
     obj = load(ENTRY_POINT_GROUP, spec, what="estimator")
     alias = getattr(obj, "deprecated_alias_of", None)
     if alias:  # a former name kept working; FutureWarning: shown to command-line users by default
-        warnings.warn(f"estimator {spec!r} is deprecated: use {alias!r} (the same algorithm under its one name)",
-                      FutureWarning, stacklevel=2)
+        why = getattr(obj, "deprecation_note", None) or "the same algorithm under its one name"
+        warnings.warn(f"estimator {spec!r} is deprecated: use {alias!r} ({why})", FutureWarning, stacklevel=2)
     if isinstance(obj, type):
         obj = obj()
     if not callable(obj):
