@@ -4,6 +4,8 @@
     python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf_hand --seeds 50 --out docs/hand_mpu9250.json
     python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf --seeds 20 --out docs/hand_kf_mpu9250.json
     python benchmarks/hand_campaign.py --table docs/hand_*.json --plot docs/hand_rmse.png   # docs/hand.md's table
+    python benchmarks/hand_campaign.py --sensor mpu9250 --accelerometer estimate --methods kf_hand_joint,kf_session \
+        --seeds 20 --out docs/hand_joint_mpu9250.json          # raw sensor: the joint methods (calib run's setting)
 
 (cells already in --out are kept: a campaign can be run hand by hand; ``--methods kf_hand`` runs the
 hand-aware method's cells alone — each cell's bounds cost one Riccati recursion, ~1 s, beside its seeds)
@@ -28,21 +30,26 @@ from calib.outputs import write_json_atomic
 HANDS = ("ideal", "steady", "typical", "shaky")
 
 
-def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tuple[str, ...] = HANDS) -> None:
-    """Run the cells of ``hands``; cells already in ``out`` (same sensor and methods) are kept."""
+def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tuple[str, ...] = HANDS,
+        accelerometer: str = "calibrated") -> None:
+    """Run the cells of ``hands``; cells already in ``out`` (same sensor, methods, accelerometer mode) are kept.
+    ``accelerometer="estimate"``: the raw sensor (its accelerometer errors kept) and the methods' joint form
+    (calib run's default setting)."""
     cells = {}
     if Path(out).exists():
         old = json.loads(Path(out).read_text())
-        if old.get("sensor") == sensor and old.get("methods") == list(methods):
+        if (old.get("sensor") == sensor and old.get("methods") == list(methods)
+                and old.get("accelerometer", "calibrated") == accelerometer):
             cells = old["cells"]
     for hand in hands:
         t0 = time.time()
         with tqdm(total=seeds, desc=f"{sensor} {hand}", unit="seed") as bar:
             r = monte_carlo("zhou2020", hand, sensor, seeds, 100.0, methods, progress=bar.update,
-                            calibrated_accelerometer=True, accelerometer="calibrated")
+                            calibrated_accelerometer=accelerometer == "calibrated", accelerometer=accelerometer)
         cells[hand] = {**r.to_dict(), "seconds": time.time() - t0}
         print(r.summary(), flush=True)
-        write_json_atomic(out, {"sensor": sensor, "seeds": seeds, "methods": list(methods), "cells": cells})
+        write_json_atomic(out, {"sensor": sensor, "seeds": seeds, "methods": list(methods), "cells": cells,
+                                "accelerometer": accelerometer})
 
 
 def table(paths: list[str]) -> str:
@@ -50,23 +57,28 @@ def table(paths: list[str]) -> str:
             "eff. vs hand bound (max S, G) | NEES (6) | 95 % band | NEES vs band | statuses |", "|" + "---|" * 11]
     # the hand-aware bound needs kf_hand's PSD: a file without kf_hand borrows the bound of a file with it
     # (same sensor and hand), else its column would be the hand-free bound
+    # (kf_hand's with the accelerometer calibrated, kf_hand_joint's with it estimated: the key has the mode)
     bounds = {}
     for p in paths:
         d = json.load(open(p))
-        if "kf_hand" in d["methods"]:
+        mode = d.get("accelerometer", "calibrated")
+        if any(m.startswith("kf_hand") for m in d["methods"]):
             for hand, c in d["cells"].items():
-                bounds[(d["sensor"], hand)] = np.array(c["sqrt_crlb_hand"][3:9])
+                if c.get("sqrt_crlb_hand"):
+                    bounds[(d["sensor"], hand, mode)] = np.array(c["sqrt_crlb_hand"][3:9])
     for p in paths:
         d = json.load(open(p))
+        mode = d.get("accelerometer", "calibrated")
         for m in d["methods"]:
             base = max(d["cells"]["ideal"]["methods"][m]["rmse"][3:9]) if "ideal" in d["cells"] else float("nan")
             for hand, c in d["cells"].items():
                 st = c["methods"][m]
                 rm = max(st["rmse"][3:9])
                 eh = max(st["efficiency_hand"][3:9]) if st["efficiency_hand"] else float("nan")
-                if "kf_hand" not in d["methods"] and (d["sensor"], hand) in bounds:
-                    eh = float(np.max(np.array(st["rmse"][3:9]) / bounds[(d["sensor"], hand)]))
-                rows.append(f"| {d['sensor']} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
+                if not any(x.startswith("kf_hand") for x in d["methods"]) and (d["sensor"], hand, mode) in bounds:
+                    eh = float(np.max(np.array(st["rmse"][3:9]) / bounds[(d["sensor"], hand, mode)]))
+                sensor = d["sensor"] + (" (raw)" if mode == "estimate" else "")
+                rows.append(f"| {sensor} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
                             f"{eh:.2f} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
                             f"{_where(st['nees_mean'], st['nees_band'])} | "
                             + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
@@ -90,10 +102,11 @@ def plot(paths: list[str], out: str) -> None:
         hands = [h for h in HANDS if h in d["cells"]]
         for m in d["methods"]:
             ax.plot(hands, [max(d["cells"][h]["methods"][m]["rmse"][3:9]) for h in hands], marker="o",
-                    label=f"{d['sensor']}: {m}")
+                    label=f"{d['sensor']}{' (raw)' if d.get('accelerometer') == 'estimate' else ''}: {m}")
     ax.set_yscale("log")
     ax.set_ylabel("RMS error, max over S and G")
-    ax.set_title("zhou2020 schedule, accelerometer calibrated")
+    modes = {json.load(open(p)).get("accelerometer", "calibrated") for p in paths}
+    ax.set_title("zhou2020 schedule, accelerometer " + (modes.pop() if len(modes) == 1 else "calibrated / estimated (raw)"))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -106,6 +119,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--methods", default="kf,kf_hand")
     ap.add_argument("--hands", default=",".join(HANDS), help="comma-separated hand presets (default all four)")
+    ap.add_argument("--accelerometer", default="calibrated", choices=("calibrated", "estimate"),
+                    help="calibrated: the sensor's accelerometer errors removed, the methods' calibrated form (default); "
+                         "estimate: the raw sensor and the joint methods (kf_session, kf_hand_joint)")
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="*")
     ap.add_argument("--plot", help="with --table: also write this PNG")
@@ -115,7 +131,7 @@ def main() -> None:
         if a.plot:
             plot(a.table, a.plot)
         return
-    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out, tuple(a.hands.split(",")))
+    run(a.sensor, a.seeds, tuple(a.methods.split(",")), a.out, tuple(a.hands.split(",")), a.accelerometer)
 
 
 if __name__ == "__main__":

@@ -13,8 +13,9 @@ best of ``repeats``:
   observability and consistency checks, compiled;
 * the same with ``--method iterated_session`` and with ``--accelerometer calibrated`` (these include the hand
   cross-check, which runs ``kf_hand`` once);
-* the paper's ``kf`` compiled without the hand cross-check, and ``kf_hand`` (its speed
-  target is ≤ 1 s for this 3-minute session on one core, read beside ``kf`` in the same run);
+* the paper's ``kf`` compiled without the hand cross-check, ``kf_hand`` and ``kf_hand_joint`` (``calib run
+  --method hand``: + the accelerometer's 9 states; their speed target is ≤ 1 s for this 3-minute session
+  on one core, read beside ``kf`` in the same run);
 * the kernel alone (no preparation), batches of 1 and ``batch`` sessions, per filter-sample.
 
 The agreement of the compiled 21-state filter with its filterpy reference on this session is
@@ -53,6 +54,7 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
         "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session", accelerometer="calibrated"),
         "kf (paper, 9 states, compiled, no hand check)": lambda: _paper(rec, name="kf", check_hand=False),
         "kf_hand (24 states, 3 passes, compiled)": lambda: kf_hand(rec),
+        "kf_hand_joint (33 states, 3 passes)": lambda: kf_hand(rec, accelerometer="estimate"),
     }
     best = {k: float("inf") for k in cases}
     for _ in range(max(1, repeats)):

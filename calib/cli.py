@@ -124,14 +124,13 @@ def cmd_run(args: argparse.Namespace) -> int:
               "the paper's filter in campaigns and Monte Carlo, which calib run does not run)", file=sys.stderr)
     loaded = _open(args, KF)
     rec = loaded.recording
-    if args.method == "hand":
-        if args.accelerometer != "calibrated":
-            raise GyrosimError("--method hand (kf_hand: lever arm and coloured external acceleration in the model) "
-                               "assumes a calibrated accelerometer: add --accelerometer calibrated, or calibrate the "
-                               "accelerometer first (calib run, then calib apply) and run it on the compensated file")
+    if args.method == "hand":   # kf_hand_joint (accelerometer estimated) or kf_hand (--accelerometer calibrated)
+        if args.external_acc is not None:
+            raise GyrosimError("--external-acc is an allowance of the hand-blind filters (kf_session, iterated_session); "
+                               "--method hand models the hand's acceleration and estimates its spectrum from the data")
         from .handkf import kf_hand
 
-        result = kf_hand(rec)
+        result = kf_hand(rec, accelerometer=args.accelerometer, gravity_m_s2=args.gravity)
     else:
         result = calibrate(rec, method, accelerometer=args.accelerometer,
                            external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity)
@@ -1035,8 +1034,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="kf_session: one filter pass with a session-wide external-acceleration allowance (the result "
                         "is labelled kf_joint, or kf_session_r with --accelerometer calibrated: the registered "
                         "estimators it equals); iterated_session: re-linearised passes (Gauss–Newton on the batch "
-                        "posterior; iterated_joint / iterated_session_r); hand: kf_hand, the hand's lever arm and "
-                        "coloured external acceleration in the model (with --accelerometer calibrated; docs/hand.md); "
+                        "posterior; iterated_joint / iterated_session_r); hand: the hand's lever arm and coloured external "
+                        "acceleration in the model (labelled kf_hand_joint, or kf_hand with --accelerometer calibrated; "
+                        "docs/hand.md); "
                         "kf, iterated: former spellings of kf_session, iterated_session (deprecated)")
     r.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
                    help="estimate: the accelerometer's bias, scale factor and non-orthogonality with the gyro's (default); "

@@ -58,7 +58,7 @@ from .handkf import kf_hand  # noqa: F401  (registered: the hand-aware method)
 from .kalman import PAPER, initial_covariance, theta_slice
 
 __all__ = ["kf", "iterated", "smoother", "kf_session_r", "iterated_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
-           "kf_joint", "iterated_joint", "kf_hand"]
+           "kf_joint", "iterated_joint", "kf_hand", "kf_hand_joint"]
 
 GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
@@ -189,6 +189,13 @@ def kf_joint(rec: Recording) -> Calibration:
 def iterated_joint(rec: Recording) -> Calibration:
     """``calib run --method iterated_session``: the joint filter re-linearised three times."""
     return calibrate(rec, "iterated_session", accelerometer="estimate", keep_history=False)
+
+
+def kf_hand_joint(rec: Recording) -> Calibration:
+    """``kf_hand`` with the accelerometer estimated jointly (33 states: + its bias, scale factor and
+    non-orthogonality; :func:`calib.handkf.kf_hand` with ``accelerometer="estimate"``) — for a raw
+    accelerometer, as ``calib run`` has by default."""
+    return kf_hand(rec, accelerometer="estimate")
 
 
 LEVER_ARM_RETIRED = (

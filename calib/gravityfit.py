@@ -90,7 +90,7 @@ class GravityFit:
 
 def fit_gravity(f: np.ndarray, f_reg: np.ndarray, r_var: np.ndarray | float, noise_var_m2_s4: float,
                 gravity_m_s2: float, prior_sigma: np.ndarray, theta0: np.ndarray | None = None,
-                iterations: int = 15, robust: bool = True) -> GravityFit:
+                iterations: int = 15, robust: bool = True, block_samples: int | None = None) -> GravityFit:
     """MAP fit of θ_a to |f̂_k| = g over samples (module docstring).
 
     ``f`` (N, 3) raw samples (m/s²); ``f_reg`` the regressors (leave-out means, so the Jacobian
@@ -99,6 +99,10 @@ def fit_gravity(f: np.ndarray, f_reg: np.ndarray, r_var: np.ndarray | float, noi
     whose tangential part lengthens a noisy vector on average: E|g + v| ≈ g + σ_f²/g, subtracted
     from the residual.  Huber weights (k = 3 robust σ) against samples with transient motion.
     The covariance is (Jᵀ W J + P₀⁻¹)⁻¹: honest when the residuals are white with variance r_var.
+    ``block_samples``: residuals correlated in time (a hand's sway and tremor) — the sandwich
+    I⁻¹ (Σ_b s_b s_bᵀ + P₀⁻¹) I⁻¹ instead, s_b = Σ_{k∈b} J_kᵀ w_k r_k summed over consecutive blocks of
+    that many samples (I = Jᵀ W J + P₀⁻¹; the batch-means / Newey–West estimate of the score's long-run
+    variance, Newey & West 1987), which for white residuals is I⁻¹ again.
     """
     f = np.asarray(f, float)
     f_reg = np.asarray(f_reg, float)
@@ -131,6 +135,10 @@ def fit_gravity(f: np.ndarray, f_reg: np.ndarray, r_var: np.ndarray | float, noi
         cov = np.linalg.inv(info)
         if it >= 3 and np.all(np.abs(step) <= 1e-6 * np.sqrt(np.abs(np.diag(cov)))):  # converged to 1e-6 σ
             break
+    if block_samples:
+        nb = f.shape[0] // int(block_samples)
+        score = (jac * (ww * r)[:, None])[: nb * int(block_samples)].reshape(nb, int(block_samples), 9).sum(axis=1)
+        cov = cov @ (score.T @ score + np.diag(prior_info)) @ cov
     fh = compensate_acc(f, theta)
     r = np.linalg.norm(fh, axis=1) - gravity_m_s2 - offset
     used = huber > 0.999

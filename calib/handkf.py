@@ -69,16 +69,19 @@ import numpy as np
 from scipy import signal as sp_signal
 
 from gyrosim.calibration import Calibration
+from gyrosim.effects import WhiteNoise
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
-from .calibrate import _tilt_sigma, prepare, rest_mask
-from .consistency import (Inflation, apply_inflation, check_estimate, check_innovations, innovation_inflation,
+from .calibrate import _apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare, rest_mask
+from .consistency import (INFLATION_BLOCK_S, Inflation, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
-from .fastkf import run_filter
-from .kalman import HAND_BIAS, initial_covariance, m_matrix, theta_slice
+from .fastkf import regressor_half_window, run_filter
+from .gravityfit import GravityFit, compensate_acc, fit_gravity
+from .kalman import (BLOCK_LABELS, HAND_BIAS, HAND_JOINT, StateLayout, initial_covariance, leave_out_means, m_matrix,
+                     theta_slice)
 
 __all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
            "bias_drift"]
@@ -91,8 +94,15 @@ WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (
 WHITE_BAND2_HZ = 25.0      # … and above its second harmonic (16–24 Hz) when the rate allows (white_density)
 WHITE_SEGMENT_S = 4.0      # Welch segments of white_density (Blackman–Harris main lobe ±1 Hz)
 PASSES = 3
-LAYOUT = HAND_BIAS
+LAYOUT = HAND_BIAS         # kf_hand (accelerometer calibrated); kf_hand_joint: HAND_JOINT
+# the registered estimator each accelerometer mode of :func:`kf_hand` is (the label its result carries)
+REGISTERED_NAME = {"calibrated": "kf_hand", "estimate": "kf_hand_joint"}
 DRIFT_QUANTILE = 0.95      # the rests' bias differences must exceed their white-noise χ² quantile to be drift
+# kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
+# linearisation point, the filter's vertical row the information (the same data would otherwise count twice,
+# and the fit's white-residual covariance is optimistic with a hand's sway: its err/σ RMS 2–5 on the
+# independent generator).  A vague prior (the consumer ±1 m/s², ±5 %) diverged on the MPU-9250 (4 of 8 seeds)
+FIT_PRIOR_INFLATION = 100.0
 
 
 def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -264,9 +274,30 @@ def white_density(x: np.ndarray, rate_hz: float) -> float | None:
     return float(np.sqrt(np.mean(pxx[band]) / 2.0))
 
 
-def kf_hand(rec: Recording) -> Calibration:
-    """The hand-aware gyro calibration (module docstring); calibrated accelerometer (Zhou §3.3.2)."""
-    prep = prepare(rec, accelerometer="calibrated")
+def _acc_theta(theta: np.ndarray) -> np.ndarray:
+    """θ_a = [b_a, S_a, G_a] (9,) of an 18-vector θ (``THETA`` order)."""
+    return np.concatenate([theta[theta_slice("acc_bias")], theta[theta_slice("acc_scale")],
+                           theta[theta_slice("acc_nonorth")]])
+
+
+def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None) -> Calibration:
+    """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
+    the registered ``kf_hand``: 24 states) or "estimate" (the registered ``kf_hand_joint``: + the
+    accelerometer's bias, scale factor and non-orthogonality, 33 states — what ``calib run`` estimates by
+    default).  With the accelerometer estimated, every pass applies its error model at the current
+    estimate, f̂ = M̂_a⁻¹(f̃ − b̂_a), *before* the nav-frame tremor low-pass (the low-pass of a rotated
+    body-frame bias is not the bias), and hands the kernel the low-passed f̂ mapped back through
+    f̃_lp = M̂_a f̂_lp + b̂_a, so the kernel's own compensation at the nominal gives f̂_lp again; the prior of
+    the accelerometer states is the |f| = g fit's (mean and covariance, as ``kf_session``), the initial
+    tilt's dependence on them in P₀ (:func:`calib.kalman.initial_covariance`), re-linearised each pass
+    as ``iterated_session`` does."""
+    estimate = accelerometer == "estimate"
+    layout = HAND_JOINT if estimate else HAND_BIAS
+    # the levelling rows; with the accelerometer estimated also the vertical one, which carries the |f| = g
+    # information with the hand in the model (a_e's vertical component, the lever arm) — kf_session leaves it
+    # to its |f| = g fit, whose white-residual covariance is optimistic with a hand (below)
+    rows = 3 if estimate else 2
+    prep = prepare(rec, accelerometer=accelerometer, gravity_m_s2=gravity_m_s2)
     ra, rb = prep.rest_range
     nz = prep.noise
     arw = white_density(rec.gyro_rad_s[ra:rb], rec.rate_hz)
@@ -296,18 +327,26 @@ def kf_hand(rec: Recording) -> Calibration:
     r_var = sigma_f2 / dec
     theta = prep.theta0.copy()
     hand0 = np.zeros(6)
-    # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed)
-    f_lp0 = _lowpass(rec.acc_m_s2[a:], fs)
+    # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed),
+    # with the accelerometer compensated by the |f| = g fit when it is estimated
+    acc0 = compensate_acc(rec.acc_m_s2[a:], _acc_theta(theta)) if estimate else rec.acc_m_s2[a:]
+    f_lp0 = _lowpass(acc0, fs)
     along = float(np.mean((np.linalg.norm(f_lp0, axis=1) - cfg0.gravity_m_s2) ** 2)) - sigma_f2 * rho
     sigma_s, tau, tau_hp, hp_order = math.sqrt(max(3.0 * along, r_var)), 1.0, math.inf, 1
-    tremor_rms = math.sqrt(max(float(np.mean(np.sum((rec.acc_m_s2[a:] - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
+    tremor_rms = math.sqrt(max(float(np.mean(np.sum((acc0 - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
     still = rest_mask(prep, n)
+    q0 = prep.quat0_nb
+    obs_notes: list[str] = []
     for p in range(PASSES):
         theta[theta_slice("gyro_bias")] = prep.theta0[theta_slice("gyro_bias")]   # each pass starts at the rest's bias
         m = m_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")])
         w = (rec.gyro_rad_s[a:] - theta[theta_slice("gyro_bias")]) @ np.linalg.inv(m).T
-        q = integrate_gyro(t, w, prep.quat0_nb)
-        f_nav = quat_rotate(q, rec.acc_m_s2[a:])
+        if estimate:   # the rest attitude and P₀'s tilt–accelerometer terms at this pass's θ̂_a (pass 1: prepare's)
+            q0, f0, mi_a = _initial_attitude(rec, theta, ra, rb)
+        th_a = _acc_theta(theta)
+        acc = compensate_acc(rec.acc_m_s2[a:], th_a) if estimate else rec.acc_m_s2[a:]
+        q = integrate_gyro(t, w, q0)
+        f_nav = quat_rotate(q, acc)
         f_lp = quat_rotate(quat_conjugate(q), _lowpass(f_nav, fs))       # whitening pre-filter (nav low-pass)
         kreg = lever_regressor(w, t, fs)
         if p > 0:   # Gauss–Markov σ_s, τ from the previous pass's lever arm (module docstring, step 2)
@@ -316,28 +355,47 @@ def kf_hand(rec: Recording) -> Calibration:
             sigma_s = max(sigma_s, 1e-3 * math.sqrt(r_var))
         cfg = type(cfg0)(**{**cfg0.__dict__, "external_acc_allowance_m_s2": 0.0, "ext_acc_rms_m_s2": sigma_s,
                             "ext_acc_tau_s": tau, "ext_acc_highpass_tau_s": tau_hp, "ext_acc_highpass_order": hp_order})
-        p0 = initial_covariance(LAYOUT, cfg, tilt_sigma_rad=tilt)
-        x0 = np.zeros(LAYOUT.n)
+        x0 = np.zeros(layout.n)
         x0[3:9] = -theta[0:6]                                     # prior S = G = 0 seen from the linearisation point
-        x0[LAYOUT.offset("lever_arm"):LAYOUT.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
+        x0[layout.offset("lever_arm"):layout.offset("lever_arm") + 3] = -hand0[:3]   # prior r = 0
+        if estimate:   # the accelerometer's weak prior: the |f| = g fit (kf_session's) without the lever arm's K r̂,
+            gfit = prep.gravity_fit if p == 0 else _gravity_fit_lever_free(rec, prep, a, kreg, hand0[:3], th_a)
+            oa = layout.offset("acc_bias")
+            x0[oa:oa + 9] = gfit.theta - th_a
+            p0 = initial_covariance(layout, cfg, q0, f0, mi_a, gfit.covariance * FIT_PRIOR_INFLATION, tilt)
+        else:
+            p0 = initial_covariance(layout, cfg, tilt_sigma_rad=tilt)
+        # the kernel compensates at θ̂_a again
+        f_kernel = f_lp @ m_matrix(th_a[3:6], th_a[6:9]).T + th_a[0:3] if estimate else f_lp
         h0 = np.concatenate([hand0[:3], np.zeros(9)])
-        out = run_filter(rec.gyro_rad_s[None, a:], f_lp[None], t, prep.quat0_nb[None], theta[None], p0,
-                         LAYOUT, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
-                         x0=x0[None], lever_regressor=kreg, hand0=h0)
+        out = run_filter(rec.gyro_rad_s[None, a:], f_kernel[None], t, q0[None], theta[None], p0,
+                         layout, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
+                         x0=x0[None], lever_regressor=kreg, hand0=h0, rows=rows)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
+        if estimate and p == 0:   # calib run's observability check: gyro warnings, an undetermined accelerometer refused
+            _apply_observability(prep, _observability(replace(prep, layout=layout), out, p0), obs_notes)
     P = out.p[0]
-    ol = LAYOUT.offset("lever_arm")
-    _confounding(P, ol)
+    global _LAST
+    _LAST = (out, t, upd)
+    ol = layout.offset("lever_arm")
+    _confounding(P, ol, layout)
     infl_test = innovation_inflation(out.whitened[0], t[1:])
-    infl = _sandwich_factor(infl_test)
-    cov = np.zeros((9, 9))
-    cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)
-    cov[3:, 3:] = P[3:9, 3:9] * infl.factor
-    values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
-              "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
-    status, notes = verdict(check_innovations(out.nis[0][upd[1:]], 2, fs / dec),
-                            check_estimate(values, cov, cfg0.gravity_m_s2))
+    # the calibrated-accelerometer kf_hand scales P by κ̂ both ways (_sandwich_factor, measured there); the joint
+    # form keeps the one-sided rule it was measured with
+    infl = infl_test if estimate else _sandwich_factor(infl_test)
+    blocks = ["gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
+    idx = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in blocks])
+    cov = np.zeros((3 + idx.size, 3 + idx.size))
+    cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)      # the static average: uncorrelated with the filter's states
+    cov[3:, 3:] = P[np.ix_(idx, idx)] * infl.factor
+    values = {BLOCK_LABELS[b]: theta[theta_slice(b)] for b in blocks}
+    checks = [check_innovations(out.nis[0][upd[1:]], rows, fs / dec), check_estimate(values, cov, cfg0.gravity_m_s2)]
+    if estimate:   # |f̂| = g at the rests, as calib run's joint filter checks its accelerometer
+        f_hat = compensate_acc(rec.acc_m_s2, _acc_theta(theta))
+        checks.append(rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg0.gravity_m_s2,
+                                   math.sqrt(prep.config.r_var(fs))))
+    status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer)
     status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.at_floor)
     if prep.noise.at_floor and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
@@ -374,19 +432,35 @@ def kf_hand(rec: Recording) -> Calibration:
                  f"{'none' if not math.isfinite(tau_hp) else f'order {hp_order}, {tau_hp:.1f} s'}); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
     gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
-    return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
-                                   method="kf_hand",
-                                   diagnostics={"hand": hand, "consistency": {"sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
-                                                                      "sigma_factor": infl.sigma_factor,
-                                                                      "applied": "two-sided (kf_hand: _sandwich_factor)"}},
+    acc_params = None
+    extra: dict = {}
+    if estimate:   # the accelerometer's parameters as calib run's joint filter reports them
+        acc_params = {"bias": theta[theta_slice("acc_bias")], "scale_factor": theta[theta_slice("acc_scale")],
+                      "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("acc_nonorth")]), -0.45, 0.45)}
+        gf = gfit   # the last pass's prior (lever-arm-free from pass 2 on)
+        extra = {"accelerometer_mode": "estimate", "rest_gravity": checks[2].to_dict(),
+                 "gravity_fit": {"bias_m_s2": gf.bias_m_s2, "scale_factor": gf.scale_factor,
+                                 "nonorthogonality": gf.nonorthogonality, "std": np.sqrt(np.diag(gf.covariance)),
+                                 "residual_rms_m_s2": gf.residual_rms_m_s2, "samples": gf.samples}}
+    cal = Calibration.from_linear(gyro=gyro, accelerometer=acc_params, covariance=cov, status=status,
+                                  warnings=prep.warnings + tuple(obs_notes + notes), method=REGISTERED_NAME[accelerometer],
+                                  diagnostics={"hand": hand, "consistency": {"sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
+                                                                     "sigma_factor": infl.sigma_factor,
+                                                                     "applied": "one-sided" if estimate else
+                                                                     "two-sided (kf_hand: _sandwich_factor)"}},
                                                 "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": drift.to_dict(),
-                                                "filter": {"states": list(LAYOUT.names), "passes": PASSES,
+                                                **extra,
+                                                "filter": {"states": list(layout.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
+    if estimate:   # the noise densities among the effects too, as calib run's joint filter (calib export reads them)
+        cal = replace(cal, gyro=cal.gyro + (WhiteNoise(density=np.full(3, cfg0.arw_rad_s_sqrt_hz)),),
+                      accelerometer=cal.accelerometer + (WhiteNoise(density=np.full(3, cfg0.vrw_m_s2_sqrt_hz)),))
+    return cal
 
 
 def _sandwich_factor(infl: Inflation) -> Inflation:
@@ -409,11 +483,33 @@ def _sandwich_factor(infl: Inflation) -> Inflation:
     return replace(infl, factor=float(infl.kappa))
 
 
-def _confounding(P: np.ndarray, ol: int) -> None:
+def _gravity_fit_lever_free(rec: Recording, prep, start: int, kreg: np.ndarray, r_m: np.ndarray,
+                            theta_a: np.ndarray) -> GravityFit:
+    """The |f| = g fit of :func:`calib.calibrate.prepare` (same samples from the first rest on, weights,
+    prior) on f̃ − K(ω, ω̇) r̂ (the rest itself uncorrected: ω = 0 there): a hand's steady turn about a
+    pivot adds a constant centripetal ω × (ω × r) that a quasi-static |f| = g fit reads as accelerometer
+    bias (measured: b_y off by 0.05 m/s², 27 of its σ, with the typical hand's 6 cm).  The lever arm's
+    acceleration in raw units is M_a K r̂ ≈ K r̂ (the difference is second order: S_a · K r̂).  The hand's
+    sway and tremor stay in the residuals, correlated over seconds: the covariance is the fit's block-sum
+    sandwich over ``INFLATION_BLOCK_S`` blocks (the white-residual one was ~2× optimistic in σ for the
+    accelerometer on the independent generator's hand)."""
+    ra, _ = prep.rest_range
+    cfg = prep.config
+    fs = rec.rate_hz
+    f = rec.acc_m_s2[ra:].copy()
+    f[start - ra:] -= np.einsum("nij,j->ni", kreg, r_m)
+    f_reg = leave_out_means(f, regressor_half_window(fs), midpoint=False)
+    prior = np.concatenate([cfg.prior_sigma("acc_bias"), cfg.prior_sigma("acc_scale"), cfg.prior_sigma("acc_nonorth")])
+    sigma_f2 = cfg.vrw_m_s2_sqrt_hz**2 * fs
+    return fit_gravity(f, f_reg, sigma_f2 + cfg.external_acc_allowance_m_s2**2, sigma_f2, cfg.gravity_m_s2, prior,
+                       theta_a)
+
+
+def _confounding(P: np.ndarray, ol: int, layout: StateLayout = HAND_BIAS) -> None:
     """Refuse a session whose motion cannot tell the lever arm from S, G (module docstring)."""
     sd = np.sqrt(np.clip(np.diag(P), 1e-300, None))
     corr = P / np.outer(sd, sd)
-    names = LAYOUT.names
+    names = layout.names
     bad = []
     for i in range(ol, ol + 3):
         for j in range(3, 9):

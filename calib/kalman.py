@@ -79,6 +79,7 @@ from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
+           "HAND_JOINT",
            "HAND_BLOCKS",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
@@ -157,6 +158,7 @@ PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated acce
 JOINT = StateLayout(BLOCKS[:7])          # + gyro bias and the accelerometer's 9 parameters: 21 states
 HAND = StateLayout(BLOCKS[:3] + HAND_BLOCKS)  # the paper's 9 + lever arm + external acceleration (x, z, z₂): 21 states
 HAND_BIAS = StateLayout(BLOCKS[:4] + HAND_BLOCKS)  # kf_hand: HAND + the gyro bias (a random walk): 24 states
+HAND_JOINT = StateLayout(BLOCKS)         # kf_hand_joint: HAND_BIAS + the accelerometer's 9 parameters: 33 states
 
 
 def theta_slice(block: str) -> slice:

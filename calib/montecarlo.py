@@ -23,7 +23,8 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
   :func:`calib.calibrate.calibrate`, with the ``accelerometer`` mode asked).  A name means the same
   algorithm here, in ``calib run`` and in a campaign.  Each sees only the recording, as a user's file would be
   (:func:`as_user_file`: samples and rate; no truth, no sensor model, no hand).
-* The hand-aware bound, with the accelerometer calibrated: the same Riccati recursion with
+* The hand-aware bound (with the accelerometer estimated: when a hand-aware method ran, with the
+  accelerometer's nine states vague — :func:`hand_crlb`'s ``estimate_accelerometer``): the same Riccati recursion with
   the :data:`calib.kalman.HAND` layout — the lever arm as three nuisance parameters with a vague
   prior, the slow external acceleration a Gauss–Markov process with the PSD ``kf_hand`` estimated on
   the first seed (median σ_s, τ over the seeds), the measurement the tremor-free, decimated one
@@ -54,7 +55,7 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
 from .handkf import white_density
-from .kalman import HAND, HAND_BIAS, JOINT, PAPER, FilterConfig, initial_covariance
+from .kalman import HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -158,13 +159,17 @@ def _estimator(method: str, accelerometer: str) -> Callable:
 def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, quat_true_nb: np.ndarray,
               t_s: np.ndarray, theta_true: np.ndarray, config: FilterConfig, rate_hz: float, sigma_s_m_s2: float,
               tau_s: float, vague: float = 10.0, highpass_tau_s: float = math.inf,
-              bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1) -> np.ndarray:
+              bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1,
+              estimate_accelerometer: bool = False) -> np.ndarray:
     """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.kalman.HAND` states (module
     docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
     rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
     tremor-free measurement of :mod:`calib.handkf` (every D-th sample, R = σ_f²/D); with
     ``bias_rw_rad_s_sqrt_s`` > 0 the gyro bias is a random-walk state as in ``kf_hand`` (prior: the rest
-    average's σ in ``config``).  S, G are rows 3:9 of the result either way."""
+    average's σ in ``config``).  ``estimate_accelerometer``: ``kf_hand_joint``'s model — the
+    :data:`calib.kalman.HAND_JOINT` states, the accelerometer's nine with a vague prior, the true device's
+    accelerometer reading M_a f + b_a and all three measurement rows.  S, G are rows 3:9 of the result
+    either way."""
     from .handkf import _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
@@ -177,15 +182,22 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s,
                   ext_acc_highpass_tau_s=highpass_tau_s, ext_acc_highpass_order=int(highpass_order),
                   gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s)
-    layout = HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND
+    layout = HAND_JOINT if estimate_accelerometer else (HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND)
     p0 = initial_covariance(layout, cfg)
     p0[3:9, 3:9] = np.eye(6) * vague**2
-    o = layout.offset("lever_arm")
-    p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
+    vague_blocks = ("lever_arm", "acc_bias", "acc_scale", "acc_nonorth") if estimate_accelerometer else ("lever_arm",)
+    for blk in vague_blocks:
+        o = layout.offset(blk)
+        p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
+    acc = np.asarray(f_gravity_body_m_s2, float)
+    if estimate_accelerometer:
+        ma = np.eye(3) + np.diag(th[12:15]) + np.array([[0, th[17], th[16]], [th[17], 0, th[15]], [th[16], th[15], 0]])
+        acc = acc @ ma.T + th[9:12]
     r_var = config.vrw_m_s2_sqrt_hz**2 * rate_hz / dec
-    run = run_filter(gyro[None], np.asarray(f_gravity_body_m_s2)[None], t_s, np.asarray(quat_true_nb[0], float)[None],
+    run = run_filter(gyro[None], acc[None], t_s, np.asarray(quat_true_nb[0], float)[None],
                      th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
-                     lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz))
+                     lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz),
+                     rows=3 if estimate_accelerometer else 2)
     return run.p[0]
 
 
@@ -276,9 +288,10 @@ def monte_carlo(
     rec0, c0 = first
     prep0 = prepare(rec0, accelerometer=accelerometer)
     noise = prep0.config
-    if hnd.is_ideal or estimate:   # the calibration's own noise levels, as before
+    if hnd.is_ideal:   # the calibration's own noise levels, as before
         config = noise
-    else:                          # a hand's rest is not still: the sensor's white noise from above the tremor band
+    else:              # a hand's rest is not still: the sensor's white noise from above the tremor band (both
+        # accelerometer modes: with the rest's spread the bounds counted the tremor as sensor noise, efficiency < 1)
         ra, rb = prep0.rest_range
         arw, vrw = white_density(rec0.gyro_rad_s[ra:rb], rate_hz), white_density(rec0.acc_m_s2[ra:rb], rate_hz)
         config = replace(noise, external_acc_allowance_m_s2=0.0, arw_rad_s_sqrt_hz=arw or noise.arw_rad_s_sqrt_hz,
@@ -304,7 +317,7 @@ def monte_carlo(
         crlb.append(sd[12:21])
     sqrt_crlb = np.concatenate(crlb)
     sqrt_hand, hand_psd = np.zeros(0), {}
-    if not estimate:
+    if psd or not estimate:   # with the accelerometer estimated: when a hand-aware method gave the hand's PSD
         if psd:
             hp = [d.get("highpass_tau_s") for d in psd]
             hand_psd = {"rms_m_s2": float(np.median([d["rms_m_s2"] for d in psd])),
@@ -317,10 +330,14 @@ def monte_carlo(
                         "bias_rw_rad_s_sqrt_s": 0.0}
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
                        hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
-                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"])
+                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"],
+                       estimate_accelerometer=estimate)
         if not math.isfinite(hand_psd["highpass_tau_s"]):
             hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
-        sqrt_hand = np.concatenate([bias_crlb, np.sqrt(np.diag(ph))[3:9]])
+        sdh = np.sqrt(np.diag(ph))
+        oa = HAND_JOINT.offset("acc_bias")
+        # kf_hand(_joint) reports the rest-average gyro bias: its bound is the static one in both modes
+        sqrt_hand = np.concatenate([bias_crlb, sdh[3:9]] + ([sdh[oa:oa + 9]] if estimate else []))
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), truths_arr, sqrt_crlb, status[m], slice(3, 9), sqrt_hand)
               for m in methods}
     return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
