@@ -340,6 +340,14 @@ def xio() -> str:
     return "\n\n".join(lines)
 
 
+def hand_measured() -> str:
+    """kf_hand on every measured recording (benchmarks/hand_measured.py's table)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import hand_measured as hm
+
+    return hm.markdown(hm.run(available_datasets()))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=60, help="seeds of the independent-generator Monte Carlo")
@@ -351,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, fn in (("noise_free", noise_free), ("mc_independent", lambda: mc_independent(args.seeds)[0]),
                      ("mc_gyrosim", lambda: mc_gyrosim(args.gyrosim_seeds)), ("hands", hands), ("bench", bench),
                      ("ferraris", ferraris),
-                     ("imu_tk", imu_tk), ("broad", broad), ("xio", xio)):
+                     ("imu_tk", imu_tk), ("broad", broad), ("xio", xio), ("hand_measured", hand_measured)):
         print(f"… {name}", file=sys.stderr, flush=True)
         parts[name] = fn()
     template = (ROOT / "benchmarks" / "real_imu_template.md").read_text()

@@ -298,3 +298,13 @@ def lever_arm_two_pass(rec: Recording) -> Calibration:
                        status=second.status, method="lever_arm_two_pass",
                        warnings=second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",),
                        diagnostics={**second.diagnostics, "hand": {"lever_arm_m": r.tolist()}})
+
+
+# What each estimator estimates (gyrosim.estimator.estimated_triads): calib montecarlo --accelerometer
+# estimate refuses a gyro-only method before simulating a seed.
+for _f in (kf, iterated, smoother, kf_session_r, iterated_session_r, kf_adaptive, kf_gated, kf_adaptive_gated,
+           kf_lever_arm, lever_arm_two_pass, kf_hand):
+    _f.estimates = ("gyro",)  # type: ignore[attr-defined]
+for _f in (kf_joint, iterated_joint, kf_hand_joint):
+    _f.estimates = ("gyro", "accelerometer")  # type: ignore[attr-defined]
+del _f

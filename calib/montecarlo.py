@@ -44,7 +44,7 @@ from scipy import stats
 
 from gyrosim.calibration import truth_calibration
 from gyrosim.errors import GyrosimError
-from gyrosim.estimator import as_user_file, load_estimator
+from gyrosim.estimator import as_user_file, estimated_triads, load_estimator
 from gyrosim.hand import load_hand
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.schedule import load_schedule
@@ -149,10 +149,18 @@ class MonteCarloResult:
                                 "statuses": st.statuses} for m, st in self.methods.items()}}
 
 
+_GYRO_ONLY = ("--accelerometer estimate scores the accelerometer's parameters, but {} does not estimate them "
+              "(it assumes a calibrated accelerometer: no σ for them). Use a joint method (kf_session, "
+              "iterated_session: calib run's filter; kf_joint, iterated_joint) or --accelerometer calibrated")
+
+
 def _estimator(method: str, accelerometer: str) -> Callable:
     """The callable behind a method name (module docstring, "Methods")."""
     if method in METHODS:   # calib run's filter, in the accelerometer mode asked
-        return lambda rec: calibrate(rec, method, accelerometer=accelerometer, keep_history=False)
+        def run(rec):
+            return calibrate(rec, method, accelerometer=accelerometer, keep_history=False)
+        run.estimates = ("gyro", "accelerometer") if accelerometer == "estimate" else ("gyro",)
+        return run
     return load_estimator(method)
 
 
@@ -248,6 +256,10 @@ def monte_carlo(
     estimate = accelerometer == "estimate"
     names = GYRO_PARAMS + (ACC_PARAMS if estimate else ())
     runners = {m: _estimator(m, accelerometer) for m in methods}   # unknown names fail before any simulation
+    if estimate:   # a method that declares it estimates the gyro only is refused before any simulation too
+        blind = [m for m, r in runners.items() if (d := estimated_triads(r)) is not None and "accelerometer" not in d]
+        if blind:
+            raise GyrosimError(_GYRO_ONLY.format(", ".join(repr(m) for m in blind)))
     psd, drift = [], []
     truth_fixed = simulate_truth(sched, hnd, rate_hz, seed=first_seed) if hnd.is_ideal else None
     est = {m: [] for m in methods}
@@ -273,10 +285,7 @@ def monte_carlo(
                 items += [("accelerometer", "bias"), ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")]
             block = c.block_covariance(items)
             if estimate and k == 0 and not np.all(np.diag(block)[len(GYRO_PARAMS):] > 0):
-                raise GyrosimError(
-                    f"--accelerometer estimate scores the accelerometer's parameters, but {m!r} does not estimate them "
-                    "(it assumes a calibrated accelerometer: no σ for them). Use a joint method (kf_session, "
-                    "iterated_session: calib run's filter) or --accelerometer calibrated")
+                raise GyrosimError(_GYRO_ONLY.format(repr(m)))
             est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))
             cov[m].append(block)
             status[m].append(c.status)

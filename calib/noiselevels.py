@@ -74,6 +74,14 @@ class NoiseLevels:
         """Either triad's measured noise below its floor (a noise-free or coarsely quantised input)."""
         return self.gyro_measured_rad_s < self.gyro_floor_rad_s or self.acc_measured_m_s2 < self.acc_floor_m_s2
 
+    @property
+    def noise_free(self) -> bool:
+        """Either triad's measured rest noise below half its floor: a noise-free (simulated) input.  A real,
+        coarsely quantised sensor whose noise is about one LSB (imucal's NilsPod accelerometer: 1.50e-2
+        measured, floor LSB/√12 = 1.51e-2 m/s²) is :attr:`at_floor` but not noise-free."""
+        return (self.gyro_measured_rad_s < 0.5 * self.gyro_floor_rad_s
+                or self.acc_measured_m_s2 < 0.5 * self.acc_floor_m_s2)
+
     def notes(self) -> list[str]:
         out = []
         if self.gyro_measured_rad_s < self.gyro_floor_rad_s:

@@ -17,6 +17,10 @@ its own there (``kf``, ``iterated``, ``kf_session_r``, ... in its ``pyproject.to
 installed package can register more the same way.  Any estimator can also be named by import path
 ``package.module:attribute``.  Either names an estimator, or a class/factory called with no
 arguments that returns one.  ``examples/own_estimator.py`` plugs one in.
+
+An estimator may declare which triads it estimates, ``estimator.estimates = ("gyro",)`` or
+``("gyro", "accelerometer")`` (:func:`estimated_triads`): a campaign that scores the accelerometer then
+refuses a gyro-only method before simulating anything; an undeclared one is checked on its first result.
 """
 
 from __future__ import annotations
@@ -31,7 +35,8 @@ from .errors import GyrosimError
 from .plugins import load, registered
 from .recording import Recording
 
-__all__ = ["Estimate", "Estimator", "load_estimator", "registered_estimators", "as_user_file", "ENTRY_POINT_GROUP"]
+__all__ = ["Estimate", "Estimator", "load_estimator", "registered_estimators", "as_user_file", "estimated_triads",
+           "ENTRY_POINT_GROUP"]
 
 ENTRY_POINT_GROUP = "gyrosim.estimators"
 
@@ -92,3 +97,19 @@ def load_estimator(spec: str) -> Callable[[Recording], Calibration]:
     if not callable(obj):
         raise GyrosimError(f"estimator {spec!r} is not callable: it must map a Recording to a Calibration")
     return obj
+
+
+TRIADS = ("gyro", "accelerometer")
+
+
+def estimated_triads(estimator: Callable) -> tuple[str, ...] | None:
+    """The triads an estimator declares it estimates (its ``estimates`` attribute, a subset of
+    ``("gyro", "accelerometer")``), or None when it declares nothing (then only its results tell)."""
+    d = getattr(estimator, "estimates", None)
+    if d is None:
+        return None
+    d = (d,) if isinstance(d, str) else tuple(d)
+    bad = [t for t in d if t not in TRIADS]
+    if bad:
+        raise GyrosimError(f"estimator declares unknown triad(s) {bad} in 'estimates' (known: {', '.join(TRIADS)})")
+    return d

@@ -60,3 +60,23 @@ def test_monte_carlo_refuses_a_gyro_only_method_when_scoring_the_accelerometer()
 
     with pytest.raises(GyrosimError, match=r"'kf' does not estimate them.*kf_session"):
         monte_carlo(sensor="mpu9250_linear", seeds=2, methods=("kf",), accelerometer="estimate")
+
+
+def test_monte_carlo_refuses_a_declared_gyro_only_method_before_simulating(monkeypatch):
+    # kf, kf_hand, ... declare estimates = ("gyro",): the refusal comes before the first seed is simulated
+    # (it used to come after one MuJoCo session); a joint method declares both triads and is not refused
+    import pytest
+    import calib.montecarlo as mc
+    from gyrosim.errors import GyrosimError
+    from gyrosim.estimator import estimated_triads, load_estimator
+
+    def no_simulation(*a, **k):
+        raise AssertionError("simulated before refusing")
+
+    monkeypatch.setattr(mc, "simulate_truth", no_simulation)
+    for m in ("kf", "kf_hand", "kf_session_r"):
+        with pytest.raises(GyrosimError, match=rf"'{m}' does not estimate them"):
+            mc.monte_carlo(sensor="mpu9250_linear", seeds=2, methods=("kf_session", m), accelerometer="estimate")
+    assert estimated_triads(load_estimator("kf_joint")) == ("gyro", "accelerometer")
+    assert estimated_triads(mc._estimator("kf_session", "estimate")) == ("gyro", "accelerometer")
+    assert estimated_triads(mc._estimator("kf_session", "calibrated")) == ("gyro",)
