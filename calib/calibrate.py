@@ -311,8 +311,8 @@ def calibrate(
     Raises :class:`~gyrosim.errors.RecordingError` for input the method cannot use (no rest, gaps,
     wrong units, an accelerometer the motion cannot separate from the gyro errors).  A run that fails
     its own consistency check is returned with ``status`` "diverged" or "inconsistent".
-    ``hand_check``: an "ok" result is compared with the hand-aware estimate (``kf_hand``, on the
-    accelerometer compensated by this calibration's own estimate) and becomes "inconsistent" when they
+    ``hand_check``: an "ok" result is compared with the hand-aware estimate (``kf_hand``; with the
+    accelerometer estimated ``kf_hand_joint`` on the raw recording) and becomes "inconsistent" when they
     differ beyond both σ (:func:`calib.handkf.hand_cross_check`: a lever arm's error hides from the
     innovations).
     """
@@ -446,7 +446,7 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
         from .handkf import hand_cross_check
 
         sg = np.concatenate([th[theta_slice("gyro_scale")], th[theta_slice("gyro_nonorth")]])
-        warn, cross = hand_cross_check(rec, sg, cov[3:9, 3:9], f_hat if estimate else None)
+        warn, cross = hand_cross_check(rec, sg, cov[3:9, 3:9], accelerometer="estimate" if estimate else "calibrated")
         if warn:
             notes.extend(warn)
             status = "inconsistent"
