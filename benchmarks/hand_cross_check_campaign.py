@@ -59,7 +59,8 @@ def cell(schedule: str, hand: str, sensor: str, seeds: int, rate_hz: float = 100
             w_old, d_old = hand_cross_check(user, sg, cov, compensate_acc(user.acc_m_s2, th_a))
             w_new, d_new = hand_cross_check(user, sg, cov, accelerometer="estimate")
             row.update(before_flag=bool(w_old), before_chi2=d_old.get("chi2"), after_flag=bool(w_new),
-                       after_chi2=d_new.get("chi2"), after_max_abs_delta_over_sigma=d_new.get("max_abs_delta_over_sigma"))
+                       after_chi2=d_new.get("chi2"), after_max_abs_delta_over_sigma=d_new.get("max_abs_delta_over_sigma"),
+                       after_max_error_bound_over_sigma=d_new.get("max_error_bound_over_sigma"))
             # the variants of C_δ, on the same kf_hand_joint answer (for choosing; recorded per row)
             h = kf_hand(user, accelerometer="estimate")
             dd = sg - np.concatenate([h.value(t, k) for t, k in ITEMS])
