@@ -102,6 +102,8 @@ ORDER = 4
 CONFOUND_CORRELATION = 0.98
 LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
 WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)
+WHITE_BAND2_HZ = 25.0      # … and above its second harmonic (16–24 Hz) when the rate allows (white_density)
+WHITE_SEGMENT_S = 4.0      # Welch segments of white_density (Blackman–Harris main lobe ±1 Hz)
 PASSES = 3
 LAYOUT = HAND_BIAS         # kf_hand (accelerometer calibrated); kf_hand_joint: HAND_JOINT
 # the registered estimator each accelerometer mode of :func:`kf_hand` is (the label its result carries)
@@ -315,14 +317,27 @@ def bias_drift(gyro_rad_s: np.ndarray, t_s: np.ndarray, rests: tuple[tuple[int, 
 
 def white_density(x: np.ndarray, rate_hz: float) -> float | None:
     """White-noise density N (per √Hz, mean of the axes) of rest samples ``x`` (N, 3) from their spectrum
-    above the tremor band, ``WHITE_BAND_HZ`` … 0.45 f_s (Welch; one-sided PSD 2N²): the rest segment's
-    standard deviation would count the hand's tremor as sensor noise.  None when the rate leaves no such
-    band or the rest is shorter than 2 s."""
+    above the tremor band (Welch, one-sided PSD 2N²): the rest segment's standard deviation would count the
+    hand's tremor as sensor noise.  The band starts at ``WHITE_BAND2_HZ`` (25 Hz, above the tremor's
+    second harmonic) when the rate leaves ≥ 10 Hz above it, else at ``WHITE_BAND_HZ`` (15 Hz), and ends at
+    0.45 f_s; the window is Blackman–Harris (sidelobes −92 dB) over ``WHITE_SEGMENT_S`` = 4-s segments, so
+    that its main lobe (±4 bins) spans ±1 Hz and a 24-Hz line does not reach 25 Hz (with 1-s segments it
+    did: +6 % on N, synthetic rest of tests/test_hand.py; the same rest gives the same number of
+    independent PSD averages either way, more bins of fewer segments).  Both because a shaky hand's tremor is
+    ~60 dB above the sensor's white floor: (i) a Hann window's sidelobes (−31 dB, falling 18 dB/octave)
+    leak it 3–7 bins away, into 15–20 Hz; (ii) what is quadratic in the tremor — the centripetal
+    ω_tr × (ω_tr × r) of the rotational tremor at the lever arm — sits at the sum frequencies, 16–24 Hz
+    for an 8–12 Hz tremor.  Measured (zhou2020_sim_consumer, true N = 1.47e-4 m/s²/√Hz, shaky hand, 3
+    seeds): Hann 15–45 Hz 1.65–1.85e-4 (R = σ_f²/D overstated ×1.25–1.6, σ pessimistic), Blackman–Harris
+    15–45 Hz 1.47–1.64e-4, Blackman–Harris 25–45 Hz 1.43–1.50e-4.  None when the rate leaves no such band
+    or the rest is shorter than 2 s."""
     hi = 0.45 * rate_hz
     if hi <= WHITE_BAND_HZ + 5.0 or x.shape[0] < 2 * rate_hz:
         return None
-    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, nperseg=int(min(x.shape[0], rate_hz)), axis=0)
-    band = (f >= WHITE_BAND_HZ) & (f <= hi)
+    lo = WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ
+    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
+                             nperseg=int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), axis=0)
+    band = (f >= lo) & (f <= hi)
     return float(np.sqrt(np.mean(pxx[band]) / 2.0))
 
 
@@ -445,7 +460,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     _LAST = (out, t, upd)
     ol = layout.offset("lever_arm")
     _confounding(P, ol, layout)
-    infl = innovation_inflation(out.whitened[0], t[1:])
+    infl_test = innovation_inflation(out.whitened[0], t[1:])
+    # one-sided (κ̂ applied only above its χ² 95 % quantile), as for every method: the two-sided factor
+    # (_sandwich_factor) brought gyrosim's hand cells into their NEES band but, on the measured x-IMU3 hand-held
+    # session, κ̂ = 0.027 shrank σ ×0.16 and left an "ok" G_y 19 σ from the factory calibration (3.2 σ one-sided)
+    infl = infl_test
     blocks = ["gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
     idx = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in blocks])
     cov = np.zeros((3 + idx.size, 3 + idx.size))
@@ -468,7 +487,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer)
     if thermal is not None:
         notes = notes + [temperature["note"]]
-    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
+    status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.noise_free)
     if prep.noise.noise_free and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
@@ -483,7 +502,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                      "rad/s/√s (from the rests, bias_drift); a longer warm-up before the session or a temperature-"
                      "stable sensor gives a smaller σ")
     r_hat = hand0[:3]
-    r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl.factor)
+    # the lever arm's σ keeps the one-sided factor: its information sits at the turns' ω̇ and ω² (0.1–1 Hz, inside
+    # the sway band, where the fitted model understates the power) above the < 0.125 Hz that κ̂ measures;
+    # deflating it by κ̂ < 1 made it more optimistic (independent generator, 10 sessions: err/σ RMS 1.4–1.7
+    # per axis against 1.3–1.5 one-sided)
+    r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl_test.factor)
     # kf_hand's own assumptions on this recording (calibrated accelerometer, a hand's tremor and lever arm)
     assumptions = check_hand_assumptions(rec.acc_m_s2, rec.t_s, prep.rest.index_ranges, np.sqrt(np.diag(cov[3:9, 3:9])),
                                          tremor_rms, r_hat, r_sd, check_accelerometer=not estimate)
@@ -518,7 +541,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                  "residual_rms_m_s2": gf.residual_rms_m_s2, "samples": gf.samples}}
     cal = Calibration.from_linear(gyro=gyro, accelerometer=acc_params, covariance=cov, status=status,
                                   warnings=prep.warnings + tuple(obs_notes + notes), method=REGISTERED_NAME[accelerometer],
-                                  diagnostics={"hand": hand, "consistency": {"sigma_inflation": infl.to_dict()},
+                                  diagnostics={"hand": hand, "consistency": {"sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
+                                                                     "sigma_factor": infl.sigma_factor,
+                                                                     "applied": "one-sided"}},
                                                 "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
