@@ -113,11 +113,14 @@ THERMAL_MIN_SPAN_C = 0.2   # the scale factor's temperature coefficient is a sta
 THERMAL_SMOOTH_S = 2.0     # the temperature channel is averaged over this window (its quantisation and noise)
 
 
-def hand_layout(temperature: bool) -> StateLayout:
+def hand_layout(temperature: bool, g_sensitivity: bool = False) -> StateLayout:
     """kf_hand's states: :data:`calib.kalman.HAND_BIAS` (attitude, S, G, gyro bias, lever arm, x, z, z₂), then
     the scale factor's temperature coefficient s_T when the session's temperature moved (``temperature``), then
-    the gyro's g-sensitivity (diagonal: b_g,i = b_i + k_i f_i, f the specific force) — 27 or 30 states."""
-    return StateLayout(HAND_BIAS.blocks + (("gyro_temp_scale",) if temperature else ()) + G_SENS_BLOCKS)
+    with ``g_sensitivity`` the gyro's g-sensitivity (diagonal: b_g,i = b_i + k_i f_i, f the specific force) — 24 to
+    30 states.  The g-sensitivity is off by default: on the measured x-IMU3 hand-held session it took the lever
+    arm's information (r̂ 5.3 → 2.0 cm, σ ×2.5–3); on the MPU-9250 preset it brought NEES into its band."""
+    return StateLayout(HAND_BIAS.blocks + (("gyro_temp_scale",) if temperature else ())
+                       + (G_SENS_BLOCKS if g_sensitivity else ()))
 
 
 def session_temperature(temp_c: np.ndarray | None, rate_hz: float) -> tuple[np.ndarray, float] | None:
@@ -347,7 +350,8 @@ def _acc_theta(theta: np.ndarray) -> np.ndarray:
                            theta[theta_slice("acc_nonorth")]])
 
 
-def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None) -> Calibration:
+def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None,
+            g_sensitivity: bool = False) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
     the registered ``kf_hand``: 24 states) or "estimate" (the registered ``kf_hand_joint``: + the
     accelerometer's bias, scale factor and non-orthogonality, 33 states — what ``calib run`` estimates by
@@ -408,7 +412,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # accelerometer); kf_hand_joint keeps HAND_JOINT
     thermal = None if estimate else session_temperature(None if rec.temp_c is None else rec.temp_c[a:], fs)
     if not estimate:
-        layout = hand_layout(thermal is not None)
+        layout = hand_layout(thermal is not None, g_sensitivity)
     q0 = prep.quat0_nb
     obs_notes: list[str] = []
     for p in range(PASSES):

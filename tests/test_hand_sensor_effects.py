@@ -14,7 +14,7 @@ construction, ω_i (1 + s_T,i (T − T[0])) on top of M ω).
 
 g-sensitivity.  A MEMS gyro's bias moves with the specific force along its axis (MPU-9250 family: 0.1 °/s/g):
 b_i = b_i⁰ + k_i f_i — a bias step at every change of attitude; ``kf_hand`` estimates k (three states, the
-bias's prior correlated with it through the first rest's reading).  The generator's g-sensitivity is its own
+bias's prior correlated with it through the first rest's reading; ``g_sensitivity=True``, off by default).  The generator's g-sensitivity is its own
 (gyro += K f with f its true gravity in the body).
 """
 
@@ -138,7 +138,7 @@ def test_kf_hand_estimates_the_g_sensitivity_and_stays_honest():
     for seed in range(4):
         d = ig.generate_arrays(seed=seed, kin=kin, steps=STEPS_LEVEL_END, **NOISE, **HAND_KW,
                                g_sensitivity=np.diag(k_true))
-        cal = kf_hand(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], meta={"rate_hz": 100.0}))
+        cal = kf_hand(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], meta={"rate_hz": 100.0}), g_sensitivity=True)
         assert cal.status == "ok", cal.warnings
         e = np.concatenate([cal.value(a, b) for a, b in ITEMS]) - np.concatenate([d["scale_factor"], d["nonorthogonality"]])
         total += float(e @ np.linalg.solve(cal.block_covariance(ITEMS), e))
