@@ -567,6 +567,12 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     return cal
 
 
+def kf_hand_g_sensitivity(rec: Recording) -> Calibration:
+    """``kf_hand`` with the gyro's g-sensitivity block on (:func:`hand_layout`); by import path
+    ``calib.handkf:kf_hand_g_sensitivity`` (``calib montecarlo --methods``, benchmarks/mpu9250_ablation.py)."""
+    return kf_hand(rec, g_sensitivity=True)
+
+
 def _g_sensitivity_prior(p0: np.ndarray, layout, f_rest_m_s2: np.ndarray) -> None:
     """The bias's prior comes from a rest, where the gyro read b + diag(k) f̄ (f̄ that rest's specific force): so
     b = b̄ − diag(f̄) k, and with k ~ N(0, P_k) the prior of (b, k) is correlated,
