@@ -33,10 +33,9 @@ from scipy import stats
 from calib import calibrate, load_recording
 from calib.gravityfit import compensate_acc
 from calib.handkf import kf_hand
+from calib.validation import windowed_rotation_error_deg
 from gyrosim.errors import GyrosimError
 from gyrosim.loaders import available_datasets
-from gyrosim.rotations import quat_conjugate, quat_multiply
-from gyrosim.strapdown import integrate_gyro
 
 # imucal 2.6.0 FerrarisCalibration, symmetric part of its gyro matrix in our frame (docs/real_imu.md)
 IMUCAL_SG = np.array([0.02785, -0.01765, -0.00172, 0.00244, 0.00166, -0.00006])
@@ -44,17 +43,8 @@ CHI2_6 = float(stats.chi2.ppf(0.999, 6))
 
 
 def optical_attitude_error_deg(rec, gyro, window_s=5.0, step_s=0.5):
-    """tests/test_hand_measured.py's score (kept identical)."""
-    q_opt = rec.truth.quat_nb
-    q = integrate_gyro(rec.t_s, gyro, np.array([1.0, 0.0, 0.0, 0.0]))
-    k, s = int(round(window_s * rec.rate_hz)), int(round(step_s * rec.rate_hz))
-    i = np.arange(0, rec.n - k, s)
-    j = i + k
-    ok = np.isfinite(q_opt[i]).all(axis=1) & np.isfinite(q_opt[j]).all(axis=1)
-    i, j = i[ok], j[ok]
-    d = quat_multiply(quat_conjugate(quat_multiply(quat_conjugate(q_opt[i]), q_opt[j])),
-                      quat_multiply(quat_conjugate(q[i]), q[j]))
-    return float(np.sqrt(np.mean((2.0 * np.degrees(np.arccos(np.clip(np.abs(d[:, 0]), 0.0, 1.0)))) ** 2)))
+    """tests/test_hand_measured.py's score: :func:`calib.validation.windowed_rotation_error_deg` vs ``opt_quat``."""
+    return windowed_rotation_error_deg(rec.t_s, gyro, rec.truth.quat_nb, rec.rate_hz, window_s, step_s)
 
 
 def _acc_first(rec):

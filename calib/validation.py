@@ -23,7 +23,7 @@ from gyrosim.sensor_model import SensorModel
 from gyrosim.simulate import apply_sensor, simulate_truth
 from gyrosim.strapdown import integrate_gyro
 
-__all__ = ["AttitudeErrors", "attitude_errors", "validate_attitude"]
+__all__ = ["AttitudeErrors", "attitude_errors", "validate_attitude", "windowed_rotation_error_deg"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,25 @@ def attitude_errors(q_est: np.ndarray, q_true: np.ndarray) -> np.ndarray:
     pitch = -np.arcsin(np.clip(e[:, 2, 0], -1.0, 1.0))
     heading = np.arctan2(e[:, 1, 0], e[:, 0, 0])
     return np.degrees(np.stack([roll, pitch, heading], axis=1))
+
+
+def windowed_rotation_error_deg(t_s: np.ndarray, gyro_rad_s: np.ndarray, quat_ref_nb: np.ndarray, rate_hz: float,
+                                window_s: float = 5.0, step_s: float = 0.5) -> float:
+    """RMS (°) over windows [t, t + window_s] (every ``step_s``) of the angle between the rotation the gyro
+    (body RFU, rad/s) integrates and the reference's (``quat_ref_nb``, body → nav, e.g. BROAD's optical
+    ``opt_quat``): the angle of (q_ref,i⁻¹ q_ref,j)⁻¹ (q_i⁻¹ q_j).  Windows with a non-finite (occluded)
+    end are skipped.  Relative rotations need no heading or frame alignment, and a scale or axis error
+    shows in proportion to the angle turned in the window."""
+    q = integrate_gyro(t_s, gyro_rad_s, np.array([1.0, 0.0, 0.0, 0.0]))
+    k, s = int(round(window_s * rate_hz)), int(round(step_s * rate_hz))
+    i = np.arange(0, t_s.size - k, s)
+    j = i + k
+    ok = np.isfinite(quat_ref_nb[i]).all(axis=1) & np.isfinite(quat_ref_nb[j]).all(axis=1)
+    i, j = i[ok], j[ok]
+    d = quat_multiply(quat_conjugate(quat_multiply(quat_conjugate(quat_ref_nb[i]), quat_ref_nb[j])),
+                      quat_multiply(quat_conjugate(q[i]), q[j]))
+    ang = 2.0 * np.degrees(np.arccos(np.clip(np.abs(d[:, 0]), 0.0, 1.0)))
+    return float(np.sqrt(np.mean(ang**2)))
 
 
 def validate_attitude(calibration_recording: Recording, result, *, schedule: str = "freestyle",

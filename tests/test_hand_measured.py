@@ -19,13 +19,12 @@ import pytest
 
 from gyrosim.errors import RecordingError
 from gyrosim.loaders import available_datasets
-from gyrosim.rotations import quat_conjugate, quat_multiply
-from gyrosim.strapdown import integrate_gyro
 
 from calib import calibrate, load_recording
 from calib.gravityfit import compensate_acc
 from calib.handchecks import LEVER_ARM_MAX_M
 from calib.handkf import kf_hand
+from calib.validation import windowed_rotation_error_deg
 
 AVAILABLE = set(available_datasets())
 BROAD = sorted(n for n in AVAILABLE if n.startswith("broad/"))
@@ -48,21 +47,8 @@ def _hand(rec):
 
 
 def optical_attitude_error_deg(rec, gyro_rad_s: np.ndarray, window_s: float = 5.0, step_s: float = 0.5) -> float:
-    """RMS (°) over windows [t, t + window_s] of the angle between the rotation the gyro integrates and the
-    optical one (BROAD's ``opt_quat``, sensor → ENU); windows with an occluded end are skipped.  Relative
-    rotations need no heading or frame alignment, and a scale or axis error shows in proportion to the
-    angle turned in the window."""
-    q_opt = rec.truth.quat_nb
-    q = integrate_gyro(rec.t_s, gyro_rad_s, np.array([1.0, 0.0, 0.0, 0.0]))
-    k, s = int(round(window_s * rec.rate_hz)), int(round(step_s * rec.rate_hz))
-    i = np.arange(0, rec.n - k, s)
-    j = i + k
-    ok = np.isfinite(q_opt[i]).all(axis=1) & np.isfinite(q_opt[j]).all(axis=1)
-    i, j = i[ok], j[ok]
-    d = quat_multiply(quat_conjugate(quat_multiply(quat_conjugate(q_opt[i]), q_opt[j])),
-                      quat_multiply(quat_conjugate(q[i]), q[j]))
-    ang = 2.0 * np.degrees(np.arccos(np.clip(np.abs(d[:, 0]), 0.0, 1.0)))
-    return float(np.sqrt(np.mean(ang**2)))
+    """BROAD's score: :func:`calib.validation.windowed_rotation_error_deg` against the optical ``opt_quat``."""
+    return windowed_rotation_error_deg(rec.t_s, gyro_rad_s, rec.truth.quat_nb, rec.rate_hz, window_s, step_s)
 
 
 # The score's noise: ~35 independent 5-s windows per trial (3 min), so the RMS has a relative standard error
