@@ -93,6 +93,7 @@ from .gravityfit import GravityFit, compensate_acc, fit_gravity
 from .kalman import (BLOCK_LABELS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, StateLayout, initial_covariance, leave_out_means, m_matrix,
                      theta_slice)
 from .handchecks import check_hand_assumptions
+from .handbias import rest_bias
 
 __all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
            "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature"]
@@ -472,7 +473,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     blocks = ["gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
     idx = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in blocks])
     cov = np.zeros((3 + idx.size, 3 + idx.size))
-    cov[:3, :3] = np.diag(prep.bias_std_rad_s**2)      # the static average: uncorrelated with the filter's states
+    # the first rest's mean at its stated reference (time, temperature, specific force), σ without the hand's
+    # rotation that cancels in the mean (calib.handbias); uncorrelated with the filter's states
+    rbias = rest_bias(rec.gyro_rad_s, rec.t_s, (ra, rb), cfg0.arw_rad_s_sqrt_hz,
+                      compensate_acc(rec.acc_m_s2, _acc_theta(theta)) if estimate else rec.acc_m_s2, rec.temp_c)
+    cov[:3, :3] = np.diag(rbias.std_rad_s**2)
     # the temperature block (thermal is not None): S is reported at the temperature the session pinned it best
     t_ref, jt = scale_at_temperature(P, layout, thermal[1] if thermal is not None else float("nan"))
     jsel = np.zeros((idx.size, P.shape[0]))
@@ -531,7 +536,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                  f"{np.array2string(r_sd * 100, precision=1)} cm (body); slow external acceleration "
                  f"{cfg.ext_acc_rms_a_m_s2:.3f} m/s² RMS (τ {tau:.2f} s, high-pass "
                  f"{'none' if not math.isfinite(tau_hp) else f'order {hp_order}, {tau_hp:.1f} s'}); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
-    gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
+    gyro = {"bias": rbias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
     acc_params = None
     extra: dict = {}
@@ -553,6 +558,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": drift.to_dict(),
+                                                "gyro_bias": rbias.to_dict(),
                                                 "temperature": {k: v for k, v in temperature.items() if k != "note"},
                                                 **({"gyro_g_sensitivity": _g_sensitivity_report(sens0, P, layout, infl.factor)}
                                                    if layout.models_g_sensitivity else {}),

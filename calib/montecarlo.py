@@ -256,6 +256,54 @@ def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     return out
 
 
+def truth_bias_at_reference(rec, index_range: tuple[int, int], slow_bias_rad_s: np.ndarray | None = None) -> np.ndarray:
+    """The simulated device's gyro bias during the rest ``index_range`` = [a, b) minus the oracle's (3,), rad/s
+    (scoring only: it reads the truth): its deterministic, non-affine error effects at zero rate, evaluated at the
+    rest's mean temperature and mean true specific force — the MPU-9250's ``temperature_bias`` c (T_r − T_ref)
+    and ``g_sensitivity`` K f_r — plus ``slow_bias_rad_s``, the mean of the sensor's slow stochastic bias (bias
+    instability, rate random walk) over the rest (:func:`slow_gyro_bias`).  A calibration that states where its
+    bias holds (``diagnostics["gyro_bias"]``, :mod:`calib.handbias`) is scored against the device's bias there;
+    the oracle's (:func:`gyrosim.calibration.truth_calibration`) is the one at T_ref with zero specific force."""
+    from gyrosim.effects import SignalContext
+    from gyrosim.sensor_model import stored_sensor_model
+
+    model = stored_sensor_model(rec.meta or {})
+    out = np.zeros(3) if slow_bias_rad_s is None else np.asarray(slow_bias_rad_s, float).copy()
+    if model is None or rec.truth is None:
+        return out
+    a, b = index_range
+    zero = np.zeros((2, 3))
+    f_r = np.mean(rec.truth.specific_force_body_m_s2[a:b], axis=0)
+    t_r = None if rec.temp_c is None else np.full(2, float(np.mean(rec.temp_c[a:b])))
+    ctx = SignalContext(np.array([0.0, 0.01]), zero, np.tile(f_r, (2, 1)), temperature_c=t_r)
+    for e in model.gyro:
+        if e.stage != "error" or e.stochastic or not e.pointwise or e.kind == "bias":
+            continue
+        out += e.delta(zero, ctx)[0]
+    return out
+
+
+def slow_gyro_bias(rec, truth, model, rng_seed: int, index_range: tuple[int, int]) -> np.ndarray:
+    """Mean over [a, b) of the gyro's slow stochastic bias (``bias_instability``, ``random_walk``) as
+    :func:`gyrosim.simulate.apply_sensor` drew it in ``rec`` = apply_sensor(truth, model, default_rng(rng_seed))
+    (scoring only): the same sensor
+    run twice on the same streams (every effect keeps its own, :meth:`gyrosim.sensor_model.SensorModel.apply_triad`;
+    the white noise stays on, since the slow terms' coarse grid depends on it), once with the slow terms' values
+    set to 0, differenced (the output quantisation is dithered by the white noise)."""
+    slow = ("bias_instability", "random_walk")
+    if not any(e.kind in slow for e in model.gyro):
+        return np.zeros(3)
+
+    def variant(drop_slow: bool):
+        g = tuple(replace(e, value=np.zeros(3)) if drop_slow and e.kind in slow else e for e in model.gyro)
+        return replace(model, gyro=g)
+
+    a, b = index_range
+    y1 = rec.gyro_rad_s[a:b]
+    y0 = apply_sensor(truth, variant(True), np.random.default_rng(rng_seed)).gyro_rad_s[a:b]
+    return np.mean(y1 - y0, axis=0)
+
+
 def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.ndarray, statuses: list[str],
            filter_cols: slice, sqrt_crlb_hand: np.ndarray | None = None) -> MethodStats:
     err = est - truth
@@ -326,6 +374,7 @@ def monte_carlo(
         tc = truth_calibration(rec)
         truths.append(np.concatenate([tc.vector("gyro")] + ([tc.vector("accelerometer")] if estimate else [])))
         user = as_user_file(rec)
+        slow_cache: dict = {}
         for m in methods:
             c = runners[m](user)
             if "hand" in c.diagnostics and "external_acc_psd" in c.diagnostics["hand"]:
@@ -344,6 +393,12 @@ def monte_carlo(
                 t_r = np.asarray(temp["scale_reference_temperature_c"], float)
                 tm[3:6] += truth_scale_at_temperature(rec, t_r)
                 t_ref_m[m].append(t_r)
+            gb = c.diagnostics.get("gyro_bias", {})
+            if "rest_index_range" in gb:   # the bias at the rest it states (calib.handbias), not at T_ref, f = 0
+                rng_ = tuple(gb["rest_index_range"])
+                if rng_ not in slow_cache:
+                    slow_cache[rng_] = truth_bias_at_reference(rec, rng_, slow_gyro_bias(rec, truth, model, 10_000 + seed, rng_))
+                tm[0:3] += slow_cache[rng_]
             truth_m[m].append(tm)
             gs_m[m] = gs_m[m] or "gyro_g_sensitivity" in c.diagnostics
             est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))

@@ -135,6 +135,22 @@ def sum_of_sines(rng: np.random.Generator, t: np.ndarray, band_hz: tuple[float, 
     return out
 
 
+def attitude_wobble(rng: np.random.Generator, t: np.ndarray, bands, components: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """A hand's rotational tremor / sway as a small body-frame rotation vector φ(t) (N, 3) rad and its
+    derivative φ̇ (closed form): per (f_lo, f_hi, rms_rad) band and axis a sum of ``components`` sines of
+    uniform random frequency and phase with E|φ|² = rms² (as :func:`sum_of_sines`, in angle)."""
+    phi, dphi = np.zeros((t.size, 3)), np.zeros((t.size, 3))
+    for lo, hi, rms in bands:
+        amp = math.sqrt(2.0 * rms**2 / (3.0 * components))
+        for i in range(3):
+            f = rng.uniform(lo, hi, components)
+            ph = rng.uniform(0.0, 2 * np.pi, components)
+            arg = 2 * np.pi * np.outer(t, f) + ph
+            phi[:, i] += amp * np.sin(arg).sum(axis=1)
+            dphi[:, i] += amp * (2 * np.pi * f * np.cos(arg)).sum(axis=1)
+    return phi, dphi
+
+
 def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_deg_s=(1.5, -1.0, 0.8),
                     scale=(0.03, -0.02, 0.04), nonortho=(0.015, -0.01, 0.02), gyro_noise_deg_s=0.05,
                     acc_noise_g=0.001, acc_bias_g=(0.0, 0.0, 0.0), acc_scale=(0.0, 0.0, 0.0),
@@ -143,7 +159,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
                     sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
                     bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
-                    temperature_c=None, scale_per_c=(0.0, 0.0, 0.0)) -> dict:
+                    temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), wobble_bands=()) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
@@ -164,11 +180,24 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     A warming sensor: ``temperature_c`` (N,) the sensor temperature (°C, recorded in ``temp_c``) and
     ``scale_per_c`` (3,) the scale factor's temperature coefficient (1/°C): the gyro's scale is
     S + scale_per_c (T − T[0]) sample by sample (``scale_factor`` in the result is S at T[0]), applied as
-    ω_i (1 + ΔS_i(t)) on top of M ω."""
+    ω_i (1 + ΔS_i(t)) on top of M ω.
+
+    A hand that turns a little (tremor, sway — real rotation, which the gyro sees and the accelerometer's tilt
+    follows): ``wobble_bands`` ((f_lo, f_hi, rms_rad), ...) makes the attitude q ⊗ exp(φ) with φ(t) from
+    :func:`attitude_wobble`, and the body rate exp(φ)ᵀ ω + J_r(φ) φ̇ with J_r ≈ I − ½[φ]× (error O(|φ|² |φ̇|));
+    ``omega_rad_s`` and ``quat_nb`` in the result are the total."""
     rng = np.random.default_rng(seed)
     t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
     n = omega.shape[0]
     bias = np.radians(np.asarray(bias_deg_s, float))
+    if wobble_bands:
+        phi, dphi = attitude_wobble(np.random.default_rng([seed, 23]), t, wobble_bands)
+        rot = np.stack([_rotation(p) for p in phi])
+        omega = np.einsum("nji,nj->ni", rot, omega) + dphi - 0.5 * np.cross(phi, dphi)
+        ang = np.linalg.norm(phi, axis=1)
+        half = np.where(ang > 0, np.sin(ang / 2) / np.where(ang > 0, ang, 1.0), 0.5)
+        dq = np.concatenate([np.cos(ang / 2)[:, None], phi * half[:, None]], axis=1)
+        quat = np.stack([_qmul(q, d) for q, d in zip(quat, dq)])
     dcm = np.stack([_dcm(q) for q in quat])
     gravity_body = np.einsum("nji,j->ni", dcm, np.array([0.0, 0.0, G]))
     hand_rng = np.random.default_rng([seed, 13])   # its own stream: the sensor noise stays that of `seed`
