@@ -4,7 +4,8 @@ Per seed: ``kf_hand`` (accelerometer calibrated) or ``kf_hand_joint`` (``--accel
 accelerometer).  The reported value is the first rest's mean either way; what changed is its σ and what it is
 scored against:
 
-* before: σ = the rest's 10-batch-means standard error, scored against the oracle
+* before: σ = the rest's 10-batch-means standard error (``prepare(...).bias_std_rad_s``, as kf_hand reported it),
+  scored against the oracle
   (:func:`gyrosim.calibration.truth_calibration`: the bias at the preset's T_ref with zero specific force);
 * after: σ from :mod:`calib.handbias` (white noise ⊕ the hand's rotation during the rest), scored against the
   device's bias during that rest (:func:`calib.montecarlo.truth_bias_at_reference`: temperature, g-sensitivity
@@ -31,6 +32,7 @@ from scipy import stats
 from tqdm import tqdm
 
 import calib.montecarlo as mc
+from calib.calibrate import prepare
 from calib.handkf import kf_hand
 from calib.outputs import write_json_atomic
 from gyrosim.calibration import truth_calibration
@@ -56,15 +58,14 @@ def cell(hand: str, sensor: str, seeds: int, accelerometer: str = "calibrated", 
         truth = truth_fixed if truth_fixed is not None else mc.simulate_truth(sched, hnd, rate_hz, seed=seed)
         rec = mc.apply_sensor(truth, model, np.random.default_rng(10_000 + seed))
         oracle = truth_calibration(rec).vector("gyro")[:3]
-        c = kf_hand(mc.as_user_file(rec), accelerometer=accelerometer)
+        user = mc.as_user_file(rec)
+        c = kf_hand(user, accelerometer=accelerometer)
         gb = c.diagnostics["gyro_bias"]
         rng = tuple(gb["rest_index_range"])
         ref = oracle + mc.truth_bias_at_reference(rec, rng, mc.slow_gyro_bias(rec, truth, model, 10_000 + seed, rng))
         b = c.value("gyro", "bias")
         s_new = np.sqrt(np.diag(c.block_covariance([("gyro", "bias")])))
-        seg = rec.gyro_rad_s[rng[0]:rng[1]]
-        s_old = np.array([m.mean(axis=0) for m in np.array_split(seg, 10)]).std(axis=0, ddof=1) / math.sqrt(10)
-        s_old = np.maximum(s_old, c.diagnostics["noise"]["arw_rad_s_sqrt_hz"] / math.sqrt(gb["rest_duration_s"]))
+        s_old = prepare(user, accelerometer=accelerometer).bias_std_rad_s   # what kf_hand reported before
         err_o.append(b - oracle)
         err_r.append(b - ref)
         z_old.append((b - oracle) / s_old)
