@@ -512,8 +512,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # per axis against 1.3–1.5 one-sided)
     r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl_test.factor)
     # kf_hand's own assumptions on this recording (calibrated accelerometer, a hand's tremor and lever arm)
+    # the slow external acceleration's data: |f_lp − K r̂| − g (attitude-free), for the displacement check
+    slow_resid = np.linalg.norm(f_lp - np.einsum("nij,j->ni", kreg, r_hat), axis=1) - cfg0.gravity_m_s2
     assumptions = check_hand_assumptions(rec.acc_m_s2, rec.t_s, prep.rest.index_ranges, np.sqrt(np.diag(cov[3:9, 3:9])),
-                                         tremor_rms, r_hat, r_sd, check_accelerometer=not estimate)
+                                         tremor_rms, r_hat, r_sd, check_accelerometer=not estimate,
+                                         slow_residual_m_s2=slow_resid, slow_residual_t_s=t, rate_hz=fs)
     notes.extend(assumptions.warnings)
     if not assumptions.trustworthy and status == "ok":
         status = "inconsistent"
