@@ -488,10 +488,10 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         f_hat = compensate_acc(rec.acc_m_s2, _acc_theta(theta))
         checks.append(rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg0.gravity_m_s2,
                                    math.sqrt(prep.config.r_var(fs))))
-    status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer)
+    status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer, hand_aware=True)
     if thermal is not None:
         notes = notes + [temperature["note"]]
-    status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.noise_free)
+    status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.noise_free, hand_aware=True)
     if prep.noise.noise_free and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
