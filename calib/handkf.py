@@ -46,7 +46,8 @@ standard deviation would count the tremor as sensor noise (and make σ pessimist
 
 Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
 :func:`calib.fastkf.run_filter` with the :func:`hand_layout`: attitude, S, G, gyro bias, lever arm,
-x, z, z₂ (:data:`calib.kalman.HAND_BIAS`), [s_T], g-sensitivity — 27 or 30 states, the unused z₂
+x, z, z₂ (:data:`calib.kalman.HAND_BIAS`), [s_T], [g-sensitivity] — 24 states, 27 with s_T (a temperature
+channel that moved) or with the opt-in g-sensitivity alone, 30 with both; the unused z₂
 (m = 1) or z (no high-pass) inert):
 
 1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, no high-pass, r̂ = 0;
@@ -353,7 +354,8 @@ def _acc_theta(theta: np.ndarray) -> np.ndarray:
 def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None,
             g_sensitivity: bool = False) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
-    the registered ``kf_hand``: 24 states) or "estimate" (the registered ``kf_hand_joint``: + the
+    the registered ``kf_hand``: 24 states, 27 when the recording's temperature moved (s_T), 30 with the opt-in
+    ``g_sensitivity`` too — :func:`hand_layout`) or "estimate" (the registered ``kf_hand_joint``: + the
     accelerometer's bias, scale factor and non-orthogonality, 33 states — what ``calib run`` estimates by
     default).  With the accelerometer estimated, every pass applies its error model at the current
     estimate, f̂ = M̂_a⁻¹(f̃ − b̂_a), *before* the nav-frame tremor low-pass (the low-pass of a rotated
