@@ -194,7 +194,7 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
             ok = False
             notes.append(f"inconsistent: the acceleration kf_hand attributes to the hand has slow content (periods "
                          f"{1 / SLOW_BAND_HZ[1]:.0f}–{1 / SLOW_BAND_HZ[0]:.0f} s) that would move a hand by "
-                         f"{slow.rms_m:.2f} m RMS, beyond the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device can "
+                         f"{slow.rms_m:.2f} m RMS, beyond the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device moves at most "
                          f"(largest around t = {slow.worst_t_s:.0f} s). Either the device travelled (carried, walked, "
                          "swung at arm's length about a moving pivot) or it is a sensor effect the model lacks — an "
                          "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "
