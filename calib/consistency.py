@@ -203,7 +203,7 @@ class Inflation:
 HAND_AWARE_CAUSES = ("the hand did something its model lacks — bursts or jerks (its slow-acceleration model is "
                      "stationary over the session), taps, or a pivot that moved (the lever arm is one constant) — or "
                      "the sensor has an effect the model lacks (a raw accelerometer, a gyro–accelerometer time offset, "
-                     "g-sensitivity). Record again turning the device smoothly at the wrist without moving the arm; "
+                     "g-sensitivity, a gyro bias that moves with temperature). Record again turning the device smoothly at the wrist without moving the arm; "
                      "with a raw accelerometer use calib run --method hand (it estimates the accelerometer too); "
                      "calib closeloop traces a sensor effect")
 
