@@ -253,10 +253,15 @@ def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     truth).  A calibration that says at which temperature its S holds (``diagnostics["temperature"]``,
     :func:`calib.handkf.scale_at_temperature`) is scored against the device's S at that temperature; the oracle's
     S (:func:`gyrosim.calibration.truth_calibration`) is the one at the preset's reference."""
-    from gyrosim.effects import SignalContext
     from gyrosim.sensor_model import stored_sensor_model
 
-    model = stored_sensor_model(rec.meta or {})
+    return _scale_change(stored_sensor_model(rec.meta or {}), t_c)
+
+
+def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
+    """:func:`truth_scale_at_temperature` of a (realised) sensor model; zeros for None."""
+    from gyrosim.effects import SignalContext
+
     out = np.zeros(3)
     if model is None:
         return out
@@ -289,14 +294,16 @@ def _oracle_reference_temperature_c(rec) -> float | None:
     return refs.pop() if len(refs) == 1 else None
 
 
-def _scale_temperature_sigma_per_c(model) -> np.ndarray:
-    """σ (3,) of the preset's per-device draw of the gyro scale factor's linear temperature coefficient (1/°C):
-    the ``coefficients_sigma`` of its ``temperature_scale`` effects' first-order term (scoring only)."""
-    out = np.zeros(3)
-    for e in model.gyro:
-        if e.kind == "temperature_scale":
-            out = np.hypot(out, np.asarray(e.coefficients_sigma, float).reshape(3, -1)[:, 0])
-    return out
+def _scale_temperature_sigma_per_c(model, lo_c: float, hi_c: float, draws: int = 400) -> np.ndarray:
+    """σ (3,) of the preset's per-device spread of the gyro scale factor's temperature coefficient (1/°C) over
+    [``lo_c``, ``hi_c``]: the slope (ΔS(hi) − ΔS(lo)) / (hi − lo) of ``draws`` devices realised from the preset
+    (seeded; whatever effects make S depend on temperature — no effect named here).  400 draws: σ to ±7 % (95 %,
+    √(2/400) relative), enough for a bound.  Scoring only."""
+    rng = np.random.default_rng(0)
+    lo, hi = np.full(3, lo_c), np.full(3, hi_c)
+    slopes = np.array([(_scale_change(m, hi) - _scale_change(m, lo)) / (hi_c - lo_c)
+                       for m in (model.realize(rng) for _ in range(draws))])
+    return slopes.std(axis=0)
 
 
 def _with_population_prior(p: np.ndarray, offset: int, sigma_filter: float, sigma_pop: np.ndarray) -> np.ndarray:
@@ -481,8 +488,9 @@ def monte_carlo(
                 j_or = jt.copy()
                 o = lay_t.offset("gyro_temp_scale")
                 j_or[0:3, o:o + 3] = np.eye(3) * (t_oracle - thermal[1])
-                p_pop = _with_population_prior(ph, o, config.prior_gyro_temp_scale_per_c,
-                                               _scale_temperature_sigma_per_c(model))
+                t_all = rec0.temp_c[start:]
+                p_pop = _with_population_prior(ph, o, config.prior_gyro_temp_scale_per_c, _scale_temperature_sigma_per_c(
+                    model, float(np.min(t_all)), float(np.max(t_all))))
                 sd_sg_oracle = np.sqrt(np.diag(j_or @ p_pop @ j_or.T))
                 hand_psd["oracle_reference_temperature_c"] = t_oracle
                 # for a file of methods that state no temperature to borrow (benchmarks/hand_campaign.py)
