@@ -298,25 +298,28 @@ def truth_bias_at_reference(rec, index_range: tuple[int, int], slow_bias_rad_s: 
     t_r = None if rec.temp_c is None else np.full(2, float(np.mean(rec.temp_c[a:b])))
     ctx = SignalContext(np.array([0.0, 0.01]), zero, np.tile(f_r, (2, 1)), temperature_c=t_r)
     for e in model.gyro:
-        if e.stage != "error" or e.stochastic or not e.pointwise or e.kind == "bias":
+        if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:   # affine: the oracle's
             continue
         out += e.delta(zero, ctx)[0]
     return out
 
 
 def slow_gyro_bias(rec, truth, model, rng_seed: int, index_range: tuple[int, int]) -> np.ndarray:
-    """Mean over [a, b) of the gyro's slow stochastic bias (``bias_instability``, ``random_walk``) as
+    """Mean over [a, b) of the gyro's slow stochastic bias (its non-white stochastic error terms: the MPU-9250's
+    bias instability and rate random walk) as
     :func:`gyrosim.simulate.apply_sensor` drew it in ``rec`` = apply_sensor(truth, model, default_rng(rng_seed))
     (scoring only): the same sensor
     run twice on the same streams (every effect keeps its own, :meth:`gyrosim.sensor_model.SensorModel.apply_triad`;
     the white noise stays on, since the slow terms' coarse grid depends on it), once with the slow terms' values
-    set to 0, differenced (the output quantisation is dithered by the white noise)."""
-    slow = ("bias_instability", "random_walk")
-    if not any(e.kind in slow for e in model.gyro):
+    (parameters) set to 0, differenced (the output quantisation is dithered by the white noise)."""
+    def slow(e) -> bool:   # a stochastic error term that is not white: bias instability, random walk, …
+        return e.stage == "error" and e.stochastic and not e.is_white_noise
+
+    if not any(slow(e) for e in model.gyro):
         return np.zeros(3)
 
     def variant(drop_slow: bool):
-        g = tuple(replace(e, value=np.zeros(3)) if drop_slow and e.kind in slow else e for e in model.gyro)
+        g = tuple(e.with_params(np.zeros_like(e.params())) if drop_slow and slow(e) else e for e in model.gyro)
         return replace(model, gyro=g)
 
     a, b = index_range
