@@ -108,7 +108,7 @@ WHITE_SEGMENT_S = 4.0      # Welch segments of white_density (Blackman–Harris 
 PASSES = 3
 # kf_hand's a_e: "gauss_markov" (the high-passed Gauss–Markov family, _gm_from_residual; the default) or "band" (a
 # Gauss–Markov floor + a Butterworth band-pass, _band_from_residual; opt-in, calib.handkf:kf_hand_band — docs/hand.md,
-# "A band-limited sway model": NEES in band on gyrosim's hands but ΣNEES 380–540 with every seed "ok" on the
+# "A band-limited sway model": not strictly closer to 6 on gyrosim, and ΣNEES 379 (10 seeds) with every seed "ok" on the
 # independent generator's noise-free sensor, so not the default)
 SWAY_MODELS = ("gauss_markov", "band")
 LAYOUT = HAND_BIAS         # kf_hand (accelerometer calibrated); kf_hand_joint: HAND_JOINT
