@@ -107,8 +107,9 @@ THERMAL_BLOCKS = BLOCKS[11:13]
 G_SENS_BLOCKS = BLOCKS[13:14]   # the gyro's g-sensitivity, diagonal K = diag(k) (rad/s per m/s²): b_g,i += k_i f_i
 # a band-limited sway (FilterConfig.ext_acc_band_hz): a_e per nav axis is a general shaping filter (A, B, C) of
 # up to nine states, component i of axis j at offset(EXT_ACC_BLOCKS[i]) + j (FilterConfig.ext_acc_model)
-EXT_ACC_EXTRA_BLOCKS = BLOCKS[14:20]
-EXT_ACC_BLOCKS = BLOCKS[8:11] + EXT_ACC_EXTRA_BLOCKS
+EXT_ACC_EXTRA_BLOCKS = tuple(f"ext_acc_s{i}" for i in range(3, 9))     # by name: blocks added to BLOCKS later keep it
+EXT_ACC_BLOCKS = ("ext_acc", "ext_acc_lp", "ext_acc_lp2") + EXT_ACC_EXTRA_BLOCKS
+assert all(b in BLOCKS for b in EXT_ACC_BLOCKS)
 SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS   # their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k)
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
           "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
