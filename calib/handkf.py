@@ -668,6 +668,15 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     notes.extend(assumptions.warnings)
     if not assumptions.trustworthy and status == "ok":
         status = "inconsistent"
+    if sway == "band" and status == "ok":
+        # the band-limited sway model is a research variant: on the independent generator's noise-free sensor
+        # (tests/test_hand_sway_model.py, slow) its σ was 3–5× small with every seed passing its checks
+        # (ΣNEES 379 over 10 seeds, χ²₆₀ 99.9 % bound 102.7) — a wrong answer must not exit 0, so it never says ok
+        status = "inconsistent"
+        notes.append("experimental sway model (sway='band', kf_hand_band): its σ failed the independent generator's "
+                     "consistency test (3–5× small on a noise-free sensor with a line-spectrum sway; docs/hand.md, "
+                     "'A band-limited sway model'), so its result is never 'ok'. Use kf_hand (calib run --method hand "
+                     "--accelerometer calibrated) for an answer whose σ has been validated")
     hand = {"lever_arm_m": r_hat.tolist(), "lever_arm_std_m": r_sd.tolist(),
             "external_acc_psd": {"model": "a_e = a first-order Gauss–Markov x (rms_m_s2, tau_s) per nav axis after the tremor "
                                           "low-pass, high-passed (highpass_tau_s, highpass_order m; null: none): "

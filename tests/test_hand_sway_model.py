@@ -149,6 +149,8 @@ def test_kf_hand_band_reports_its_model_beside_the_promised_keys():
     z = e / np.sqrt(np.diag(cal.block_covariance(ITEMS)))
     assert np.all(np.abs(z) < 4.5), z
     assert hk.kf_hand(rec).diagnostics["hand"]["external_acc_psd"]["psd_model"] == "gauss_markov_highpass"
+    # the experimental model's σ failed the noise-free consistency test (below): its answer must never exit 0
+    assert cal.status == "inconsistent" and any("experimental sway model" in w for w in cal.warnings), cal.status
 
 
 @pytest.mark.slow
