@@ -38,7 +38,18 @@ nav ENU; f the specific force, g_b gravity in the body):
   that is what is reported, with the temperatures, in ``diagnostics["temperature"]`` — a scale factor
   holds at a temperature (measured on the MPU-9250 preset, zhou2020 schedule: 25.40, 25.24, 25.62 °C
   for x, y, z in a session warming from 25.0 to 25.85 °C; the constant-S filter's estimates are S at
-  the same temperatures, it just did not say so).
+  the same temperatures, it just did not say so);
+* with the accelerometer estimated (``kf_hand_joint``) and a temperature channel that moved: the accelerometer
+  bias's temperature dependence, b_a(T) = b_a(T₀) + c_a (T − T₀) (``acc_temp_bias``, three states, prior σ
+  0.1 m/s²/°C) — the "zero-g offset change vs temperature" of a MEMS accelerometer (IEEE Std 1293-2018, the
+  linear accelerometer's bias temperature sensitivity; Titterton & Weston 2004 §8.3; the MPU-9250's ±1.5 mg/°C)
+  — and the gyro scale's s_T as above.  Without it a warming board's bias drift (MPU-9250 preset: 0.5 mg/°C
+  σ over 25.0 → 25.85 °C) sat in the filter's constant b_a and bent the attitude it levels, so σ of S, G was
+  ~25 % small (Monte Carlo NEES 9.3 against [5.08, 7.00]).  b_a is reported at the temperatures T_a,i where it
+  decouples from c_a (:func:`acc_bias_at_temperature`) and the compensation of every sample uses b_a(T(t));
+  the initial tilt, levelled on the first rest's mean, carries c_a's error through the rest's T − T₀ in P₀.
+  Without a temperature channel nothing models the drift (measured: NEES(6) 8.3 ideal hand, 7.2 typical on
+  that preset with the channel removed; docs/hand.md).
 
 Noise levels from the data, as every estimator here (:mod:`calib.noiselevels`), but from the first
 rest's spectrum *above* the tremor band (:func:`white_density`): a hand's rest is not still, and its
@@ -432,9 +443,9 @@ def _acc_theta(theta: np.ndarray) -> np.ndarray:
 def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None,
             g_sensitivity: bool = False) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
-    the registered ``kf_hand``: 24 states) or "estimate" (the registered ``kf_hand_joint``: + the
-    accelerometer's bias, scale factor and non-orthogonality, 33 states — what ``calib run`` estimates by
-    default).  With the accelerometer estimated, every pass applies its error model at the current
+    the registered ``kf_hand``: 24 states, 27 on a warming session) or "estimate" (the registered
+    ``kf_hand_joint``: + the accelerometer's bias, scale factor and non-orthogonality, 33 states, 39 on a warming
+    session with s_T and c_a: :func:`joint_layout` — what ``calib run`` estimates by default).  With the accelerometer estimated, every pass applies its error model at the current
     estimate, f̂ = M̂_a⁻¹(f̃ − b̂_a), *before* the nav-frame tremor low-pass (the low-pass of a rotated
     body-frame bias is not the bias), and hands the kernel the low-passed f̂ mapped back through
     f̃_lp = M̂_a f̂_lp + b̂_a, so the kernel's own compensation at the nominal gives f̂_lp again; the prior of
