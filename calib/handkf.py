@@ -612,6 +612,15 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                      f"95 % bound {drift.threshold:.1f}); modelled as a random walk of {drift.rrw_rad_s_sqrt_s:.2e} "
                      "rad/s/√s (from the rests, bias_drift); a longer warm-up before the session or a temperature-"
                      "stable sensor gives a smaller σ")
+        if estimate and thermal is None:
+            # the drift is most often a warming board, whose accelerometer bias drifts too, and without a
+            # temperature channel no state models that (measured on the MPU-9250 preset with its channel removed:
+            # σ of S, G ~1.2× small, NEES(6) 8.3 ideal hand; docs/hand.md)
+            notes.append("accelerometer bias drift not modelled: the gyro bias drifted (a warming sensor?) and the "
+                         "recording has no temperature channel (or it moved < "
+                         f"{THERMAL_MIN_SPAN_C} °C), so the accelerometer bias is taken as constant; if the board was "
+                         "warming, σ of S, G may be ~20 % small — record the temperature (kf_hand_joint then models "
+                         "b_a(T)) or warm the sensor up first")
     r_hat = hand0[:3]
     # the lever arm's σ keeps the one-sided factor: its information sits at the turns' ω̇ and ω² (0.1–1 Hz, inside
     # the sway band, where the fitted model understates the power) above the < 0.125 Hz that κ̂ measures;
