@@ -59,14 +59,24 @@ def table(paths: list[str]) -> str:
     # the hand-aware bound needs kf_hand's PSD: a file without kf_hand borrows the bound of a file with it
     # (same sensor and hand), else its column would be the hand-free bound
     # (kf_hand's with the accelerometer calibrated, kf_hand_joint's with it estimated: the key has the mode)
-    bounds = {}
+    # — for S on a warming sensor, the bound of S at the oracle's reference temperature, where a method that states
+    # no temperature (kf) is scored (calib.montecarlo: sqrt_crlb_hand_sg_at_oracle_reference); a file that predates
+    # it lends kf_hand's bound of S at its T_r, marked † (the wrong quantity for kf)
+    bounds, stale = {}, set()
     for p in paths:
         d = json.load(open(p))
         mode = d.get("accelerometer", "calibrated")
         if any(m.startswith("kf_hand") for m in d["methods"]):
             for hand, c in d["cells"].items():
                 if c.get("sqrt_crlb_hand"):
-                    bounds[(d["sensor"], hand, mode)] = np.array(c["sqrt_crlb_hand"][3:9])
+                    key = (d["sensor"], hand, mode)
+                    psd = c.get("hand_psd", {})
+                    if psd.get("sqrt_crlb_hand_sg_at_oracle_reference"):
+                        bounds[key] = np.array(psd["sqrt_crlb_hand_sg_at_oracle_reference"])
+                    else:
+                        bounds[key] = np.array(c["sqrt_crlb_hand"][3:9])
+                        if psd.get("scale_reference_temperature_c"):
+                            stale.add(key)
     for p in paths:
         d = json.load(open(p))
         mode = d.get("accelerometer", "calibrated")
@@ -76,13 +86,18 @@ def table(paths: list[str]) -> str:
                 st = c["methods"][m]
                 rm = max(st["rmse"][3:9])
                 eh = max(st["efficiency_hand"][3:9]) if st["efficiency_hand"] else float("nan")
+                mark = ""
                 if not any(x.startswith("kf_hand") for x in d["methods"]) and (d["sensor"], hand, mode) in bounds:
                     eh = float(np.max(np.array(st["rmse"][3:9]) / bounds[(d["sensor"], hand, mode)]))
+                    mark = " †" if (d["sensor"], hand, mode) in stale else ""
                 sensor = d["sensor"] + (" (raw)" if mode == "estimate" else "")
                 rows.append(f"| {sensor} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
-                            f"{eh:.2f} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
+                            f"{eh:.2f}{mark} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
                             f"{_where(st['nees_mean'], st['nees_band'])} | "
                             + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
+    if stale:
+        rows.append("\n† against kf_hand's bound of S at the temperatures kf_hand stated (its file predates the bound of "
+                    "S at the oracle's reference temperature, where this method is scored): re-run that kf_hand campaign")
     return "\n".join(rows)
 
 

@@ -438,11 +438,11 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
                           fitted_g=not estimate)
     status, notes = verdict(cons, sanity, rest_g, "estimate" if estimate else "calibrated")
     if infl is not None:
-        status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+        status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
         if infl.factor > 1 and not lay.has("gyro_bias") and (note := bias_drift_note(rec, prep)) is not None:
             notes.append(note)
     cross = None
-    if hand_check and status == "ok" and not prep.noise.at_floor:   # noise-free: methods differ by discretisation
+    if hand_check and status == "ok" and not prep.noise.noise_free:   # noise-free: methods differ by discretisation
         from .handkf import hand_cross_check
 
         sg = np.concatenate([th[theta_slice("gyro_scale")], th[theta_slice("gyro_nonorth")]])

@@ -181,27 +181,47 @@ class Inflation:
                 "covariance_factor": self.factor, "sigma_factor": self.sigma_factor, "block_s": INFLATION_BLOCK_S,
                 "fixed_parameters_accounted": self.nuisance, "long_run_variance_ignoring_fixed": self.kappa_ignoring_fixed}
 
-    def warning(self) -> str | None:
+    def warning(self, hand_aware: bool = False) -> str | None:
+        """The inflation's warning; ``hand_aware``: for a filter that already models the hand (``kf_hand``),
+        whose excess low-frequency power is what its lever-arm + Gauss–Markov model does not describe."""
         if self.factor <= 1.0:
             return None
+        if hand_aware:
+            return (f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
+                    "low-frequency power kf_hand's model (a fixed lever arm and a stationary slow external acceleration "
+                    f"fitted to this session) expects, so its own σ understated the error ~{self.sigma_factor:.1f}×: "
+                    f"{HAND_AWARE_CAUSES}")
         return (f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
                 "low-frequency power the filter's white-noise model expects (a hand's slow external acceleration or "
                 f"an unmodelled lever arm), so the filter's own σ understated the error ~{self.sigma_factor:.1f}×; "
                 "a steadier hand or the hand-aware method (kf_hand) gets a smaller honest σ")
 
 
+# What a hand-aware filter's (kf_hand's) failed innovation test means and what the user can do: it already models
+# the lever arm and the hand's slow acceleration, so a larger --external-acc or a hand-blind method
+# (iterated_session) is no remedy; what is left is motion outside its model or a sensor effect it lacks.
+HAND_AWARE_CAUSES = ("the hand did something its model lacks — bursts or jerks (its slow-acceleration model is "
+                     "stationary over the session), taps, or a pivot that moved (the lever arm is one constant) — or "
+                     "the sensor has an effect the model lacks (a raw accelerometer, a gyro–accelerometer time offset, "
+                     "g-sensitivity, a gyro bias that moves with temperature). Record again turning the device smoothly at the wrist without moving the arm; "
+                     "with a raw accelerometer use calib run --method hand (it estimates the accelerometer too); "
+                     "calib closeloop traces a sensor effect")
+
+
 INFLATION_INCONSISTENT_SIGMA = 1.5
 
 
-def apply_inflation(status: str, notes: list[str], infl: Inflation, can_fail: bool = True) -> str:
+def apply_inflation(status: str, notes: list[str], infl: Inflation, can_fail: bool = True,
+                    hand_aware: bool = False) -> str:
     """Add the inflation's warning to ``notes``; an ``ok`` whose σ had to grow by more than
     ``INFLATION_INCONSISTENT_SIGMA`` becomes ``inconsistent``: the residuals show only the part of an
     unmodelled disturbance the fit did not absorb — what it aliased into the parameters (a lever arm
     correlated with the rotation) stays invisible there, so the inflated σ is a lower bound, not a
     calibration to trust (measured: the paper's filter with a typical hand, σ ×2.4 from the innovations,
     error still 5–8 σ).  ``can_fail`` False: the noise levels sit at their floors (noise-free input), where
-    the residual is the integration's own deterministic error — correlated, but no disturbance."""
-    w = infl.warning()
+    the residual is the integration's own deterministic error — correlated, but no disturbance.
+    ``hand_aware``: the advice for a filter that models the hand (:meth:`Inflation.warning`)."""
+    w = infl.warning(hand_aware)
     if w is None:
         return status
     notes.append(w)
@@ -209,7 +229,8 @@ def apply_inflation(status: str, notes: list[str], infl: Inflation, can_fail: bo
         notes.append(f"inconsistent: σ had to grow ×{infl.sigma_factor:.1f} from the innovations, more than "
                      f"×{INFLATION_INCONSISTENT_SIGMA}: the model misses a disturbance of this session, and what it "
                      "aliased into the parameters does not show in the residuals — the error can exceed even the "
-                     "inflated σ. Use the hand-aware method (kf_hand) or a steadier hand")
+                     "inflated σ. " + ("Its cause is in the line above" if hand_aware
+                                       else "Use the hand-aware method (kf_hand) or a steadier hand"))
         return "inconsistent"
     return status
 
@@ -314,8 +335,10 @@ def check_estimate(values: dict[str, np.ndarray], covariance: np.ndarray, gravit
 
 
 def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
-            accelerometer: str = "estimate") -> tuple[str, list[str]]:
-    """``status`` and the warnings that explain it (each says what to try)."""
+            accelerometer: str = "estimate", hand_aware: bool = False) -> tuple[str, list[str]]:
+    """``status`` and the warnings that explain it (each says what to try).  ``hand_aware``: the filter models
+    the hand (``kf_hand``): its innovation warnings name what is left outside that model
+    (``HAND_AWARE_CAUSES``) instead of the hand-blind filters' remedies (--external-acc, iterated_session)."""
     if sanity:
         return "diverged", [f"diverged: {'; '.join(sanity)}. Check the units (--gyro-unit, --acc-unit), that the "
                             "recording starts at rest, and try --method iterated_session"]
@@ -323,15 +346,18 @@ def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
     if c.windows and (c.fraction_above > DIVERGED_FRACTION or mean > DIVERGED_MEAN_FACTOR * c.rows):
         return "diverged", [
             f"diverged: the innovations exceed their 99.9 % χ² bound in {100 * c.fraction_above:.0f} % of 1 s windows "
-            f"(mean NIS {mean:.1f}, expected {c.rows}): the filter lost the gravity reference. Try "
-            "--accelerometer estimate if the accelerometer is raw, a larger --external-acc if the hand moved "
-            "briskly, or slower rotations"]
+            f"(mean NIS {mean:.1f}, expected {c.rows}): the filter lost the gravity reference. " + (
+                f"The hand-aware model does not describe this session: {HAND_AWARE_CAUSES}; or rotate slower"
+                if hand_aware else "Try --accelerometer estimate if the accelerometer is raw, a larger --external-acc "
+                "if the hand moved briskly, or slower rotations")]
     if c.windows and c.fraction_above > INCONSISTENT_FRACTION:
         return "inconsistent", [
             f"inconsistent: the innovations exceed their 99.9 % χ² bound in {100 * c.fraction_above:.0f} % of 1 s "
             f"windows (mean NIS {mean:.2f}, expected {c.rows}): the noise model does not fit this motion, so σ is "
-            "understated. Try a larger --external-acc (the hand's acceleration), --method iterated_session, or a steadier "
-            "hand; an unmodelled sensor error shows here too (calib closeloop traces it)"]
+            "understated. " + (f"kf_hand's hand model (lever arm, slow acceleration fitted to this session, tremor "
+                               f"removed) does not fit it: {HAND_AWARE_CAUSES}" if hand_aware else
+                               "Try a larger --external-acc (the hand's acceleration), --method iterated_session, or a "
+                               "steadier hand; an unmodelled sensor error shows here too (calib closeloop traces it)")]
     if rest is not None and rest.dof > 0 and rest.p_value < TAIL:
         worst = int(np.argmax(np.abs(rest.residual_m_s2 / rest.std_m_s2)))
         what = ("the accelerometer is not calibrated: use --accelerometer estimate" if accelerometer == "calibrated"

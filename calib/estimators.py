@@ -112,11 +112,11 @@ def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gat
     values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
     status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2))
-    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.at_floor)
+    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
     if infl.factor > 1 and (note := bias_drift_note(rec, prep)) is not None:
         notes.append(note)
     diag: dict = {"consistency": {"sigma_inflation": infl.to_dict()}}
-    if check_hand and status == "ok" and not prep.noise.at_floor:   # noise-free: methods differ by discretisation
+    if check_hand and status == "ok" and not prep.noise.noise_free:   # noise-free: methods differ by discretisation
         status, diag["consistency"]["hand_cross_check"] = _hand_check(rec, theta[0:6], cov[3:, 3:], notes, status)
     gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
@@ -285,7 +285,7 @@ def lever_arm_two_pass(rec: Recording) -> Calibration:
     cov2[3:9, 3:9] += jac @ c_r @ jac.T
     second = Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=cov2, status=second.status,
                          method="lever_arm_two_pass", warnings=second.warnings, diagnostics=second.diagnostics)
-    if second.status == "ok" and not prep.noise.at_floor:   # the check on the recording as given
+    if second.status == "ok" and not prep.noise.noise_free:   # the check on the recording as given
         notes: list[str] = []
         items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
         status, chk = _hand_check(rec, np.concatenate([second.value(t, k) for t, k in items]),

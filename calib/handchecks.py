@@ -25,7 +25,26 @@ assumptions can fail without its innovations saying so (measured on the project'
 3. **the lever arm is a hand's**: a rotation centre farther than ``LEVER_ARM_MAX_M`` (30 cm: a
    forearm; Winter, *Biomechanics and Motor Control of Human Movement*, Table 4.1, forearm 0.146 H) means
    the session's translation was read as a lever arm (BROAD 16, fast translation: 32 cm):
-   ``inconsistent``.
+   ``inconsistent``;
+4. **the slow external acceleration is a hand's** (:func:`slow_displacement`): ``kf_hand`` fits whatever
+   the specific force does not explain (|f_lp − K r̂| − g, its component along gravity) as the hand's
+   acceleration a_e.  A hand turning a device moves it by centimetres, and at most by a forearm
+   (``DISPLACEMENT_MAX_M`` = 30 cm, the lever-arm check's length: the whole forearm swung about the
+   elbow, vertical excursion ±30 cm, RMS ≤ 30 cm): its acceleration has almost no power at periods of
+   5–20 s, where a displacement x needs only a = (2πf)² x (0.3 m at 0.05 Hz: 0.03 m/s²).  The
+   displacement the residual implies in that band,
+
+       x_rms² = ∫_{0.05 Hz}^{0.2 Hz} S_e(f) / (2πf)⁴ df     (S_e: Welch, 40-s Hann segments, mean removed),
+
+   above that bound is not a hand: the device travelled (carried, walked, swung at arm's length) or the
+   residual is a sensor effect the model lacks (accelerometer calibration, a time offset between the
+   triads, a changing pivot), which ``kf_hand`` counted as the hand's and weighted S, G by:
+   ``inconsistent``.  Measured: x-io Fusion (hand-held, a 5-s burst of 2.3 m/s² mean |f| − g at
+   t ≈ 55 s, rotations to 368 °/s) 3.7 m — ``ok`` before, its fitted a_e 2.85 m/s² RMS, τ 6.3 s; BROAD's
+   slow hand-held rotations 0.06–0.09 m; gyrosim's hands (ideal … shaky, both sensors, 20 seeds each)
+   ≤ 0.011 m and the independent generator's ≤ 0.02 m.  White sensor noise of one-sided PSD W alone
+   gives x_rms = 1.3 √W m (W in m²/s⁴/Hz): 0.02 m for 10 mg per sample at 100 Hz — the bound needs
+   ~0.16 g per sample, far beyond any MEMS accelerometer.
 """
 
 from __future__ import annotations
@@ -34,15 +53,51 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import signal as sp_signal
 
-__all__ = ["HandAssumptions", "check_hand_assumptions", "TREMOR_MAX_M_S2", "LEVER_ARM_MAX_M", "SAME_POSE_DEG",
-           "MIN_REST_S"]
+__all__ = ["HandAssumptions", "check_hand_assumptions", "slow_displacement", "SlowDisplacement", "TREMOR_MAX_M_S2",
+           "LEVER_ARM_MAX_M", "SAME_POSE_DEG", "MIN_REST_S", "DISPLACEMENT_MAX_M", "SLOW_BAND_HZ"]
 
 TREMOR_MAX_M_S2 = 2.0
 LEVER_ARM_MAX_M = 0.30
 SAME_POSE_DEG = 20.0
 MIN_REST_S = 2.0
 NOISE_Z = 5.0           # the rests' |f| spread must also exceed this many of its own noise σ
+DISPLACEMENT_MAX_M = LEVER_ARM_MAX_M   # a hand's displacement RMS, at most a forearm (check 4)
+SLOW_BAND_HZ = (0.05, 0.2)             # periods 5–20 s: below the simulator's and a hand's sway (0.2–1 Hz)
+SLOW_SEGMENT_S = 40.0                  # Welch segment: 0.025-Hz bins, the band's lowest bin two above 0 Hz
+SLOW_WINDOW_S = 10.0                   # where it happened: the largest RMS of the band-limited residual
+
+
+@dataclass(frozen=True)
+class SlowDisplacement:
+    """:func:`slow_displacement`'s result: the displacement RMS (m) the residual implies in ``SLOW_BAND_HZ``
+    and the centre time (s, the recording's clock) of the window where the residual's slow part was largest."""
+
+    rms_m: float
+    worst_t_s: float
+
+
+def slow_displacement(residual_m_s2: np.ndarray, t_s: np.ndarray, rate_hz: float) -> SlowDisplacement | None:
+    """Check 4 of the module docstring: x_rms = √(Σ_band Ŝ_e(f) / (2πf)⁴ Δf), Ŝ_e the one-sided Welch PSD of
+    the residual with ``SLOW_SEGMENT_S`` Hann segments, each segment's mean removed.  Not a linear detrend:
+    the line fitted to a sway tone is ~A/(πk) of it (k its bin), and that ramp × Hann lands in the lowest bins,
+    where 1/f⁴ magnifies it (a 1-cm sway at 0.3–1 Hz read 3 mm; with the mean removed 0.04 mm).  A slow
+    drift's ramp falls mostly in bins 0–1, which the band leaves out (it starts at bin 2).  None for a recording shorter than two segments' band (< 2/``SLOW_BAND_HZ[0]`` s), where
+    the band has no bin to read.  Source: x(f) = a(f) / (2πf)² (Fourier transform of ẍ = a); Welch 1967."""
+    e = np.asarray(residual_m_s2, float)
+    t = np.asarray(t_s, float)
+    if e.size < 16 or e.size / rate_hz < 2.0 / SLOW_BAND_HZ[0] or not np.all(np.isfinite(e)):
+        return None
+    e = e - e.mean()
+    f, pxx = sp_signal.welch(e, fs=rate_hz, nperseg=int(min(e.size, SLOW_SEGMENT_S * rate_hz)), detrend="constant")
+    band = (f >= SLOW_BAND_HZ[0]) & (f <= SLOW_BAND_HZ[1])
+    x_rms = math.sqrt(float(np.sum(pxx[band] / (2 * math.pi * f[band]) ** 4)) * (f[1] - f[0]))
+    b, a = sp_signal.butter(2, SLOW_BAND_HZ[1] / (rate_hz / 2))
+    slow = sp_signal.filtfilt(b, a, e)
+    w = max(1, int(SLOW_WINDOW_S * rate_hz))
+    ms = np.convolve(slow**2, np.ones(w) / w, mode="same")
+    return SlowDisplacement(x_rms, float(t[int(np.argmax(ms))]))
 
 
 @dataclass(frozen=True)
@@ -81,11 +136,14 @@ def _rest_means(acc_m_s2: np.ndarray, t_s: np.ndarray, rests) -> tuple[np.ndarra
 
 def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_sg: np.ndarray,
                            tremor_band_rms_m_s2: float, lever_arm_m: np.ndarray,
-                           lever_arm_std_m: np.ndarray, check_accelerometer: bool = True) -> HandAssumptions:
-    """The three checks of the module docstring.  ``rests``: (start, stop) sample ranges; ``sigma_sg``:
+                           lever_arm_std_m: np.ndarray, check_accelerometer: bool = True,
+                           slow_residual_m_s2: np.ndarray | None = None, slow_residual_t_s: np.ndarray | None = None,
+                           rate_hz: float | None = None) -> HandAssumptions:
+    """The checks of the module docstring.  ``rests``: (start, stop) sample ranges; ``sigma_sg``:
     σ of the six S, G the estimator reports; the rest from ``kf_hand``'s hand diagnostics.
     ``check_accelerometer`` False: the accelerometer is estimated with the gyro (``kf_hand_joint``), whose
-    own |f̂| = g test at the rests replaces check 1."""
+    own |f̂| = g test at the rests replaces check 1.  ``slow_residual_m_s2`` (with its times and rate):
+    |f_lp − K r̂| − g over the filtered span, for check 4 (skipped when None)."""
     notes: list[str] = []
     ok = True
     details: dict = {}
@@ -128,4 +186,21 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
         notes.append(f"inconsistent: the lever arm found, {rn * 100:.1f} ± {rsd * 100:.1f} cm, is beyond a hand's "
                      f"({LEVER_ARM_MAX_M * 100:.0f} cm, a forearm): the session's translation was read as a rotation "
                      "about a far point. Turn the device in the hand (wrist), without moving the arm")
+    slow = None if slow_residual_m_s2 is None else slow_displacement(slow_residual_m_s2, slow_residual_t_s, rate_hz)
+    if slow is not None:
+        details.update({"slow_displacement_rms_m": slow.rms_m, "slow_displacement_max_m": DISPLACEMENT_MAX_M,
+                        "slow_band_hz": list(SLOW_BAND_HZ)})
+        if slow.rms_m > DISPLACEMENT_MAX_M:
+            ok = False
+            notes.append(f"inconsistent: the acceleration kf_hand attributes to the hand has slow content (periods "
+                         f"{1 / SLOW_BAND_HZ[1]:.0f}–{1 / SLOW_BAND_HZ[0]:.0f} s) that would move a hand by "
+                         f"{slow.rms_m:.2f} m RMS, beyond the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device moves at most "
+                         f"(largest around t = {slow.worst_t_s:.0f} s). Either the device travelled (carried, walked, "
+                         "swung at arm's length about a moving pivot) or it is a sensor effect the model lacks — an "
+                         "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "
+                         "accelerometer bias; kf_hand fitted it as the hand's acceleration and weighted S, G by it, so "
+                         "S, G and σ are not trustworthy. Check the accelerometer calibration (calib run's default "
+                         "--accelerometer estimate, or calib run --method hand), the gyro–accelerometer time alignment, "
+                         "trace the residual with calib closeloop, and record again turning the device at the wrist "
+                         "without moving the arm")
     return HandAssumptions(ok, tuple(notes), eps, spread, float(tremor_band_rms_m_s2), rn, details)

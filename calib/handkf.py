@@ -59,7 +59,8 @@ standard deviation would count the tremor as sensor noise (and make σ pessimist
 
 Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
 :func:`calib.fastkf.run_filter` with the :func:`hand_layout`: attitude, S, G, gyro bias, lever arm,
-x, z, z₂ (:data:`calib.kalman.HAND_BIAS`), [s_T], g-sensitivity — 27 or 30 states, the unused z₂
+x, z, z₂ (:data:`calib.kalman.HAND_BIAS`), [s_T], [g-sensitivity] — 24 states, 27 with s_T (a temperature
+channel that moved) or with the opt-in g-sensitivity alone, 30 with both; the unused z₂
 (m = 1) or z (no high-pass) inert):
 
 1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, no high-pass, r̂ = 0;
@@ -445,9 +446,11 @@ def _acc_theta(theta: np.ndarray) -> np.ndarray:
 def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None,
             g_sensitivity: bool = False) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
-    the registered ``kf_hand``: 24 states, 27 on a warming session) or "estimate" (the registered
-    ``kf_hand_joint``: + the accelerometer's bias, scale factor and non-orthogonality, 33 states, 39 on a warming
-    session with s_T and c_a: :func:`joint_layout` — what ``calib run`` estimates by default).  With the accelerometer estimated, every pass applies its error model at the current
+    the registered ``kf_hand``: 24 states, 27 when the recording's temperature moved (s_T), 30 with the opt-in
+    ``g_sensitivity`` too — :func:`hand_layout`) or "estimate" (the registered ``kf_hand_joint``: + the
+    accelerometer's bias, scale factor and non-orthogonality, 33 states, 39 when the recording's temperature moved
+    (s_T and the accelerometer bias's c_a — :func:`joint_layout`) — what ``calib run`` estimates by
+    default).  With the accelerometer estimated, every pass applies its error model at the current
     estimate, f̂ = M̂_a⁻¹(f̃ − b̂_a), *before* the nav-frame tremor low-pass (the low-pass of a rotated
     body-frame bias is not the bias), and hands the kernel the low-passed f̂ mapped back through
     f̃_lp = M̂_a f̂_lp + b̂_a, so the kernel's own compensation at the nominal gives f̂_lp again; the prior of
@@ -597,10 +600,10 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         f_hat = compensate_acc(acc_all, _acc_theta(theta))
         checks.append(rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg0.gravity_m_s2,
                                    math.sqrt(prep.config.r_var(fs))))
-    status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer)
+    status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer, hand_aware=True)
     if thermal is not None:
         notes = notes + [temperature["note"]]
-    status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.noise_free)
+    status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.noise_free, hand_aware=True)
     if prep.noise.noise_free and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
@@ -630,8 +633,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # per axis against 1.3–1.5 one-sided)
     r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * infl_test.factor)
     # kf_hand's own assumptions on this recording (calibrated accelerometer, a hand's tremor and lever arm)
+    # the slow external acceleration's data: |f_lp − K r̂| − g (attitude-free), for the displacement check
+    slow_resid = np.linalg.norm(f_lp - np.einsum("nij,j->ni", kreg, r_hat), axis=1) - cfg0.gravity_m_s2
     assumptions = check_hand_assumptions(rec.acc_m_s2, rec.t_s, prep.rest.index_ranges, np.sqrt(np.diag(cov[3:9, 3:9])),
-                                         tremor_rms, r_hat, r_sd, check_accelerometer=not estimate)
+                                         tremor_rms, r_hat, r_sd, check_accelerometer=not estimate,
+                                         slow_residual_m_s2=slow_resid, slow_residual_t_s=t, rate_hz=fs)
     notes.extend(assumptions.warnings)
     if not assumptions.trustworthy and status == "ok":
         status = "inconsistent"

@@ -31,6 +31,12 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
   ``kf_hand`` uses (:func:`hand_crlb`).  Efficiency is reported against both bounds: the ideal one
   (the sensor's white noise only, no hand: what a perfect hand would allow) and the hand-aware one
   (what this hand allows any unbiased estimator).
+* Each method's hand bound is that of the quantity it is scored on (``sqrt_crlb_hand_by_method``): on a sensor
+  whose scale factor moves with the session's temperature, a method that states S at temperatures T_r
+  (``kf_hand``) is scored and bounded there; one that states none (``kf``) is scored at the oracle's S, the
+  device's at its reference temperature, and bounded there — the Bayesian bound with the preset's per-device
+  spread of the coefficient (:func:`_with_population_prior`; the filter's vague prior would make it the prior's
+  extrapolation, not the data's).
 """
 
 from __future__ import annotations
@@ -103,6 +109,9 @@ class MonteCarloResult:
     names: tuple[str, ...] = GYRO_PARAMS
     sqrt_crlb_hand: np.ndarray = field(default_factory=lambda: np.zeros(0))
     hand_psd: dict = field(default_factory=dict)
+    # per method, the hand bound of the quantity that method is scored against (differs from sqrt_crlb_hand only
+    # for S on a warming sensor: S at the temperatures a method states, else at the oracle's reference)
+    sqrt_crlb_hand_by_method: dict = field(default_factory=dict)
 
     def summary(self) -> str:
         """One line per method: max RMSE of S and G, max efficiency (ideal / hand bound) over S, G, NEES."""
@@ -145,6 +154,12 @@ class MonteCarloResult:
             rows.append(f"hand-aware bound: lever arm as nuisance, slow external acceleration σ_s "
                         f"{self.hand_psd.get('rms_m_s2', float('nan')):.4f} m/s², τ {self.hand_psd.get('tau_s', float('nan')):.2f} s "
                         "(kf_hand's estimate, median over seeds)")
+            for m, v in self.sqrt_crlb_hand_by_method.items():
+                if not np.array_equal(v, self.sqrt_crlb_hand):
+                    rows.append(f"{m}'s eff.h uses the bound of S at the oracle's reference temperature "
+                                f"{self.hand_psd.get('oracle_reference_temperature_c', float('nan')):.2f} °C, where it is "
+                                f"scored (it states no temperature): √CRLB hand S "
+                                + ", ".join(f"{x:.5f}" for x in v[3:6]))
         return "\n".join(rows)
 
     def to_dict(self) -> dict:
@@ -152,6 +167,7 @@ class MonteCarloResult:
                 "accelerometer": self.accelerometer, "parameters": list(self.names),
                 "truth_mean": self.truth_mean.tolist(), "sqrt_crlb": self.sqrt_crlb.tolist(),
                 "sqrt_crlb_hand": self.sqrt_crlb_hand.tolist(), "hand_psd": self.hand_psd,
+                "sqrt_crlb_hand_by_method": {m: v.tolist() for m, v in self.sqrt_crlb_hand_by_method.items()},
                 "methods": {m: {"mean_error": st.mean_error.tolist(), "rmse": st.rmse.tolist(),
                                 "efficiency": st.efficiency.tolist(), "efficiency_hand": st.efficiency_hand.tolist(),
                                 "z_rms": st.z_rms.tolist(),
@@ -259,10 +275,15 @@ def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     truth).  A calibration that says at which temperature its S holds (``diagnostics["temperature"]``,
     :func:`calib.handkf.scale_at_temperature`) is scored against the device's S at that temperature; the oracle's
     S (:func:`gyrosim.calibration.truth_calibration`) is the one at the preset's reference."""
-    from gyrosim.effects import SignalContext
     from gyrosim.sensor_model import stored_sensor_model
 
-    model = stored_sensor_model(rec.meta or {})
+    return _scale_change(stored_sensor_model(rec.meta or {}), t_c)
+
+
+def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
+    """:func:`truth_scale_at_temperature` of a (realised) sensor model; zeros for None."""
+    from gyrosim.effects import SignalContext
+
     out = np.zeros(3)
     if model is None:
         return out
@@ -332,6 +353,50 @@ def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.806
                 d = np.asarray(d)
                 out[i] += float(d[0, i] - d[1, i]) / (2.0 * gravity_m_s2)
     return out
+
+
+def _oracle_reference_temperature_c(rec) -> float | None:
+    """The temperature (°C) at which the oracle's gyro S (:func:`gyrosim.calibration.truth_calibration`) holds on
+    a device whose scale factor depends on temperature over this recording — the reference ``t_ref_c`` of its
+    temperature-dependent scale effects (:func:`truth_scale_at_temperature` is 0 there) — or None when the
+    device's S does not change over the recording's temperatures (or it has none).  Scoring only: reads the truth."""
+    if rec.temp_c is None or not np.all(np.isfinite(rec.temp_c)):
+        return None
+    lo, hi = float(np.min(rec.temp_c)), float(np.max(rec.temp_c))
+    if not np.any(np.abs(truth_scale_at_temperature(rec, np.full(3, hi)) - truth_scale_at_temperature(rec, np.full(3, lo)))
+                  > 0.0):
+        return None
+    from gyrosim.sensor_model import stored_sensor_model
+
+    refs = {float(e.t_ref_c) for e in stored_sensor_model(rec.meta or {}).gyro if hasattr(e, "t_ref_c")}
+    return refs.pop() if len(refs) == 1 else None
+
+
+def _scale_temperature_sigma_per_c(model, lo_c: float, hi_c: float, draws: int = 400) -> np.ndarray:
+    """σ (3,) of the preset's per-device spread of the gyro scale factor's temperature coefficient (1/°C) over
+    [``lo_c``, ``hi_c``]: the slope (ΔS(hi) − ΔS(lo)) / (hi − lo) of ``draws`` devices realised from the preset
+    (seeded; whatever effects make S depend on temperature — no effect named here).  400 draws: σ to ±7 % (95 %,
+    √(2/400) relative), enough for a bound.  Scoring only."""
+    rng = np.random.default_rng(0)
+    lo, hi = np.full(3, lo_c), np.full(3, hi_c)
+    slopes = np.array([(_scale_change(m, hi) - _scale_change(m, lo)) / (hi_c - lo_c)
+                       for m in (model.realize(rng) for _ in range(draws))])
+    return slopes.std(axis=0)
+
+
+def _with_population_prior(p: np.ndarray, offset: int, sigma_filter: float, sigma_pop: np.ndarray) -> np.ndarray:
+    """The bound ``p`` (computed with the filter's vague prior σ_v = ``sigma_filter`` on the s_T block at
+    ``offset``) with that prior replaced by the Monte Carlo's population prior σ_pop (the preset's per-device
+    spread): in information form P⁻¹ + Hᵀ(σ_pop⁻² − σ_v⁻²)H, done as a Kalman update with a pseudo-measurement
+    s_T = 0 of variance R = 1 / (σ_pop⁻² − σ_v⁻²) (no inverse of the ill-conditioned P).  The Bayesian CRLB
+    (Van Trees 1968, §2.4) of the population the Monte Carlo draws its devices from."""
+    var = 1.0 / np.maximum(1.0 / np.maximum(sigma_pop, 1e-30) ** 2 - 1.0 / sigma_filter**2, 1e-300)
+    h = np.zeros((3, p.shape[0]))
+    h[:, offset:offset + 3] = np.eye(3)
+    s = h @ p @ h.T + np.diag(var)
+    k = p @ h.T @ np.linalg.inv(s)
+    out = p - k @ h @ p
+    return 0.5 * (out + out.T)
 
 
 def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.ndarray, statuses: list[str],
@@ -480,6 +545,8 @@ def monte_carlo(
         crlb.append(sd[12:21])
     sqrt_crlb = np.concatenate(crlb)
     sqrt_hand, hand_psd = np.zeros(0), {}
+    sqrt_hand_m: dict[str, np.ndarray] = {}
+    sd_sg_oracle = None
     if psd or not estimate:   # with the accelerometer estimated: when a hand-aware method gave the hand's PSD
         if psd:
             hp = [d.get("highpass_tau_s") for d in psd]
@@ -493,8 +560,10 @@ def monte_carlo(
                         "bias_rw_rad_s_sqrt_s": 0.0}
         # a method that models the scale factor's temperature dependence (kf_hand on a session that warmed) reports
         # S at the temperatures the session determined it: the bound is that of the same quantity, with s_T nuisance
+        # — and, for a method that states none, that of S at the oracle's reference temperature, where it is scored
+        t_oracle = None if estimate else _oracle_reference_temperature_c(rec0)
         thermal = session_temperature(rec0.temp_c[start:], rate_hz) if (
-            rec0.temp_c is not None and any(t_ref_m[m] or t_ref_a_m[m] for m in methods)) else None
+            rec0.temp_c is not None and (any(t_ref_m[m] or t_ref_a_m[m] for m in methods) or t_oracle is not None)) else None
         # and its g-sensitivity, when a method estimated it (kf_hand): three nuisance states of the same model
         g_sens = any(gs_m[m] for m in methods)
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
@@ -506,24 +575,62 @@ def monte_carlo(
         sd_sg = sdh[3:9]
         oa = HAND_JOINT.offset("acc_bias")
         sd_acc = sdh[oa:oa + 9] if estimate else None
-        if thermal is not None:
-            lay = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, estimate)
-            t_r, jt = scale_at_temperature(ph, lay, thermal[1])
+        sd_plain_joint = None
+        if thermal is not None and not estimate:
+            base = HAND_BIAS if hand_psd["bias_rw_rad_s_sqrt_s"] > 0 else HAND
+            lay_t = StateLayout(base.blocks + ("gyro_temp_scale",) + (G_SENS_BLOCKS if g_sens else ()))
+            t_r, jt = scale_at_temperature(ph, lay_t, thermal[1])
             sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
-            if estimate:    # the accelerometer bias at the temperatures the session determined it (kf_hand_joint's report)
-                t_a, ja = acc_bias_at_temperature(ph, lay, thermal[1])
-                sd_acc = sd_acc.copy()
-                sd_acc[0:3] = np.sqrt(np.diag(ja @ ph @ ja.T))
-                hand_psd["acc_bias_reference_temperature_c"] = t_a.tolist()
-        if thermal is not None and any(t_ref_m[m] for m in methods):
-            hand_psd["scale_reference_temperature_c"] = t_r.tolist()      # the bound's; the estimates' median beside it
-            hand_psd["scale_reference_temperature_c_estimates"] = np.median(
-                np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
+            if t_oracle is not None:   # S(T) = S(T₀) + s_T (T − T₀) at T = the oracle's reference, every axis
+                j_or = jt.copy()
+                o = lay_t.offset("gyro_temp_scale")
+                j_or[0:3, o:o + 3] = np.eye(3) * (t_oracle - thermal[1])
+                t_all = rec0.temp_c[start:]
+                p_pop = _with_population_prior(ph, o, config.prior_gyro_temp_scale_per_c, _scale_temperature_sigma_per_c(
+                    model, float(np.min(t_all)), float(np.max(t_all))))
+                sd_sg_oracle = np.sqrt(np.diag(j_or @ p_pop @ j_or.T))
+                hand_psd["oracle_reference_temperature_c"] = t_oracle
+                # for a file of methods that state no temperature to borrow (benchmarks/hand_campaign.py)
+                hand_psd["sqrt_crlb_hand_sg_at_oracle_reference"] = sd_sg_oracle.tolist()
+            if any(t_ref_m[m] for m in methods):
+                hand_psd["scale_reference_temperature_c"] = t_r.tolist()      # the bound's; the estimates' median beside it
+                hand_psd["scale_reference_temperature_c_estimates"] = np.median(
+                    np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
+            else:
+                sd_sg = sd_sg_oracle
+        if thermal is not None and estimate:
+            # kf_hand_joint on a warming session: S and b_a at the temperatures it states, c_a and s_T nuisance
+            lay = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, True)
+            t_r, jt = scale_at_temperature(ph, lay, thermal[1])
+            t_a, ja = acc_bias_at_temperature(ph, lay, thermal[1])
+            sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
+            sd_acc = sd_acc.copy()
+            sd_acc[0:3] = np.sqrt(np.diag(ja @ ph @ ja.T))
+            hand_psd["acc_bias_reference_temperature_c"] = t_a.tolist()
+            if any(t_ref_m[m] for m in methods):
+                hand_psd["scale_reference_temperature_c"] = t_r.tolist()
+                hand_psd["scale_reference_temperature_c_estimates"] = np.median(
+                    np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
+            if not all(t_ref_a_m[m] for m in methods):
+                # a joint method that states no temperature (kf_session) keeps the bound of the model without the
+                # temperature blocks, as before them (one more recursion, ~1 s)
+                pp = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
+                               hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
+                               bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"],
+                               highpass_order=hand_psd["highpass_order"], g_sensitivity=g_sens, estimate_accelerometer=True)
+                sdp = np.sqrt(np.diag(pp))
+                sd_plain_joint = np.concatenate([bias_crlb, sdp[3:9], sdp[oa:oa + 9]])
         if not math.isfinite(hand_psd["highpass_tau_s"]):
             hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
         # kf_hand(_joint) reports the rest-average gyro bias: its bound is the static one in both modes
         sqrt_hand = np.concatenate([bias_crlb, sd_sg] + ([sd_acc] if estimate else []))
+        for m in methods:   # each method's bound is that of the quantity it is scored against
+            sqrt_hand_m[m] = sqrt_hand
+            if sd_sg_oracle is not None and not t_ref_m[m]:
+                sqrt_hand_m[m] = np.concatenate([bias_crlb, sd_sg_oracle] + ([sdh[oa:oa + 9]] if estimate else []))
+            if sd_plain_joint is not None and not t_ref_a_m[m]:
+                sqrt_hand_m[m] = sd_plain_joint
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
-                        sqrt_hand) for m in methods}
+                        sqrt_hand_m.get(m, sqrt_hand)) for m in methods}
     return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
-                            accelerometer, names, sqrt_hand, hand_psd)
+                            accelerometer, names, sqrt_hand, hand_psd, sqrt_hand_m)

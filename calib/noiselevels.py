@@ -71,7 +71,9 @@ class NoiseLevels:
 
     @property
     def at_floor(self) -> bool:
-        """Either triad's measured noise below its floor (a noise-free or coarsely quantised input)."""
+        """Either triad's measured noise below its floor (a noise-free or coarsely quantised input).  Not a test
+        for noise-free input: a real sensor with ~1 LSB of noise is at its floor too — the checks that
+        noise-free input is exempted from use :attr:`noise_free` (tests/test_quantised_not_noise_free.py)."""
         return self.gyro_measured_rad_s < self.gyro_floor_rad_s or self.acc_measured_m_s2 < self.acc_floor_m_s2
 
     @property
