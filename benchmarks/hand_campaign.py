@@ -95,7 +95,7 @@ def table(paths: list[str]) -> str:
                             f"{eh:.2f}{mark} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
                             f"{_where(st['nees_mean'], st['nees_band'])} | "
                             + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
-    if stale:
+    if any(r.split(" | ")[6].endswith(" †") for r in rows[2:] if r.startswith("| ")):   # only when a row is marked
         rows.append("\n† against kf_hand's bound of S at the temperatures kf_hand stated (its file predates the bound of "
                     "S at the oracle's reference temperature, where this method is scored): re-run that kf_hand campaign")
     return "\n".join(rows)
