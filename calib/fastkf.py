@@ -30,7 +30,7 @@ from numba import njit
 
 from gyrosim.rotations import quat_to_matrix
 
-from .kalman import PAPER, SENSOR_EXTRA_BLOCKS, FilterConfig, StateLayout, initial_covariance, leave_out_means, theta_slice
+from .kalman import EXT_ACC_BLOCKS, PAPER, SENSOR_EXTRA_BLOCKS, FilterConfig, StateLayout, initial_covariance, leave_out_means, theta_slice
 
 __all__ = ["BatchResult", "FilterRun", "run_batch", "run_filter", "crlb", "crlb_joint", "regressor_half_window"]
 
@@ -132,11 +132,13 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=False)
 def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
-            kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg, offs_x, sens0):  # pragma: no cover
+            kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg, offs_x, sens0,
+            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
     hand = hand0.copy()                                        # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
+    #                                                            (general shaping filter, lti_d > 0: component i of axis j at 3 + 3i + j)
     sens = sens0.copy()                                        # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12): calib.kalman.SENSOR_EXTRA_BLOCKS
     P = P0.copy()
     qout = np.zeros((B, 4))
@@ -149,14 +151,18 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     o_sg, o_gg, o_bg, o_ba, o_sa, o_ga = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6]
     o_lv, o_ea, o_el = offs[7], offs[8], offs[9]
     o_e2 = offs[10] if hp_order >= 2 else -1
+    if lti_d > 0:                                              # the general shaping filter replaces the x, z, z₂ code
+        o_ea, o_el, o_e2 = -1, -1, -1
+    lrow = np.zeros((9, n))
+    lv = np.zeros(9)
     o_tb, o_ts, o_gs, o_ta = offs_x[0], offs_x[1], offs_x[2], offs_x[3]
     acc_states = o_ba >= 0
     E = np.zeros((3, 18))
     ecols = np.zeros(18, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, 32))
-    hcols = np.zeros(32, dtype=np.int64)
+    Hc = np.zeros((3, 44))                                     # φ 2 + accelerometer 9 + c_a 3 + lever arm 3 + a_e ≤ 27
+    hcols = np.zeros(44, dtype=np.int64)
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -235,6 +241,47 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                         Pb[r, c] *= al
                         Pb[c, r] *= al
                     Pb[c, c] += gm_var * (1.0 - al * al)
+            if lti_d > 0:                                      # a_e's shaping filter per nav axis: x ← Φ x, P ← Φ P Φᵀ + Q_d
+                u = phi_idx[k]
+                for j in range(3):
+                    for i in range(lti_d):                     # nominal and error-state mean
+                        s1 = 0.0
+                        s2 = 0.0
+                        for l in range(lti_d):
+                            s1 += lti_phi[u, i, l] * hd[3 + 3 * l + j]
+                            s2 += lti_phi[u, i, l] * xs[offs_ae[l] + j]
+                        lv[i] = s1
+                        lrow[i, 0] = s2
+                    for i in range(lti_d):
+                        hd[3 + 3 * i + j] = lv[i]
+                        xs[offs_ae[i] + j] = lrow[i, 0]
+                    for i in range(lti_d):                     # rows: Φ P (Φ block-diagonal: its zeros skipped)
+                        for r in range(n):
+                            lrow[i, r] = 0.0
+                        for l in range(lti_d):
+                            f = lti_phi[u, i, l]
+                            if f != 0.0:
+                                cl = offs_ae[l] + j
+                                for r in range(n):
+                                    lrow[i, r] += f * Pb[cl, r]
+                    for i in range(lti_d):
+                        for r in range(n):
+                            Pb[offs_ae[i] + j, r] = lrow[i, r]
+                    for i in range(lti_d):                     # columns: (Φ P) Φᵀ
+                        for r in range(n):
+                            lrow[i, r] = 0.0
+                        for l in range(lti_d):
+                            f = lti_phi[u, i, l]
+                            if f != 0.0:
+                                cl = offs_ae[l] + j
+                                for r in range(n):
+                                    lrow[i, r] += Pb[r, cl] * f
+                    for i in range(lti_d):
+                        for r in range(n):
+                            Pb[r, offs_ae[i] + j] = lrow[i, r]
+                    for i in range(lti_d):
+                        for l in range(lti_d):
+                            Pb[offs_ae[i] + j, offs_ae[l] + j] += lti_q[u, i, l]
             # x ← (I + E) x (non-zero only before the first update: the prior mean x0)
             for i in range(3):
                 s = 0.0
@@ -298,9 +345,13 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             z[i] += hd[6 + i]                  # a_e = x − z
                         if o_e2 >= 0:
                             z[i] += hd[9 + i]                  # a_e = x − z − z₂
+                if lti_d > 0:                                  # a_e = C x per nav axis
+                    for i in range(3):
+                        for l in range(lti_d):
+                            z[i] -= lti_c[l] * hd[3 + 3 * l + i]
                 m = m_rows
                 for i in range(3):
-                    for e in range(11):
+                    for e in range(41):
                         Hc[i, e] = 0.0
                 Hc[1, 0] = gz                                  # [g_up×] on φ_x
                 hcols[0] = 0
@@ -322,6 +373,10 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_el)      # −I (nav): a_e = x − z
                 if o_e2 >= 0:
                     nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_e2)      # −I (nav): a_e = x − z − z₂
+                if lti_d > 0:
+                    for l in range(lti_d):
+                        if lti_c[l] != 0.0:
+                            nh = _nb_put(Hc, hcols, nh, lti_c[l] * np.eye(3), offs_ae[l])   # C_l I (nav)
                 r_var = r_vars[b, k]
                 _nb_times_ht(Pb, Hc, hcols, nh, m, PHt)        # P Hᵀ
                 for i in range(m):                             # S = H P Hᵀ + R
@@ -411,6 +466,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             hd[6 + j] += x[o_el + j]
                         if o_e2 >= 0:
                             hd[9 + j] += x[o_e2 + j]
+                        for l in range(lti_d):
+                            hd[3 + 3 * l + j] += x[offs_ae[l] + j]
                         if o_tb >= 0:
                             sx[j] += x[o_tb + j]
                         if o_ts >= 0:
@@ -434,8 +491,9 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
 class FilterRun:
     """B filter runs: final nominal parameters θ̂ (B, 18, ``THETA`` order) and covariance (B, n, n),
     final attitude (B, 4), per-step NIS and innovations (B, N−1[, 3]; NaN where no update), and when
-    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, 12: lever arm r
-    (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂)) and the whitened innovations L⁻¹ν of the two
+    asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, ``HAND_NOMINALS``: lever
+    arm r (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂) — with a
+    general shaping filter its state i of nav axis j at 3 + 3i + j) and the whitened innovations L⁻¹ν of the two
     levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 12): the gyro's
     temperature coefficients c_b (rad/s/°C), s_T (1/°C) and g-sensitivity k (rad/s per m/s²), and the
     accelerometer bias's temperature coefficient c_a (m/s²/°C), with a layout
@@ -462,6 +520,57 @@ class FilterRun:
         return self.p[:, o:o + 3, o:o + 3]
 
 
+HAND_NOMINALS = 3 + 3 * len(EXT_ACC_BLOCKS)   # the lever arm, then a_e's shaping-filter states (3 per component)
+
+
+def ext_acc_discrete(a: np.ndarray, qc: np.ndarray, dt_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact discretisation (Φ (U, d, d), Q_d (U, d, d)) of ẋ = A x + w, E w wᵀ = Q_c δ, over the steps
+    ``dt_s`` (U,): Φ = e^{AΔt}, Q_d = ∫₀^Δt e^{As} Q_c e^{Aᵀs} ds, both from one matrix exponential of Van Loan's
+    block [[−A, Q_c], [0, Aᵀ]]Δt (Van Loan 1978, IEEE TAC 23(3); Brown & Hwang 4th ed. §3.9)."""
+    from scipy.linalg import expm
+
+    d = a.shape[0]
+    m = np.zeros((2 * d, 2 * d))
+    m[:d, :d] = -a
+    m[:d, d:] = qc
+    m[d:, d:] = a.T
+    e = expm(np.asarray(dt_s, float)[:, None, None] * m[None])
+    phi = np.transpose(e[:, d:, d:], (0, 2, 1))
+    q = phi @ e[:, :d, d:]
+    return phi, 0.5 * (q + np.transpose(q, (0, 2, 1)))
+
+
+def _ext_acc_discrete(layout: StateLayout, config: FilterConfig, t_s: np.ndarray) -> tuple:
+    """The kernel's general a_e arguments: (d, offsets (9,), C (9,), step → table index (N,), Φ (U, 9, 9),
+    Q_d (U, 9, 9)) — d = 0 (the x, z, z₂ code) unless the layout carries ``ext_acc_s3`` … (the general shaping
+    filter, :meth:`calib.kalman.FilterConfig.ext_acc_model`).  One table entry per distinct step (rounded to
+    1 ns): one for a uniformly sampled recording."""
+    nb = len(EXT_ACC_BLOCKS)
+    if not any(layout.has(b) for b in EXT_ACC_BLOCKS[3:]):
+        if config.ext_acc_band_hz is not None and layout.has("ext_acc"):
+            raise ValueError("a band-limited external acceleration (ext_acc_band_hz) needs a layout with "
+                             f"{EXT_ACC_BLOCKS} (its five states per axis)")
+        return (0, np.zeros(nb, np.int64), np.zeros(nb), np.zeros(t_s.size, np.int64), np.zeros((1, nb, nb)),
+                np.zeros((1, nb, nb)))
+    a, qc, c = config.ext_acc_model()
+    d = a.shape[0]
+    if d > nb:
+        raise ValueError(f"the external acceleration's model has {d} states per axis, at most {nb}")
+    if any(not layout.has(b) for b in EXT_ACC_BLOCKS[:d]):
+        raise ValueError(f"the external acceleration's model has {d} states per axis: the layout needs {EXT_ACC_BLOCKS[:d]}")
+    dts = np.diff(t_s, prepend=t_s[0] - (t_s[1] - t_s[0] if t_s.size > 1 else 0.0))
+    uniq, idx = np.unique(np.round(dts, 9), return_inverse=True)
+    phi, q = ext_acc_discrete(a, qc, uniq)
+    phi5 = np.zeros((uniq.size, nb, nb))
+    q5 = np.zeros((uniq.size, nb, nb))
+    phi5[:, :d, :d] = phi
+    q5[:, :d, :d] = q
+    c5 = np.zeros(nb)
+    c5[:d] = c
+    return (d, np.array([layout.offset(b) for b in EXT_ACC_BLOCKS], np.int64), c5, idx.astype(np.int64),
+            np.ascontiguousarray(phi5), np.ascontiguousarray(q5))
+
+
 def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.ndarray, theta0: np.ndarray,
                p0: np.ndarray, layout: StateLayout, config: FilterConfig, rate_hz: float, *,
                r_var_per_sample: np.ndarray | None = None, update_mask: np.ndarray | None = None,
@@ -482,10 +591,13 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     ``rows`` = 3 adds the vertical row (the |f| = g information) — for bounds computed at the truth
     (:func:`crlb_joint`), not for estimation, where the gravity fit carries it.
     ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] + [ω×]² per sample (body), needed by a
-    layout with ``lever_arm``; ``hand0`` (≤ 12,) or (B, ≤ 12): the nominal lever arm, external acceleration
+    layout with ``lever_arm``; ``hand0`` (≤ 30,) or (B, ≤ 30): the nominal lever arm, external acceleration
     x and its low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the Gauss–Markov σ, τ and
-    the high-pass τ_h from ``config``).  ``sensor0`` (≤ 12,) or (B, ≤ 12): the nominal c_b, s_T, k of the gyro's
-    extra blocks and c_a of the accelerometer's (default 0; missing ones 0).
+    the high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` … (:data:`calib.kalman.EXT_ACC_EXTRA_BLOCKS`)
+    runs a_e as the general shaping filter of :meth:`calib.kalman.FilterConfig.ext_acc_model` (the band-limited
+    sway, or the same Gauss–Markov family), discretised exactly per step (:func:`ext_acc_discrete`).  ``sensor0``
+    (≤ 12,) or (B, ≤ 12): the nominal c_b, s_T, k of the gyro's extra blocks and c_a of the accelerometer's
+    (default 0; missing ones 0).
     ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), the sensor temperature relative to the filter's
     reference, needed by a layout with ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then
     ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T − T₀) + ε (:mod:`calib.kalman`, ``THERMAL_BLOCKS``), and with
@@ -527,10 +639,11 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         kreg = arr(np.broadcast_to(np.asarray(lever_regressor, float), (B, N, 3, 3)))
     else:
         kreg = np.zeros((B, 1, 3, 3))
-    h = np.zeros(12) if hand0 is None else np.asarray(hand0, float)
-    if h.shape[-1] < 12:                                   # lever arm and x (and z) only: the low-passes start at 0
-        h = np.concatenate([h, np.zeros(h.shape[:-1] + (12 - h.shape[-1],))], axis=-1)
-    hand0 = arr(np.broadcast_to(h, (B, 12)))
+    h = np.zeros(HAND_NOMINALS) if hand0 is None else np.asarray(hand0, float)
+    if h.shape[-1] < HAND_NOMINALS:                        # lever arm and x (and z) only: the low-passes start at 0
+        h = np.concatenate([h, np.zeros(h.shape[:-1] + (HAND_NOMINALS - h.shape[-1],))], axis=-1)
+    hand0 = arr(np.broadcast_to(h, (B, HAND_NOMINALS)))
+    lti = _ext_acc_discrete(layout, config, np.asarray(t_s, float))
     ns = 3 * len(SENSOR_EXTRA_BLOCKS)
     s0 = np.zeros(ns) if sensor0 is None else np.asarray(sensor0, float)
     if s0.shape[-1] < ns:                                  # callers that know the gyro's blocks only: c_a starts at 0
@@ -554,7 +667,7 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
         float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
         float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
-        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0)
+        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti)
     return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
                      hand if layout.models_hand else None, wht,
                      sens if (layout.models_temperature or layout.models_g_sensitivity) else None)

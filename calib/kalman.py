@@ -79,7 +79,8 @@ from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
-           "HAND_JOINT", "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "ACC_THERMAL_BLOCKS", "SENSOR_EXTRA_BLOCKS", "HAND_BIAS_TS",
+           "HAND_JOINT", "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "ACC_THERMAL_BLOCKS", "SENSOR_EXTRA_BLOCKS",
+           "EXT_ACC_BLOCKS", "EXT_ACC_EXTRA_BLOCKS", "HAND_BIAS_TS",
            "HAND_BIAS_THERMAL",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
@@ -101,18 +102,25 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 # last the accelerometer bias's temperature coefficient, b_a(T) = b_a + c_a (T − T₀) ("acc_temp_bias", kf_hand_joint)
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
           "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2", "gyro_temp_bias", "gyro_temp_scale",
-          "gyro_g_sens", "acc_temp_bias")
+          "gyro_g_sens", "ext_acc_s3", "ext_acc_s4", "ext_acc_s5", "ext_acc_s6", "ext_acc_s7", "ext_acc_s8",
+          "acc_temp_bias")
 THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:11]
 THERMAL_BLOCKS = BLOCKS[11:13]
 G_SENS_BLOCKS = BLOCKS[13:14]   # the gyro's g-sensitivity, diagonal K = diag(k) (rad/s per m/s²): b_g,i += k_i f_i
-ACC_THERMAL_BLOCKS = BLOCKS[14:15]   # the accelerometer bias's temperature coefficient c_a (m/s²/°C): b_a += c_a (T − T₀)
+# a band-limited sway (FilterConfig.ext_acc_band_hz): a_e per nav axis is a general shaping filter (A, B, C) of
+# up to nine states, component i of axis j at offset(EXT_ACC_BLOCKS[i]) + j (FilterConfig.ext_acc_model)
+EXT_ACC_EXTRA_BLOCKS = tuple(f"ext_acc_s{i}" for i in range(3, 9))     # by name: blocks added to BLOCKS later keep it
+EXT_ACC_BLOCKS = ("ext_acc", "ext_acc_lp", "ext_acc_lp2") + EXT_ACC_EXTRA_BLOCKS
+assert all(b in BLOCKS for b in EXT_ACC_BLOCKS)
+ACC_THERMAL_BLOCKS = ("acc_temp_bias",)   # the accelerometer bias's temperature coefficient c_a (m/s²/°C): b_a += c_a (T − T₀)
+assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
 # their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k, c_a)
 SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS + ACC_THERMAL_BLOCKS
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
           "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
           "ext_acc_lp2": "ael2", "gyro_temp_bias": "cb", "gyro_temp_scale": "sT",
-          "gyro_g_sens": "kg", "acc_temp_bias": "ca"}
+          "gyro_g_sens": "kg", **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)}, "acc_temp_bias": "ca"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
@@ -121,6 +129,7 @@ BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyr
                 "gyro_temp_bias": "gyro bias temperature coefficient",
                 "gyro_temp_scale": "gyro scale factor temperature coefficient",
                 "gyro_g_sens": "gyro g-sensitivity (diagonal)",
+                **{f"ext_acc_s{i}": f"external acceleration's band-pass state {i}" for i in range(3, 9)},
                 "acc_temp_bias": "accelerometer bias temperature coefficient"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
@@ -301,6 +310,51 @@ class FilterConfig:
     prior_gyro_temp_scale_per_c: float = 0.01
     prior_gyro_g_sens_rad_s_per_m_s2: float = 1e-3
     prior_acc_temp_bias_m_s2_c: float = 0.1
+    ext_acc_band_hz: tuple[float, float] | None = None
+    ext_acc_band_rms_m_s2: float = 0.0
+    ext_acc_band_order: int = 2
+
+    def ext_acc_model(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The continuous shaping filter of one nav axis of a_e: (A (d, d), Q_c (d, d), C (d,)) with
+        ẋ = A x + w, E w(t) w(s)ᵀ = Q_c δ(t − s), a_e = C x.
+
+        Without ``ext_acc_band_hz``: the Gauss–Markov x (σ = ``ext_acc_rms_m_s2``, τ = ``ext_acc_tau_s``),
+        high-passed by ż = (x − z)/τ_h (, ż₂ = (x − z − z₂)/τ_h) as documented on the class.  With
+        ``ext_acc_band_hz`` = (f₁, f₂): a broadband Gauss–Markov floor x₀ (σ₀ = ``ext_acc_rms_m_s2``,
+        τ₀ = ``ext_acc_tau_s``, no high-pass) plus an analog Butterworth band-pass of ``ext_acc_band_order`` poles
+        per edge (2N states) driven by white noise, scaled so that the band component's RMS is
+        ``ext_acc_band_rms_m_s2``: one-sided PSD
+
+            S_a(f) = 4σ₀²τ₀ / (1 + (2πfτ₀)²) + S_b / (1 + ((f² − f₁f₂) / (f (f₂ − f₁)))^{2N})
+
+        (the band-pass's |H|² from its low-pass prototype, Butterworth 1930; S_b its in-band level) — a sway
+        concentrated in a band with steep skirts, which the high-passed Gauss–Markov family could not follow
+        (docs/hand.md, "The sway model").  State 0 is the floor (``ext_acc``), 1 … 2N the band-pass's."""
+        tau, s2 = self.ext_acc_tau_s, self.ext_acc_rms_m_s2**2
+        if self.ext_acc_band_hz is None:
+            th = self.ext_acc_highpass_tau_s
+            k = 1 if not math.isfinite(th) else 1 + int(self.ext_acc_highpass_order)
+            a = np.zeros((k, k))
+            a[0, 0] = -1.0 / tau
+            for i in range(1, k):
+                a[i, 0] = 1.0 / th
+                a[i, 1:i + 1] = -1.0 / th
+            q = np.zeros((k, k))
+            q[0, 0] = 2.0 * s2 / tau
+            return a, q, np.array([1.0] + [-1.0] * (k - 1))
+        ab, bb, cb = _butter_band_ss(float(self.ext_acc_band_hz[0]), float(self.ext_acc_band_hz[1]),
+                                     int(self.ext_acc_band_order))
+        d = 1 + ab.shape[0]
+        a = np.zeros((d, d))
+        a[0, 0] = -1.0 / tau
+        a[1:, 1:] = ab
+        q = np.zeros((d, d))
+        q[0, 0] = 2.0 * s2 / tau
+        qb = np.outer(bb, bb)
+        from scipy.linalg import solve_continuous_lyapunov
+        v1 = float(cb @ solve_continuous_lyapunov(ab, -qb) @ cb)      # the band's variance for unit white input
+        q[1:, 1:] = qb * (self.ext_acc_band_rms_m_s2**2 / max(v1, 1e-300))
+        return a, q, np.concatenate([[1.0], cb])
 
     def r_var(self, rate_hz: float) -> float:
         """R per axis, (m/s²)²: σ_f² + a_ext²."""
@@ -315,6 +369,7 @@ class FilterConfig:
                 "lever_arm": np.full(3, self.prior_lever_arm_m),
                 "ext_acc": np.full(3, self.ext_acc_rms_m_s2),
                 "ext_acc_lp": np.zeros(3), "ext_acc_lp2": np.zeros(3),
+                **{b: np.zeros(3) for b in EXT_ACC_EXTRA_BLOCKS},
                 "gyro_temp_bias": np.full(3, self.prior_gyro_temp_bias_rad_s_c),
                 "gyro_temp_scale": np.full(3, self.prior_gyro_temp_scale_per_c),
                 "gyro_g_sens": np.full(3, self.prior_gyro_g_sens_rad_s_per_m_s2),
@@ -327,25 +382,37 @@ class FilterConfig:
         v = (1, −1, −1)."""
         from scipy.linalg import solve_continuous_lyapunov
 
-        tau, th, s2 = self.ext_acc_tau_s, self.ext_acc_highpass_tau_s, self.ext_acc_rms_m_s2**2
-        if not math.isfinite(th):
-            return np.array([[s2]])
-        k = 1 + int(self.ext_acc_highpass_order)
-        a = np.zeros((k, k))
-        a[0, 0] = -1.0 / tau
-        for i in range(1, k):
-            a[i, 0] = 1.0 / th
-            a[i, 1:i + 1] = -1.0 / th
-        q = np.zeros((k, k))
-        q[0, 0] = 2.0 * s2 / tau
+        if not math.isfinite(self.ext_acc_highpass_tau_s) and self.ext_acc_band_hz is None:
+            return np.array([[self.ext_acc_rms_m_s2**2]])
+        a, q, _ = self.ext_acc_model()      # with a band: the same equation for the floor + band-pass states
         return solve_continuous_lyapunov(a, -q)
 
     @property
     def ext_acc_rms_a_m_s2(self) -> float:
-        """RMS of one axis of a_e = x − z − z₂ (:meth:`ext_acc_stationary`)."""
+        """RMS of one axis of a_e = C x (:meth:`ext_acc_stationary`, :meth:`ext_acc_model`)."""
         c = self.ext_acc_stationary()
-        v = np.array([1.0] + [-1.0] * (c.shape[0] - 1))
+        v = self.ext_acc_model()[2][:c.shape[0]]
         return float(math.sqrt(max(v @ c @ v, 0.0)))
+
+
+def _butter_band_ss(f1_hz: float, f2_hz: float, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """State space (A (2N, 2N), B (2N,), C (2N,)) of the analog Butterworth band-pass f₁ … f₂ (Hz) of N poles per
+    edge, |H| = 1 at √(f₁f₂) (scipy.signal.butter's analog band-pass transformation), in a balanced modal form:
+    the real block-diagonal form of A (one 2 × 2 block per pole pair, scipy.linalg.cdf2rdf) with every state
+    scaled to unit stationary variance for unit white input.  The controllable canonical form that zpk2ss gives
+    has states ω⁰ … ω⁷ apart in scale (10⁵ at 1 Hz): the filter's covariance lost its precision and the filter
+    diverged (measured: NIS 12 against 2)."""
+    from scipy import signal as sps
+    from scipy.linalg import cdf2rdf, solve_continuous_lyapunov
+
+    z, p, k = sps.butter(order, [2 * math.pi * f1_hz, 2 * math.pi * f2_hz], btype="bandpass", analog=True, output="zpk")
+    a, b, c, _ = sps.zpk2ss(z, p, k)
+    w, v = np.linalg.eig(a)
+    wr, vr = cdf2rdf(w, v)
+    ti = np.linalg.inv(vr)
+    a, b, c = wr, (ti @ b)[:, 0].real, (c @ vr)[0].real
+    sd = np.sqrt(np.diag(solve_continuous_lyapunov(a, -np.outer(b, b))))
+    return a * sd[None, :] / sd[:, None], b / sd, c * sd
 
 
 def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,
@@ -370,7 +437,7 @@ def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.n
         p[o:o + 3, o:o + 3] = np.diag(config.prior_sigma(b) ** 2)
     if layout.has("ext_acc"):                    # (x, z, z₂) start stationary (FilterConfig.ext_acc_stationary)
         c = config.ext_acc_stationary()
-        idx = [layout.offset(b) for b in ("ext_acc", "ext_acc_lp", "ext_acc_lp2")][:c.shape[0]]
+        idx = [layout.offset(b) for b in EXT_ACC_BLOCKS][:c.shape[0]]
         for j in range(3):
             for u, ou in enumerate(idx):
                 for v, ov in enumerate(idx):

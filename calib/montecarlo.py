@@ -61,7 +61,7 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
 from .handkf import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature, white_density
-from .kalman import G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
+from .kalman import EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -198,7 +198,8 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
               tau_s: float, vague: float = 10.0, highpass_tau_s: float = math.inf,
               bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1,
               temperature_rel_c: np.ndarray | None = None, g_sensitivity: bool = False,
-              estimate_accelerometer: bool = False) -> np.ndarray:
+              estimate_accelerometer: bool = False, band_hz: tuple[float, float] | None = None,
+              band_rms_m_s2: float = 0.0, band_order: int = 2) -> np.ndarray:
     """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.kalman.HAND` states (module
     docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
     rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
@@ -213,8 +214,11 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     :data:`calib.kalman.HAND_JOINT` states, the accelerometer's nine with a vague prior, the true device's
     accelerometer reading M_a f + b_a and all three measurement rows (no g-sensitivity block, which ``kf_hand_joint``
     does not carry; with ``temperature_rel_c`` its temperature blocks, :func:`calib.handkf.joint_layout`: the
-    accelerometer bias's c_a and the gyro scale's s_T as nuisance states with vague priors).  S, G are rows 3:9
-    of the result either way (S at T₀).  The layout is ``hand_crlb_layout``'s."""
+    accelerometer bias's c_a and the gyro scale's s_T as nuisance states with vague priors).  ``band_hz`` (f₁, f₂):
+    kf_hand's band-limited sway — a_e is then the Gauss–Markov floor (``sigma_s_m_s2``, ``tau_s``) plus a
+    Butterworth band-pass of ``band_order`` poles per edge with RMS ``band_rms_m_s2``
+    (:meth:`calib.kalman.FilterConfig.ext_acc_model`), the same model the filter fitted.  S, G are rows 3:9 of the
+    result either way (S at T₀).  The layout is :func:`hand_crlb_layout`'s."""
     from .handkf import _g_sensitivity_prior, _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
@@ -226,8 +230,11 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     upd[::dec] = True
     cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s,
                   ext_acc_highpass_tau_s=highpass_tau_s, ext_acc_highpass_order=int(highpass_order),
-                  gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s)
-    layout = hand_crlb_layout(bias_rw_rad_s_sqrt_s > 0, temperature_rel_c is not None, g_sensitivity, estimate_accelerometer)
+                  gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s,
+                  ext_acc_band_hz=None if band_hz is None else (float(band_hz[0]), float(band_hz[1])),
+                  ext_acc_band_rms_m_s2=float(band_rms_m_s2), ext_acc_band_order=int(band_order))
+    layout = hand_crlb_layout(bias_rw_rad_s_sqrt_s > 0, temperature_rel_c is not None, g_sensitivity, estimate_accelerometer,
+                              2 * int(band_order) - 2 if band_hz is not None else 0)
     p0 = initial_covariance(layout, cfg)
     p0[3:9, 3:9] = np.eye(6) * vague**2
     vague_blocks = ("lever_arm", "acc_bias", "acc_scale", "acc_nonorth") if estimate_accelerometer else ("lever_arm",)
@@ -258,13 +265,16 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     return run.p[0]
 
 
-def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, estimate_accelerometer: bool) -> StateLayout:
-    """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.handkf.hand_layout`) or kf_hand_joint's
-    (:func:`calib.handkf.joint_layout`) on a session whose temperature moved (``temperature``) or not."""
+def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, estimate_accelerometer: bool,
+                     band_states: int = 0) -> StateLayout:
+    """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.handkf.hand_layout`; ``band_states`` extra
+    shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.handkf.joint_layout`) on a
+    session whose temperature moved (``temperature``) or not."""
     if estimate_accelerometer:
         return joint_layout(temperature)
     base = HAND_BIAS if bias_rw else HAND
-    return StateLayout(base.blocks + (("gyro_temp_scale",) if temperature else ()) + (G_SENS_BLOCKS if g_sensitivity else ()))
+    return StateLayout(base.blocks + (("gyro_temp_scale",) if temperature else ()) + (G_SENS_BLOCKS if g_sensitivity else ())
+                       + EXT_ACC_EXTRA_BLOCKS[:band_states])
 
 
 def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
@@ -555,6 +565,12 @@ def monte_carlo(
                         "highpass_tau_s": float(np.median([math.inf if h is None else h for h in hp])),
                         "highpass_order": int(round(float(np.median([d.get("highpass_order", 1) for d in psd])))),
                         "bias_rw_rad_s_sqrt_s": float(np.median(drift)) if drift else 0.0}
+            bands = [d for d in psd if d.get("band_hz")]
+            if bands and len(bands) * 2 > len(psd):   # kf_hand's band-limited sway in most seeds: the bound's a_e is its median
+                hand_psd.update({"psd_model": bands[0].get("psd_model"),
+                                 "band_hz": [float(np.median([d["band_hz"][i] for d in bands])) for i in (0, 1)],
+                                 "band_rms_m_s2": float(np.median([d["band_rms_m_s2"] for d in bands])),
+                                 "band_order": int(bands[0].get("band_order", 2))})
         else:
             hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0, "highpass_tau_s": math.inf, "highpass_order": 1,
                         "bias_rw_rad_s_sqrt_s": 0.0}
@@ -570,7 +586,8 @@ def monte_carlo(
                        hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
                        bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"],
                        temperature_rel_c=None if thermal is None else thermal[0], g_sensitivity=g_sens,
-                       estimate_accelerometer=estimate)
+                       estimate_accelerometer=estimate, band_hz=hand_psd.get("band_hz"),
+                       band_rms_m_s2=hand_psd.get("band_rms_m_s2", 0.0), band_order=hand_psd.get("band_order", 2))
         sdh = np.sqrt(np.diag(ph))
         sd_sg = sdh[3:9]
         oa = HAND_JOINT.offset("acc_bias")
@@ -578,7 +595,8 @@ def monte_carlo(
         sd_plain_joint = None
         if thermal is not None and not estimate:
             base = HAND_BIAS if hand_psd["bias_rw_rad_s_sqrt_s"] > 0 else HAND
-            lay_t = StateLayout(base.blocks + ("gyro_temp_scale",) + (G_SENS_BLOCKS if g_sens else ()))
+            lay_t = StateLayout(base.blocks + ("gyro_temp_scale",) + (G_SENS_BLOCKS if g_sens else ())
+                                + (EXT_ACC_EXTRA_BLOCKS[:2 * hand_psd["band_order"] - 2] if hand_psd.get("band_hz") else ()))
             t_r, jt = scale_at_temperature(ph, lay_t, thermal[1])
             sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
             if t_oracle is not None:   # S(T) = S(T₀) + s_T (T − T₀) at T = the oracle's reference, every axis
