@@ -6,6 +6,7 @@
     python benchmarks/hand_campaign.py --table docs/hand_*.json --plot docs/hand_rmse.png   # docs/hand.md's table
     python benchmarks/hand_campaign.py --sensor mpu9250 --accelerometer estimate --methods kf_hand_joint,kf_session \
         --seeds 20 --out docs/hand_joint_mpu9250.json          # raw sensor: the joint methods (calib run's setting)
+    python benchmarks/hand_campaign.py --accelerometer-table docs/hand_joint_*.json   # their gyro bias, accelerometer, NEES(15)
 
 (cells already in --out are kept: a campaign can be run hand by hand; ``--methods kf_hand`` runs the
 hand-aware method's cells alone — each cell's bounds cost one Riccati recursion, ~1 s, beside its seeds)
@@ -94,9 +95,31 @@ def table(paths: list[str]) -> str:
                             f"{eh:.2f}{mark} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
                             f"{_where(st['nees_mean'], st['nees_band'])} | "
                             + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
-    if stale:
+    if any(r.split(" | ")[6].endswith(" †") for r in rows[2:] if r.startswith("| ")):   # only when a row is marked
         rows.append("\n† against kf_hand's bound of S at the temperatures kf_hand stated (its file predates the bound of "
                     "S at the oracle's reference temperature, where this method is scored): re-run that kf_hand campaign")
+    return "\n".join(rows)
+
+
+def accelerometer_table(paths: list[str]) -> str:
+    """With the accelerometer estimated: per sensor × hand × method the RMSE (max over the axes) of the gyro bias
+    (rad/s), accelerometer bias (m/s²), scale and non-orthogonality, the accelerometer's err/σ RMS range, the NEES
+    of the 15 filter parameters (S, G and the accelerometer's nine) against its band, and the "ok" seeds whose
+    S, G error their σ does not cover (``ok_wrong``)."""
+    rows = ["| sensor | hand | method | gyro b | acc b | acc S | acc G | acc err/σ RMS | NEES (15) | 95 % band | vs band | ok but NEES(6) > χ²₆ 99.9 % |",
+            "|" + "---|" * 12]
+    for p in paths:
+        d = json.load(open(p))
+        if d.get("accelerometer") != "estimate":
+            continue
+        for hand in [h for h in HANDS if h in d["cells"]]:
+            for m in d["methods"]:
+                st = d["cells"][hand]["methods"][m]
+                r, z = st["rmse"], st["z_rms"]
+                nf, bf = st.get("nees_filter_mean", float("nan")), st.get("nees_filter_band", [float("nan")] * 2)
+                rows.append(f"| {d['sensor']} | {hand} | {m} | {max(r[0:3]):.1e} | {max(r[9:12]):.1e} | {max(r[12:15]):.1e} | "
+                            f"{max(r[15:18]):.1e} | {min(z[9:18]):.1f}–{max(z[9:18]):.1f} | {nf:.2f} | {bf[0]:.2f}–{bf[1]:.2f} | "
+                            f"{_where(nf, bf)} | {st.get('ok_wrong', 'n/a')} |")
     return "\n".join(rows)
 
 
@@ -140,7 +163,12 @@ def main() -> None:
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="*")
     ap.add_argument("--plot", help="with --table: also write this PNG")
+    ap.add_argument("--accelerometer-table", nargs="*", help="campaign JSONs with the accelerometer estimated: their "
+                    "gyro bias, accelerometer and NEES(15) table")
     a = ap.parse_args()
+    if a.accelerometer_table:
+        print(accelerometer_table(a.accelerometer_table))
+        return
     if a.table:
         print(table(a.table))
         if a.plot:

@@ -139,7 +139,7 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     theta = theta0.copy()
     hand = hand0.copy()                                        # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
     #                                                            (general shaping filter, lti_d > 0: component i of axis j at 3 + 3i + j)
-    sens = sens0.copy()                                        # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9): calib.kalman.SENSOR_EXTRA_BLOCKS
+    sens = sens0.copy()                                        # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12): calib.kalman.SENSOR_EXTRA_BLOCKS
     P = P0.copy()
     qout = np.zeros((B, 4))
     nis_out = np.full((B, N - 1), np.nan)
@@ -155,14 +155,14 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
         o_ea, o_el, o_e2 = -1, -1, -1
     lrow = np.zeros((9, n))
     lv = np.zeros(9)
-    o_tb, o_ts, o_gs = offs_x[0], offs_x[1], offs_x[2]
+    o_tb, o_ts, o_gs, o_ta = offs_x[0], offs_x[1], offs_x[2], offs_x[3]
     acc_states = o_ba >= 0
     E = np.zeros((3, 18))
     ecols = np.zeros(18, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, 41))
-    hcols = np.zeros(41, dtype=np.int64)
+    Hc = np.zeros((3, 44))                                     # φ 2 + accelerometer 9 + c_a 3 + lever arm 3 + a_e ≤ 27
+    hcols = np.zeros(44, dtype=np.int64)
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -325,6 +325,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 else:
                     Mia = np.eye(3)
                 ba = th[9:12]
+                if o_ta >= 0:                                  # the accelerometer bias at this sample's temperature
+                    ba = ba + sx[9:12] * dtemp[b, k]
                 fh = Mia @ (a[b, k] - ba)
                 fr = np.empty(3)                               # regressor: gravity predicted in the body frame
                 for i in range(3):
@@ -361,6 +363,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     nh = _nb_put(Hc, hcols, nh, CMa, o_ba)             # Ĉ M̂_a⁻¹
                     nh = _nb_put(Hc, hcols, nh, CMa * fr, o_sa)        # Ĉ M̂_a⁻¹ diag(f)
                     nh = _nb_put(Hc, hcols, nh, CMa @ _nb_jg(fr), o_ga)  # Ĉ M̂_a⁻¹ J_G(f)
+                    if o_ta >= 0:
+                        nh = _nb_put(Hc, hcols, nh, CMa * dtemp[b, k], o_ta)  # Ĉ M̂_a⁻¹ (T − T₀): c_a
                 if o_lv >= 0:
                     nh = _nb_put(Hc, hcols, nh, C @ kreg[b, k], o_lv)   # Ĉ K(ω, ω̇)
                 if o_ea >= 0:
@@ -470,6 +474,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             sx[3 + j] += x[o_ts + j]
                         if o_gs >= 0:
                             sx[6 + j] += x[o_gs + j]
+                        if o_ta >= 0:
+                            sx[9 + j] += x[o_ta + j]
                     q = _nb_qmul(_nb_qexp(x[0:3]), q)
                     q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
             if keep:
@@ -488,8 +494,9 @@ class FilterRun:
     asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, ``HAND_NOMINALS``: lever
     arm r (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂) — with a
     general shaping filter its state i of nav axis j at 3 + 3i + j) and the whitened innovations L⁻¹ν of the two
-    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 9): the gyro's
-    temperature coefficients c_b (rad/s/°C), s_T (1/°C) and g-sensitivity k (rad/s per m/s²), with a layout
+    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 12): the gyro's
+    temperature coefficients c_b (rad/s/°C), s_T (1/°C) and g-sensitivity k (rad/s per m/s²), and the
+    accelerometer bias's temperature coefficient c_a (m/s²/°C), with a layout
     that has those blocks (:data:`calib.kalman.SENSOR_EXTRA_BLOCKS`)."""
 
     layout: StateLayout
@@ -588,11 +595,13 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     x and its low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the Gauss–Markov σ, τ and
     the high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` … (:data:`calib.kalman.EXT_ACC_EXTRA_BLOCKS`)
     runs a_e as the general shaping filter of :meth:`calib.kalman.FilterConfig.ext_acc_model` (the band-limited
-    sway, or the same Gauss–Markov family), discretised exactly per step (:func:`ext_acc_discrete`).  ``sensor0`` (9,) or (B, 9): the nominal c_b, s_T, k of the gyro's extra
-    blocks (default 0).
+    sway, or the same Gauss–Markov family), discretised exactly per step (:func:`ext_acc_discrete`).  ``sensor0``
+    (≤ 12,) or (B, ≤ 12): the nominal c_b, s_T, k of the gyro's extra blocks and c_a of the accelerometer's
+    (default 0; missing ones 0).
     ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), the sensor temperature relative to the filter's
     reference, needed by a layout with ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then
-    ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T − T₀) + ε (:mod:`calib.kalman`, ``THERMAL_BLOCKS``);
+    ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T − T₀) + ε (:mod:`calib.kalman`, ``THERMAL_BLOCKS``), and with
+    ``acc_temp_bias`` f̃ = M_a f + b_a + c_a (T − T₀) + v (``ACC_THERMAL_BLOCKS``; T at the update's sample);
     ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²), needed by a layout with ``gyro_g_sens``:
     b_g,i += k_i f_i (:data:`calib.kalman.G_SENS_BLOCKS`).
     """
@@ -635,7 +644,11 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         h = np.concatenate([h, np.zeros(h.shape[:-1] + (HAND_NOMINALS - h.shape[-1],))], axis=-1)
     hand0 = arr(np.broadcast_to(h, (B, HAND_NOMINALS)))
     lti = _ext_acc_discrete(layout, config, np.asarray(t_s, float))
-    sens0 = arr(np.broadcast_to(np.zeros(9) if sensor0 is None else np.asarray(sensor0, float), (B, 9)))
+    ns = 3 * len(SENSOR_EXTRA_BLOCKS)
+    s0 = np.zeros(ns) if sensor0 is None else np.asarray(sensor0, float)
+    if s0.shape[-1] < ns:                                  # callers that know the gyro's blocks only: c_a starts at 0
+        s0 = np.concatenate([s0, np.zeros(s0.shape[:-1] + (ns - s0.shape[-1],))], axis=-1)
+    sens0 = arr(np.broadcast_to(s0, (B, ns)))
     offs_x = np.array([layout.offset(b) for b in SENSOR_EXTRA_BLOCKS], dtype=np.int64)
     if layout.models_g_sensitivity:
         if specific_force_m_s2 is None:
@@ -645,7 +658,7 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         freg = np.zeros((B, 1, 3))
     if layout.models_temperature:
         if temperature_rel_c is None:
-            raise ValueError("a layout with the gyro's temperature blocks needs temperature_rel_c (N,), T − T₀ in °C")
+            raise ValueError("a layout with a temperature block needs temperature_rel_c (N,), T − T₀ in °C")
         dtemp = arr(np.broadcast_to(np.asarray(temperature_rel_c, float), (B, N)))
     else:
         dtemp = np.zeros((B, N))

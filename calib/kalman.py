@@ -79,7 +79,8 @@ from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
-           "HAND_JOINT", "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "SENSOR_EXTRA_BLOCKS", "EXT_ACC_BLOCKS", "EXT_ACC_EXTRA_BLOCKS", "HAND_BIAS_TS",
+           "HAND_JOINT", "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "ACC_THERMAL_BLOCKS", "SENSOR_EXTRA_BLOCKS",
+           "EXT_ACC_BLOCKS", "EXT_ACC_EXTRA_BLOCKS", "HAND_BIAS_TS",
            "HAND_BIAS_THERMAL",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
@@ -97,10 +98,12 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 # parameters)
 # then the gyro's temperature blocks (compiled filter only, :mod:`calib.handkf`): the bias's and the scale
 # factor's temperature coefficients, b_g(T) = b_g + c_b (T − T₀), S(T) = S + s_T (T − T₀), with T the
-# recording's own temperature channel and T₀ the filter's reference (random constants; nominals beside θ)
+# recording's own temperature channel and T₀ the filter's reference (random constants; nominals beside θ);
+# last the accelerometer bias's temperature coefficient, b_a(T) = b_a + c_a (T − T₀) ("acc_temp_bias", kf_hand_joint)
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
           "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2", "gyro_temp_bias", "gyro_temp_scale",
-          "gyro_g_sens", "ext_acc_s3", "ext_acc_s4", "ext_acc_s5", "ext_acc_s6", "ext_acc_s7", "ext_acc_s8")
+          "gyro_g_sens", "ext_acc_s3", "ext_acc_s4", "ext_acc_s5", "ext_acc_s6", "ext_acc_s7", "ext_acc_s8",
+          "acc_temp_bias")
 THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:11]
 THERMAL_BLOCKS = BLOCKS[11:13]
@@ -110,11 +113,14 @@ G_SENS_BLOCKS = BLOCKS[13:14]   # the gyro's g-sensitivity, diagonal K = diag(k)
 EXT_ACC_EXTRA_BLOCKS = tuple(f"ext_acc_s{i}" for i in range(3, 9))     # by name: blocks added to BLOCKS later keep it
 EXT_ACC_BLOCKS = ("ext_acc", "ext_acc_lp", "ext_acc_lp2") + EXT_ACC_EXTRA_BLOCKS
 assert all(b in BLOCKS for b in EXT_ACC_BLOCKS)
-SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS   # their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k)
+ACC_THERMAL_BLOCKS = ("acc_temp_bias",)   # the accelerometer bias's temperature coefficient c_a (m/s²/°C): b_a += c_a (T − T₀)
+assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
+# their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k, c_a)
+SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS + ACC_THERMAL_BLOCKS
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
           "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
           "ext_acc_lp2": "ael2", "gyro_temp_bias": "cb", "gyro_temp_scale": "sT",
-          "gyro_g_sens": "kg", **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)}}
+          "gyro_g_sens": "kg", **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)}, "acc_temp_bias": "ca"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
@@ -123,7 +129,8 @@ BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyr
                 "gyro_temp_bias": "gyro bias temperature coefficient",
                 "gyro_temp_scale": "gyro scale factor temperature coefficient",
                 "gyro_g_sens": "gyro g-sensitivity (diagonal)",
-                **{f"ext_acc_s{i}": f"external acceleration's band-pass state {i}" for i in range(3, 9)}}
+                **{f"ext_acc_s{i}": f"external acceleration's band-pass state {i}" for i in range(3, 9)},
+                "acc_temp_bias": "accelerometer bias temperature coefficient"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -172,7 +179,7 @@ class StateLayout:
 
     @property
     def models_temperature(self) -> bool:
-        return self.has("gyro_temp_bias") or self.has("gyro_temp_scale")
+        return self.has("gyro_temp_bias") or self.has("gyro_temp_scale") or self.has("acc_temp_bias")
 
     @property
     def models_g_sensitivity(self) -> bool:
@@ -276,6 +283,8 @@ class FilterConfig:
     ``prior_gyro_temp_bias_rad_s_c``, ``prior_gyro_temp_scale_per_c``: prior σ of the temperature blocks
     (rad/s/°C, 1/°C; 0.01 each: vague — 0.6 °/s/°C and 1 %/°C, thirty times a consumer MEMS gyro's datasheet
     spread — so that the session's data, not a sensor's datasheet, decides them).
+    ``prior_acc_temp_bias_m_s2_c``: prior σ of the accelerometer bias's temperature coefficient c_a (m/s²/°C;
+    0.1: vague, ~10 mg/°C, seven times the MPU-9250's ±1.5 mg/°C datasheet limit).
     """
 
     arw_rad_s_sqrt_hz: float
@@ -300,6 +309,7 @@ class FilterConfig:
     prior_gyro_temp_bias_rad_s_c: float = 0.01
     prior_gyro_temp_scale_per_c: float = 0.01
     prior_gyro_g_sens_rad_s_per_m_s2: float = 1e-3
+    prior_acc_temp_bias_m_s2_c: float = 0.1
     ext_acc_band_hz: tuple[float, float] | None = None
     ext_acc_band_rms_m_s2: float = 0.0
     ext_acc_band_order: int = 2
@@ -362,7 +372,8 @@ class FilterConfig:
                 **{b: np.zeros(3) for b in EXT_ACC_EXTRA_BLOCKS},
                 "gyro_temp_bias": np.full(3, self.prior_gyro_temp_bias_rad_s_c),
                 "gyro_temp_scale": np.full(3, self.prior_gyro_temp_scale_per_c),
-                "gyro_g_sens": np.full(3, self.prior_gyro_g_sens_rad_s_per_m_s2)}[block]   # with ext_acc: ext_acc_stationary
+                "gyro_g_sens": np.full(3, self.prior_gyro_g_sens_rad_s_per_m_s2),
+                "acc_temp_bias": np.full(3, self.prior_acc_temp_bias_m_s2_c)}[block]   # with ext_acc: ext_acc_stationary
 
     def ext_acc_stationary(self) -> np.ndarray:
         """Stationary covariance (k, k) of one nav axis's (x, z[, z₂]) (k = 1 + high-pass order; k = 1 for

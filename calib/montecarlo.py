@@ -60,7 +60,7 @@ from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
-from .handkf import scale_at_temperature, session_temperature, white_density
+from .handkf import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature, white_density
 from .kalman import EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
@@ -87,6 +87,13 @@ class MethodStats:
     nees_all_band: tuple[float, float] = (float("nan"), float("nan"))
     statuses: dict[str, int] = field(default_factory=dict)
     efficiency_hand: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # NEES of every parameter but the gyro bias (the filter's estimates: 15 with the accelerometer estimated —
+    # S, G and the accelerometer's nine; the gyro bias is the rest's average, scored apart)
+    nees_filter_mean: float = float("nan")
+    nees_filter_band: tuple[float, float] = (float("nan"), float("nan"))
+    # seeds whose status is "ok" but whose S, G error its own σ does not cover: NEES(6) above χ²₆'s 99.9 %
+    # quantile (22.5; an honest σ puts 1 seed in 1000 there) — an answer a user would trust and should not
+    ok_wrong: int = 0
 
 
 @dataclass(frozen=True)
@@ -137,8 +144,12 @@ class MonteCarloResult:
         for m, st in self.methods.items():
             rows.append(f"NEES ({m}, 6 gyro filter parameters): mean {st.nees_mean:.2f}, 95 % band "
                         f"[{st.nees_band[0]:.2f}, {st.nees_band[1]:.2f}]; all {len(self.names)} parameters: mean "
-                        f"{st.nees_all_mean:.2f}, band [{st.nees_all_band[0]:.2f}, {st.nees_all_band[1]:.2f}]; status "
-                        + ", ".join(f"{k} {v}" for k, v in sorted(st.statuses.items())))
+                        f"{st.nees_all_mean:.2f}, band [{st.nees_all_band[0]:.2f}, {st.nees_all_band[1]:.2f}]; "
+                        + (f"{len(self.names) - 3} without the gyro bias: mean {st.nees_filter_mean:.2f}, band "
+                           f"[{st.nees_filter_band[0]:.2f}, {st.nees_filter_band[1]:.2f}]; " if len(self.names) > 9 else "")
+                        + "status "
+                        + ", ".join(f"{k} {v}" for k, v in sorted(st.statuses.items()))
+                        + f" (ok with NEES(6) above χ²₆ 99.9 %: {st.ok_wrong})")
         if hand:
             rows.append(f"hand-aware bound: lever arm as nuisance, slow external acceleration σ_s "
                         f"{self.hand_psd.get('rms_m_s2', float('nan')):.4f} m/s², τ {self.hand_psd.get('tau_s', float('nan')):.2f} s "
@@ -162,6 +173,8 @@ class MonteCarloResult:
                                 "z_rms": st.z_rms.tolist(),
                                 "nees_mean": st.nees_mean, "nees_band": list(st.nees_band),
                                 "nees_all_mean": st.nees_all_mean, "nees_all_band": list(st.nees_all_band),
+                                "nees_filter_mean": st.nees_filter_mean, "nees_filter_band": list(st.nees_filter_band),
+                                "ok_wrong": st.ok_wrong,
                                 "statuses": st.statuses} for m, st in self.methods.items()}}
 
 
@@ -199,11 +212,13 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     b_g,i = b_i + k_i f_i with f the true specific force) is three more nuisance states with a vague prior, as in
     ``kf_hand``.  ``estimate_accelerometer``: ``kf_hand_joint``'s model — the
     :data:`calib.kalman.HAND_JOINT` states, the accelerometer's nine with a vague prior, the true device's
-    accelerometer reading M_a f + b_a and all three measurement rows (without the temperature and g-sensitivity
-    blocks, which ``kf_hand_joint`` does not carry).  ``band_hz`` (f₁, f₂): kf_hand's band-limited sway — a_e is
-    then the Gauss–Markov floor (``sigma_s_m_s2``, ``tau_s``) plus a Butterworth band-pass of ``band_order`` poles per
-    edge with RMS ``band_rms_m_s2`` (:meth:`calib.kalman.FilterConfig.ext_acc_model`), the same model the filter
-    fitted.  S, G are rows 3:9 of the result either way (S at T₀)."""
+    accelerometer reading M_a f + b_a and all three measurement rows (no g-sensitivity block, which ``kf_hand_joint``
+    does not carry; with ``temperature_rel_c`` its temperature blocks, :func:`calib.handkf.joint_layout`: the
+    accelerometer bias's c_a and the gyro scale's s_T as nuisance states with vague priors).  ``band_hz`` (f₁, f₂):
+    kf_hand's band-limited sway — a_e is then the Gauss–Markov floor (``sigma_s_m_s2``, ``tau_s``) plus a
+    Butterworth band-pass of ``band_order`` poles per edge with RMS ``band_rms_m_s2``
+    (:meth:`calib.kalman.FilterConfig.ext_acc_model`), the same model the filter fitted.  S, G are rows 3:9 of the
+    result either way (S at T₀).  The layout is :func:`hand_crlb_layout`'s."""
     from .handkf import _g_sensitivity_prior, _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
@@ -218,11 +233,8 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
                   gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s,
                   ext_acc_band_hz=None if band_hz is None else (float(band_hz[0]), float(band_hz[1])),
                   ext_acc_band_rms_m_s2=float(band_rms_m_s2), ext_acc_band_order=int(band_order))
-    layout = HAND_JOINT if estimate_accelerometer else (HAND_BIAS if bias_rw_rad_s_sqrt_s > 0 else HAND)
-    if not estimate_accelerometer:
-        layout = StateLayout(layout.blocks + (("gyro_temp_scale",) if temperature_rel_c is not None else ())
-                             + (G_SENS_BLOCKS if g_sensitivity else ())
-                             + (EXT_ACC_EXTRA_BLOCKS[:2 * int(band_order) - 2] if band_hz is not None else ()))
+    layout = hand_crlb_layout(bias_rw_rad_s_sqrt_s > 0, temperature_rel_c is not None, g_sensitivity, estimate_accelerometer,
+                              2 * int(band_order) - 2 if band_hz is not None else 0)
     p0 = initial_covariance(layout, cfg)
     p0[3:9, 3:9] = np.eye(6) * vague**2
     vague_blocks = ("lever_arm", "acc_bias", "acc_scale", "acc_nonorth") if estimate_accelerometer else ("lever_arm",)
@@ -232,7 +244,8 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     # vague priors of the nuisance blocks in their own units: 0.1/°C (10 %/°C) for s_T, 0.01 rad/s per m/s²
     # (5.6 °/s/g) for the g-sensitivity — fifty times any MEMS datasheet; ``vague`` itself (10 rad/s per m/s²)
     # would put ~100 rad/s in the bias's direction and lose the recursion's precision
-    for blk, sd in (("gyro_temp_scale", 0.1), ("gyro_g_sens", 0.01)):
+    # (and 1 m/s²/°C for the accelerometer bias's c_a, 700 times the MPU-9250's datasheet limit)
+    for blk, sd in (("gyro_temp_scale", 0.1), ("gyro_g_sens", 0.01), ("acc_temp_bias", 1.0)):
         if layout.has(blk):
             ot = layout.offset(blk)
             p0[ot:ot + 3, ot:ot + 3] = np.eye(3) * sd**2
@@ -247,9 +260,21 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
                      th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
                      lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz),
                      rows=3 if estimate_accelerometer else 2,
-                     temperature_rel_c=temperature_rel_c if layout.has("gyro_temp_scale") else None,
+                     temperature_rel_c=temperature_rel_c if layout.models_temperature else None,
                      specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if layout.has("gyro_g_sens") else None)
     return run.p[0]
+
+
+def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, estimate_accelerometer: bool,
+                     band_states: int = 0) -> StateLayout:
+    """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.handkf.hand_layout`; ``band_states`` extra
+    shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.handkf.joint_layout`) on a
+    session whose temperature moved (``temperature``) or not."""
+    if estimate_accelerometer:
+        return joint_layout(temperature)
+    base = HAND_BIAS if bias_rw else HAND
+    return StateLayout(base.blocks + (("gyro_temp_scale",) if temperature else ()) + (G_SENS_BLOCKS if g_sensitivity else ())
+                       + EXT_ACC_EXTRA_BLOCKS[:band_states])
 
 
 def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
@@ -281,6 +306,62 @@ def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
             d = e.delta_dx(zero, ctx)
             if d is not None:
                 out[i] += float(d[0, i, i])
+    return out
+
+
+def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
+    """The simulated device's accelerometer bias change (3,) at the temperatures ``t_c`` (°C, one per axis)
+    relative to the oracle's bias: the value at zero input of its deterministic, non-affine, pointwise error
+    effects (the MPU-9250's ``temperature_bias``: its polynomial in T − T_ref; a nonlinearity k x|x| gives 0),
+    axis i at T_i (scoring only: it reads the truth).  A calibration that states the temperature its b_a holds at
+    (``diagnostics["temperature"]["acc_bias_reference_temperature_c"]``, :func:`calib.handkf.acc_bias_at_temperature`)
+    is scored against the device's bias there, as S is by :func:`truth_scale_at_temperature`."""
+    from gyrosim.effects import SignalContext
+    from gyrosim.sensor_model import stored_sensor_model
+
+    model = stored_sensor_model(rec.meta or {})
+    out = np.zeros(3)
+    if model is None:
+        return out
+    zero = np.zeros((2, 3))
+    for i, t in enumerate(np.asarray(t_c, float)):
+        ctx = SignalContext(np.array([0.0, 0.01]), zero, zero, temperature_c=np.full(2, t))
+        for e in model.accelerometer:
+            if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:
+                continue
+            d = e.delta(zero, ctx)
+            if d is not None:
+                out[i] += float(np.asarray(d)[0, i])
+    return out
+
+
+def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.80665) -> np.ndarray:
+    """The simulated device's accelerometer scale factor change (3,) at the operating point a gravity calibration
+    measures it: the chord slope over ±g of its deterministic, non-affine, pointwise error effects,
+    (δ_i(+g e_i) − δ_i(−g e_i)) / 2g, axis i at the temperature T_i (scoring only: it reads the truth).  Every
+    method here sees the accelerometer only through |f| = g, so what it can estimate is the scale at g, not the
+    oracle's small-signal slope: a nonlinearity k x|x| (the MPU-9250's ±0.5 % of 4 g, k σ 4.25e-5 per m/s²) reads
+    k g (σ 4.2e-4, five to nine times the filter's σ of S_a) on this sphere and nothing at 0 m/s²; a temperature-
+    dependent scale reads its polynomial at T_i; a temperature-dependent bias cancels in the chord."""
+    from gyrosim.effects import SignalContext
+    from gyrosim.sensor_model import stored_sensor_model
+
+    model = stored_sensor_model(rec.meta or {})
+    out = np.zeros(3)
+    if model is None:
+        return out
+    zero = np.zeros((2, 3))
+    for i, t in enumerate(np.asarray(t_c, float)):
+        x = np.zeros((2, 3))
+        x[0, i], x[1, i] = gravity_m_s2, -gravity_m_s2
+        ctx = SignalContext(np.array([0.0, 0.01]), zero, zero, temperature_c=np.full(2, t))
+        for e in model.accelerometer:
+            if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:
+                continue
+            d = e.delta(x, ctx)
+            if d is not None:
+                d = np.asarray(d)
+                out[i] += float(d[0, i] - d[1, i]) / (2.0 * gravity_m_s2)
     return out
 
 
@@ -396,9 +477,14 @@ def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.nd
     counts: dict[str, int] = {}
     for s in statuses:
         counts[s] = counts.get(s, 0) + 1
+    ef, cf = err[:, 3:], cov[:, 3:, 3:]       # every parameter but the gyro bias (the rest's average)
+    nees_f = np.einsum("bi,bij,bj->b", ef, np.linalg.inv(cf), ef)
+    band_f = (stats.chi2.ppf(0.025, (p - 3) * n) / n, stats.chi2.ppf(0.975, (p - 3) * n) / n)
     return MethodStats(err.mean(axis=0), rmse, rmse / sqrt_crlb, float(nees6.mean()), band6,
                        np.sqrt(np.mean(z**2, axis=0)), float(nees.mean()), band, counts,
-                       rmse / sqrt_crlb_hand if sqrt_crlb_hand is not None and sqrt_crlb_hand.size else np.zeros(0))
+                       rmse / sqrt_crlb_hand if sqrt_crlb_hand is not None and sqrt_crlb_hand.size else np.zeros(0),
+                       float(nees_f.mean()), band_f,
+                       int(np.sum((np.asarray(statuses) == "ok") & (nees6 > stats.chi2.ppf(0.999, k6)))))
 
 
 def monte_carlo(
@@ -440,6 +526,7 @@ def monte_carlo(
     truths = []
     truth_m = {m: [] for m in methods}          # per method: S at the temperature its calibration states, if it does
     t_ref_m = {m: [] for m in methods}
+    t_ref_a_m = {m: [] for m in methods}      # … and its accelerometer bias's
     gs_m = {m: False for m in methods}
     first = None
     for k in range(seeds):
@@ -450,6 +537,7 @@ def monte_carlo(
         truths.append(np.concatenate([tc.vector("gyro")] + ([tc.vector("accelerometer")] if estimate else [])))
         user = as_user_file(rec)
         slow_cache: dict = {}
+        t_session = float(np.mean(rec.temp_c)) if rec.temp_c is not None else 25.0
         for m in methods:
             c = runners[m](user)
             if "hand" in c.diagnostics and "external_acc_psd" in c.diagnostics["hand"]:
@@ -464,7 +552,7 @@ def monte_carlo(
                 raise GyrosimError(_GYRO_ONLY.format(repr(m)))
             tm = truths[-1].copy()
             temp = c.diagnostics.get("temperature", {})
-            if temp.get("modelled"):
+            if temp.get("modelled") and "scale_reference_temperature_c" in temp:
                 t_r = np.asarray(temp["scale_reference_temperature_c"], float)
                 tm[3:6] += truth_scale_at_temperature(rec, t_r)
                 t_ref_m[m].append(t_r)
@@ -474,6 +562,15 @@ def monte_carlo(
                 if rng_ not in slow_cache:
                     slow_cache[rng_] = truth_bias_at_reference(rec, rng_, slow_gyro_bias(rec, truth, model, 10_000 + seed, rng_))
                 tm[0:3] += slow_cache[rng_]
+            t_acc = np.full(3, t_session)
+            if estimate and temp.get("modelled") and "acc_bias_reference_temperature_c" in temp:
+                # the accelerometer bias at the temperatures its calibration states (kf_hand_joint on a warming sensor)
+                t_acc = np.asarray(temp["acc_bias_reference_temperature_c"], float)
+                tm[9:12] += truth_acc_bias_at_temperature(rec, t_acc)
+                t_ref_a_m[m].append(t_acc)
+            if estimate:   # the accelerometer's scale where a gravity calibration measures it: at ±g, at the stated
+                # temperature (else the session's mean)
+                tm[12:15] += truth_acc_scale_at_gravity(rec, t_acc)
             truth_m[m].append(tm)
             gs_m[m] = gs_m[m] or "gyro_g_sensitivity" in c.diagnostics
             est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))
@@ -540,7 +637,7 @@ def monte_carlo(
         # — and, for a method that states none, that of S at the oracle's reference temperature, where it is scored
         t_oracle = None if estimate else _oracle_reference_temperature_c(rec0)
         thermal = session_temperature(rec0.temp_c[start:], rate_hz) if (
-            rec0.temp_c is not None and (any(t_ref_m[m] for m in methods) or t_oracle is not None)) else None
+            rec0.temp_c is not None and (any(t_ref_m[m] or t_ref_a_m[m] for m in methods) or t_oracle is not None)) else None
         # and its g-sensitivity, when a method estimated it (kf_hand): three nuisance states of the same model
         g_sens = any(gs_m[m] for m in methods)
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
@@ -551,6 +648,9 @@ def monte_carlo(
                        band_rms_m_s2=hand_psd.get("band_rms_m_s2", 0.0), band_order=hand_psd.get("band_order", 2))
         sdh = np.sqrt(np.diag(ph))
         sd_sg = sdh[3:9]
+        oa = HAND_JOINT.offset("acc_bias")
+        sd_acc = sdh[oa:oa + 9] if estimate else None
+        sd_plain_joint = None
         if thermal is not None and not estimate:
             base = HAND_BIAS if hand_psd["bias_rw_rad_s_sqrt_s"] > 0 else HAND
             lay_t = StateLayout(base.blocks + ("gyro_temp_scale",) + (G_SENS_BLOCKS if g_sens else ())
@@ -574,15 +674,38 @@ def monte_carlo(
                     np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
             else:
                 sd_sg = sd_sg_oracle
+        if thermal is not None and estimate:
+            # kf_hand_joint on a warming session: S and b_a at the temperatures it states, c_a and s_T nuisance
+            lay = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, True)
+            t_r, jt = scale_at_temperature(ph, lay, thermal[1])
+            t_a, ja = acc_bias_at_temperature(ph, lay, thermal[1])
+            sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
+            sd_acc = sd_acc.copy()
+            sd_acc[0:3] = np.sqrt(np.diag(ja @ ph @ ja.T))
+            hand_psd["acc_bias_reference_temperature_c"] = t_a.tolist()
+            if any(t_ref_m[m] for m in methods):
+                hand_psd["scale_reference_temperature_c"] = t_r.tolist()
+                hand_psd["scale_reference_temperature_c_estimates"] = np.median(
+                    np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
+            if not all(t_ref_a_m[m] for m in methods):
+                # a joint method that states no temperature (kf_session) keeps the bound of the model without the
+                # temperature blocks, as before them (one more recursion, ~1 s)
+                pp = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
+                               hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
+                               bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"],
+                               highpass_order=hand_psd["highpass_order"], g_sensitivity=g_sens, estimate_accelerometer=True)
+                sdp = np.sqrt(np.diag(pp))
+                sd_plain_joint = np.concatenate([bias_crlb, sdp[3:9], sdp[oa:oa + 9]])
         if not math.isfinite(hand_psd["highpass_tau_s"]):
             hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
-        oa = HAND_JOINT.offset("acc_bias")
         # kf_hand(_joint) reports the rest-average gyro bias: its bound is the static one in both modes
-        sqrt_hand = np.concatenate([bias_crlb, sd_sg] + ([sdh[oa:oa + 9]] if estimate else []))
+        sqrt_hand = np.concatenate([bias_crlb, sd_sg] + ([sd_acc] if estimate else []))
         for m in methods:   # each method's bound is that of the quantity it is scored against
             sqrt_hand_m[m] = sqrt_hand
             if sd_sg_oracle is not None and not t_ref_m[m]:
                 sqrt_hand_m[m] = np.concatenate([bias_crlb, sd_sg_oracle] + ([sdh[oa:oa + 9]] if estimate else []))
+            if sd_plain_joint is not None and not t_ref_a_m[m]:
+                sqrt_hand_m[m] = sd_plain_joint
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
                         sqrt_hand_m.get(m, sqrt_hand)) for m in methods}
     return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,

@@ -159,7 +159,8 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
                     sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
                     bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
-                    temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), wobble_bands=()) -> dict:
+                    temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
+                    wobble_bands=()) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
@@ -180,7 +181,9 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     A warming sensor: ``temperature_c`` (N,) the sensor temperature (°C, recorded in ``temp_c``) and
     ``scale_per_c`` (3,) the scale factor's temperature coefficient (1/°C): the gyro's scale is
     S + scale_per_c (T − T[0]) sample by sample (``scale_factor`` in the result is S at T[0]), applied as
-    ω_i (1 + ΔS_i(t)) on top of M ω.
+    ω_i (1 + ΔS_i(t)) on top of M ω; ``acc_bias_per_c`` (3,) the accelerometer bias's temperature coefficient
+    (m/s²/°C): the accelerometer reads its bias plus acc_bias_per_c (T − T[0]) added after M_a, sample by sample
+    (``acc_bias_m_s2`` in the result is the bias at T[0]).
 
     A hand that turns a little (tremor, sway — real rotation, which the gyro sees and the accelerometer's tilt
     follows): ``wobble_bands`` ((f_lo, f_hi, rms_rad), ...) makes the attitude q ⊗ exp(φ) with φ(t) from
@@ -229,6 +232,8 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     gyro = clean + rng.normal(size=(n, 3)) * math.radians(gyro_noise_deg_s)
     acc_bias = np.asarray(acc_bias_g, float) * G
     acc = (gravity_body + f_hand) @ _m(acc_scale, acc_nonortho).T + acc_bias + rng.normal(size=(n, 3)) * acc_noise_g * G
+    if temp is not None and np.any(np.asarray(acc_bias_per_c, float) != 0.0):
+        acc = acc + np.multiply.outer(temp - temp[0], np.asarray(acc_bias_per_c, float))
     mag = None
     if field_enu_ut is not None:
         mag = np.einsum("nji,j->ni", dcm, np.asarray(field_enu_ut, float))

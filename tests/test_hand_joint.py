@@ -19,6 +19,7 @@ import independent_generator as ig
 from calib import estimators
 from calib.cli import main as calib_main
 from gyrosim.estimator import load_estimator
+from gyrosim.recording import Recording
 from test_hand import HAND_KW, NOISE, _rec, kin  # noqa: F401  (kin: the fixture; kf_hand's typical hand, noise)
 
 # a raw consumer accelerometer: tens of mg bias, 1–2 % scale and 0.5 % axis errors
@@ -115,8 +116,8 @@ def test_montecarlo_with_a_raw_accelerometer_gives_the_joint_hand_bound():
 # docs/hand.md's joint campaign (raw sensors, 50 seeds per cell): kf_hand_joint's NEES (6 S, G) against its band
 JOINT_NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer", "steady"): "in",
                    ("zhou2020_sim_consumer", "typical"): "low", ("zhou2020_sim_consumer", "shaky"): "low",
-                   ("mpu9250", "ideal"): "high", ("mpu9250", "steady"): "high", ("mpu9250", "typical"): "high",
-                   ("mpu9250", "shaky"): "in"}
+                   ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
+                   ("mpu9250", "shaky"): "low"}
 
 
 @pytest.mark.slow
@@ -124,14 +125,17 @@ JOINT_NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_cons
 def test_kf_hand_joint_campaign_claims(key):
     """The docs/hand.md joint table (50 seeds, raw sensor): no seed diverged; NEES inside its 95 % band
     χ²(300)/50 where the docs say "in" (a correct σ fails this 5 % of the time); where "low", never
-    optimistic and at most ×1.5 pessimistic in σ (NEES above the band's bottom / 1.5²); where "high" (the MPU-9250's accelerometer temperature drift,
-    unmodelled), at most ×1.25 optimistic in σ (NEES below the band's top × 1.25²)."""
+    optimistic and at most ×1.5 pessimistic in σ (NEES above the band's bottom / 1.5²); where "high", at most ×1.25
+    optimistic in σ (NEES below the band's top × 1.25²; none since the MPU-9250's accelerometer bias temperature
+    drift is modelled).  Every cell: at most 2 of 50 "ok" seeds whose NEES(6) exceeds χ²₆'s 99.9 % quantile (an
+    honest σ gives 0.05 expected; measured 0 and 1)."""
     from calib.montecarlo import monte_carlo
 
     sensor, hand = key
     r = monte_carlo("zhou2020", hand, sensor, seeds=50, methods=("kf_hand_joint",), accelerometer="estimate")
     st = r.methods["kf_hand_joint"]
     assert "diverged" not in st.statuses, st.statuses
+    assert st.ok_wrong <= 2, st.ok_wrong
     lo, hi = st.nees_band
     side = JOINT_NEES_SIDE[key]
     if side == "in":
@@ -140,3 +144,100 @@ def test_kf_hand_joint_campaign_claims(key):
         assert lo / 1.5**2 < st.nees_mean < hi, st.nees_mean
     else:
         assert lo < st.nees_mean < hi * 1.25**2, st.nees_mean
+
+
+# a warming board (25 → 26.5 °C, τ 80 s) whose accelerometer bias moves 2–3 mg/°C (the MPU-9250's datasheet
+# allows ±1.5 mg/°C; a bit above, so that one session's drift is tens of the bias's σ, ~1e-3 m/s²)
+ACC_C_M_S2_C = np.array([0.02, -0.015, 0.025])
+ACC_ITEMS_B = [("accelerometer", "bias")]
+
+
+def _warming(t):
+    return 25.0 + 1.5 * (1.0 - np.exp(-t / 80.0))
+
+
+def test_kf_hand_joint_reports_the_accelerometer_bias_at_a_stated_temperature(kin):
+    """Four hand-held sessions, raw accelerometer, a recorded temperature channel warming 1.5 °C and an
+    accelerometer bias b_a(T) = b_a(T[0]) + c_a (T − T[0]) written by the independent generator its own way
+    (added after M_a).  kf_hand_joint must model it (c_a states) and state per axis the temperature T_a at which it
+    reports b_a, inside the session's span; against the generator's b_a(T_a) and its S, G the summed NEES over
+    4 × 9 (S, G and b_a) is χ²(36) under an honest σ: inside its two-sided 99.9 % interval [13.1, 71.6] (asserted
+    with the lower end halved: σ at most ×√2 cautious, as the hand's cells, docs/hand.md).  The same b_a against
+    the bias at the start temperature must leave that interval (c_a ΔT ~ 0.01 m/s² against σ ~ 1e-3): the stated
+    temperature is what the number means.  Fails on the code without the c_a states (no temperature stated; the
+    drift left in the filter's constant b_a made σ of S, G optimistic on the MPU-9250 preset, NEES 9.3)."""
+    t = kin[0]
+    temp = _warming(t)
+    total, total_start = 0.0, 0.0
+    for seed in range(4):
+        d = ig.generate_arrays(seed=seed, kin=kin, **NOISE, **HAND_KW, **ACC_KW, temperature_c=temp,
+                               acc_bias_per_c=ACC_C_M_S2_C)
+        cal = estimators.kf_hand_joint(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], d["temp_c"],
+                                                 meta={"rate_hz": 100.0}))
+        assert cal.status == "ok", cal.warnings
+        info = cal.diagnostics["temperature"]
+        assert info["modelled"] and "acc_bias_reference_temperature_c" in info, info
+        assert any(n.startswith("ca_") for n in cal.diagnostics["filter"]["states"])
+        t_a = np.asarray(info["acc_bias_reference_temperature_c"])
+        assert np.all((t_a > temp.min()) & (t_a < temp.max())), t_a
+        t_r = np.asarray(info.get("scale_reference_temperature_c", np.full(3, np.nan)))
+        items = ITEMS[:2] + ACC_ITEMS_B
+        est = np.concatenate([cal.value(a, b) for a, b in items])
+        cov = cal.block_covariance(items)
+        truth = np.concatenate([d["scale_factor"], d["nonorthogonality"], d["acc_bias_m_s2"] + ACC_C_M_S2_C * (t_a - temp[0])])
+        assert np.all(np.isfinite(t_r)) or "scale_reference_temperature_c" not in info
+        e = est - truth
+        total += float(e @ np.linalg.solve(cov, e))
+        e0 = e.copy()
+        e0[6:9] = est[6:9] - d["acc_bias_m_s2"]
+        total_start += float(e0 @ np.linalg.solve(cov, e0))
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], 36)
+    assert lo / 2 < total < hi, total
+    assert total_start > hi, total_start
+
+
+def test_joint_hand_bound_with_the_temperature_blocks_as_nuisance(kin):
+    """kf_hand_joint's hand-aware bound on a warming session: the accelerometer bias's c_a and the gyro scale's
+    s_T as vague nuisance states (``hand_crlb(..., estimate_accelerometer=True, temperature_rel_c=…)``, 39
+    states), S and b_a mapped to the temperatures where they decouple.  Nuisance parameters cannot add
+    information: every σ of S, G and b_a ≥ the bound without them (to 1e-9 relative, the recursion's rounding);
+    b_a at its T_a stays within 1.1× (measured 1.01–1.07 on this schedule: deterministic, no noise drawn) — the
+    point of stating T_a."""
+    from calib.handkf import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature
+    from calib.kalman import HAND_JOINT, FilterConfig
+    from calib.montecarlo import hand_crlb
+
+    t, omega, quat = kin
+    g_body = np.einsum("nji,j->ni", np.stack([ig._dcm(q) for q in quat]), np.array([0.0, 0.0, ig.G]))
+    cfg = FilterConfig(arw_rad_s_sqrt_hz=np.radians(0.05) / 10.0, vrw_m_s2_sqrt_hz=0.001 * ig.G / 10.0,
+                       prior_gyro_bias_rad_s=(1e-4, 1e-4, 1e-4))
+    args = (omega, g_body, quat, t, np.zeros(18), cfg, 100.0, 0.01, 0.5)
+    kw = dict(highpass_tau_s=1.0, highpass_order=2, bias_rw_rad_s_sqrt_s=3e-5, estimate_accelerometer=True)
+    p_plain = hand_crlb(*args, **kw)
+    dT, t0 = session_temperature(_warming(t), 100.0)
+    p_temp = hand_crlb(*args, **kw, temperature_rel_c=dT)
+    lay = joint_layout(True)
+    assert p_temp.shape == (lay.n, lay.n) and lay.has("acc_temp_bias")
+    _, jt = scale_at_temperature(p_temp, lay, t0)
+    _, ja = acc_bias_at_temperature(p_temp, lay, t0)
+    oa = HAND_JOINT.offset("acc_bias")
+    sd_plain = np.sqrt(np.concatenate([np.diag(p_plain)[3:9], np.diag(p_plain)[oa:oa + 3]]))
+    sd_temp = np.sqrt(np.concatenate([np.diag(jt @ p_temp @ jt.T), np.diag(ja @ p_temp @ ja.T)]))
+    assert np.all(sd_temp >= sd_plain * (1 - 1e-9)), sd_temp / sd_plain
+    assert np.all(sd_temp[6:] <= 1.1 * sd_plain[6:]), sd_temp / sd_plain
+
+
+def test_without_a_temperature_channel_a_drifting_gyro_warns_that_the_accelerometer_drift_is_unmodelled(kin):
+    """No temperature channel: nothing can model the accelerometer bias's drift.  When the rests show the gyro bias
+    drifting (a ramp of 2e-5 rad/s² on x: 2.4e-3 rad/s over the session, against the rest means' noise ~3e-4)
+    kf_hand_joint says so and what to do; with a still bias the warning follows the rests' drift test (it fires on
+    white noise at its 5 % rate: seed 0's χ² is 13 on 3), never without it."""
+    d = ig.generate_arrays(seed=0, kin=kin, **NOISE, **ACC_KW, bias_ramp_rad_s2=(2e-5, -1e-5, 1e-5))
+    cal = estimators.kf_hand_joint(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], meta={"rate_hz": 100.0}))
+    assert not cal.diagnostics["temperature"]["modelled"]
+    assert any(w.startswith("accelerometer bias drift not modelled") for w in cal.warnings), cal.warnings
+    for seed in (0, 1):
+        d = ig.generate_arrays(seed=seed, kin=kin, **NOISE, **ACC_KW)
+        cal = estimators.kf_hand_joint(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], meta={"rate_hz": 100.0}))
+        drifted = cal.diagnostics["gyro_bias_drift"]["rate_random_walk_rad_s_sqrt_s"] > 0
+        assert any(w.startswith("accelerometer bias drift not modelled") for w in cal.warnings) == drifted

@@ -21,3 +21,16 @@ def test_state_counts_in_the_docstrings_are_the_layouts():
     src = open(bench.__file__, encoding="utf-8").read()
     (label,) = re.findall(r'"kf_hand \((\d+) states', src)
     assert int(label) == n[(True, False)]
+
+
+def test_kf_hand_joint_state_counts_are_its_layouts():
+    """kf_hand_joint: 33 states, 39 when the recording's temperature moved (s_T and the accelerometer bias's c_a:
+    :func:`calib.handkf.joint_layout`); calib bench's session is a warming MPU-9250, so its label says 39."""
+    from calib.handkf import joint_layout
+
+    assert joint_layout(False).n == 33 and joint_layout(True).n == 39
+    doc = " ".join(kf_hand.__doc__.split())
+    assert "33 states, 39 when the recording's temperature moved" in doc
+    src = open(bench.__file__, encoding="utf-8").read()
+    (label,) = re.findall(r'"kf_hand_joint \((\d+) states', src)
+    assert int(label) == joint_layout(True).n
