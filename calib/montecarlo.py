@@ -290,19 +290,33 @@ def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     return _scale_change(stored_sensor_model(rec.meta or {}), t_c)
 
 
-def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
-    """:func:`truth_scale_at_temperature` of a (realised) sensor model; zeros for None."""
+def _deterministic_errors(effects) -> list:
+    """The deterministic, non-affine, pointwise error effects of a triad (scoring only): what the oracle's affine
+    calibration (:func:`gyrosim.calibration.truth_calibration`) leaves out and a stated reference condition
+    (temperature, specific force, operating point) brings in."""
+    return [e for e in effects if e.stage == "error" and not e.stochastic and e.pointwise and e.affine() is None]
+
+
+def _two_sample_context(temperature_c: float | None = None, specific_force_m_s2: np.ndarray | None = None):
+    """A two-sample :class:`gyrosim.effects.SignalContext` at rest (a context's rate needs a step) at one
+    temperature (°C) and specific force (m/s², body), for evaluating an effect at a condition."""
     from gyrosim.effects import SignalContext
 
+    zero = np.zeros((2, 3))
+    f = zero if specific_force_m_s2 is None else np.tile(np.asarray(specific_force_m_s2, float), (2, 1))
+    return SignalContext(np.array([0.0, 0.01]), zero, f,
+                         temperature_c=None if temperature_c is None else np.full(2, float(temperature_c)))
+
+
+def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
+    """:func:`truth_scale_at_temperature` of a (realised) sensor model; zeros for None."""
     out = np.zeros(3)
     if model is None:
         return out
-    zero = np.zeros((2, 3))                     # two samples at T_i (a context's rate needs a step)
+    zero = np.zeros((2, 3))
     for i, t in enumerate(np.asarray(t_c, float)):
-        ctx = SignalContext(np.array([0.0, 0.01]), zero, zero, temperature_c=np.full(2, t))
-        for e in model.gyro:
-            if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:
-                continue
+        ctx = _two_sample_context(t)
+        for e in _deterministic_errors(model.gyro):
             d = e.delta_dx(zero, ctx)
             if d is not None:
                 out[i] += float(d[0, i, i])
@@ -316,7 +330,6 @@ def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     axis i at T_i (scoring only: it reads the truth).  A calibration that states the temperature its b_a holds at
     (``diagnostics["temperature"]["acc_bias_reference_temperature_c"]``, :func:`calib.handkf.acc_bias_at_temperature`)
     is scored against the device's bias there, as S is by :func:`truth_scale_at_temperature`."""
-    from gyrosim.effects import SignalContext
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
@@ -325,10 +338,8 @@ def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
         return out
     zero = np.zeros((2, 3))
     for i, t in enumerate(np.asarray(t_c, float)):
-        ctx = SignalContext(np.array([0.0, 0.01]), zero, zero, temperature_c=np.full(2, t))
-        for e in model.accelerometer:
-            if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:
-                continue
+        ctx = _two_sample_context(t)
+        for e in _deterministic_errors(model.accelerometer):
             d = e.delta(zero, ctx)
             if d is not None:
                 out[i] += float(np.asarray(d)[0, i])
@@ -343,21 +354,17 @@ def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.806
     oracle's small-signal slope: a nonlinearity k x|x| (the MPU-9250's ±0.5 % of 4 g, k σ 4.25e-5 per m/s²) reads
     k g (σ 4.2e-4, five to nine times the filter's σ of S_a) on this sphere and nothing at 0 m/s²; a temperature-
     dependent scale reads its polynomial at T_i; a temperature-dependent bias cancels in the chord."""
-    from gyrosim.effects import SignalContext
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
     out = np.zeros(3)
     if model is None:
         return out
-    zero = np.zeros((2, 3))
     for i, t in enumerate(np.asarray(t_c, float)):
         x = np.zeros((2, 3))
         x[0, i], x[1, i] = gravity_m_s2, -gravity_m_s2
-        ctx = SignalContext(np.array([0.0, 0.01]), zero, zero, temperature_c=np.full(2, t))
-        for e in model.accelerometer:
-            if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:
-                continue
+        ctx = _two_sample_context(t)
+        for e in _deterministic_errors(model.accelerometer):
             d = e.delta(x, ctx)
             if d is not None:
                 d = np.asarray(d)
@@ -373,7 +380,6 @@ def truth_bias_at_reference(rec, index_range: tuple[int, int], slow_bias_rad_s: 
     instability, rate random walk) over the rest (:func:`slow_gyro_bias`).  A calibration that states where its
     bias holds (``diagnostics["gyro_bias"]``, :mod:`calib.handbias`) is scored against the device's bias there;
     the oracle's (:func:`gyrosim.calibration.truth_calibration`) is the one at T_ref with zero specific force."""
-    from gyrosim.effects import SignalContext
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
@@ -381,14 +387,11 @@ def truth_bias_at_reference(rec, index_range: tuple[int, int], slow_bias_rad_s: 
     if model is None or rec.truth is None:
         return out
     a, b = index_range
-    zero = np.zeros((2, 3))
     f_r = np.mean(rec.truth.specific_force_body_m_s2[a:b], axis=0)
-    t_r = None if rec.temp_c is None else np.full(2, float(np.mean(rec.temp_c[a:b])))
-    ctx = SignalContext(np.array([0.0, 0.01]), zero, np.tile(f_r, (2, 1)), temperature_c=t_r)
-    for e in model.gyro:
-        if e.stage != "error" or e.stochastic or not e.pointwise or e.affine() is not None:   # affine: the oracle's
-            continue
-        out += e.delta(zero, ctx)[0]
+    t_r = None if rec.temp_c is None else float(np.mean(rec.temp_c[a:b]))
+    ctx = _two_sample_context(t_r, f_r)
+    for e in _deterministic_errors(model.gyro):           # the affine ones are the oracle's
+        out += e.delta(np.zeros((2, 3)), ctx)[0]
     return out
 
 
