@@ -308,19 +308,30 @@ def _two_sample_context(temperature_c: float | None = None, specific_force_m_s2:
                          temperature_c=None if temperature_c is None else np.full(2, float(temperature_c)))
 
 
-def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
-    """:func:`truth_scale_at_temperature` of a (realised) sensor model; zeros for None."""
+def _per_axis_at_temperatures(effects, t_c: np.ndarray, read: Callable) -> np.ndarray:
+    """Σ over ``effects``' deterministic, non-affine, pointwise error terms of ``read(effect, ctx, i)`` for axis
+    i at the temperature ``t_c[i]`` (°C) — the shared loop of the truth-at-a-temperature scorers (scoring only).
+    ``read`` returns the term's value for axis i, or None where the effect has none."""
     out = np.zeros(3)
-    if model is None:
-        return out
-    zero = np.zeros((2, 3))
     for i, t in enumerate(np.asarray(t_c, float)):
         ctx = _two_sample_context(t)
-        for e in _deterministic_errors(model.gyro):
-            d = e.delta_dx(zero, ctx)
-            if d is not None:
-                out[i] += float(d[0, i, i])
+        for e in _deterministic_errors(effects):
+            v = read(e, ctx, i)
+            if v is not None:
+                out[i] += v
     return out
+
+
+def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
+    """:func:`truth_scale_at_temperature` of a (realised) sensor model; zeros for None."""
+    if model is None:
+        return np.zeros(3)
+    zero = np.zeros((2, 3))
+
+    def slope(e, ctx, i):
+        d = e.delta_dx(zero, ctx)
+        return None if d is None else float(d[0, i, i])
+    return _per_axis_at_temperatures(model.gyro, t_c, slope)
 
 
 def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
@@ -333,17 +344,14 @@ def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
-    out = np.zeros(3)
     if model is None:
-        return out
+        return np.zeros(3)
     zero = np.zeros((2, 3))
-    for i, t in enumerate(np.asarray(t_c, float)):
-        ctx = _two_sample_context(t)
-        for e in _deterministic_errors(model.accelerometer):
-            d = e.delta(zero, ctx)
-            if d is not None:
-                out[i] += float(np.asarray(d)[0, i])
-    return out
+
+    def at_zero(e, ctx, i):
+        d = e.delta(zero, ctx)
+        return None if d is None else float(np.asarray(d)[0, i])
+    return _per_axis_at_temperatures(model.accelerometer, t_c, at_zero)
 
 
 def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.80665) -> np.ndarray:
@@ -357,19 +365,15 @@ def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.806
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
-    out = np.zeros(3)
     if model is None:
-        return out
-    for i, t in enumerate(np.asarray(t_c, float)):
+        return np.zeros(3)
+
+    def chord(e, ctx, i):
         x = np.zeros((2, 3))
         x[0, i], x[1, i] = gravity_m_s2, -gravity_m_s2
-        ctx = _two_sample_context(t)
-        for e in _deterministic_errors(model.accelerometer):
-            d = e.delta(x, ctx)
-            if d is not None:
-                d = np.asarray(d)
-                out[i] += float(d[0, i] - d[1, i]) / (2.0 * gravity_m_s2)
-    return out
+        d = e.delta(x, ctx)
+        return None if d is None else float(np.asarray(d)[0, i] - np.asarray(d)[1, i]) / (2.0 * gravity_m_s2)
+    return _per_axis_at_temperatures(model.accelerometer, t_c, chord)
 
 
 def truth_bias_at_reference(rec, index_range: tuple[int, int], slow_bias_rad_s: np.ndarray | None = None) -> np.ndarray:
