@@ -4,7 +4,7 @@ Per seed: ``kf_hand`` (accelerometer calibrated) or ``kf_hand_joint`` (``--accel
 accelerometer).  The reported value is the first rest's mean either way; what changed is its σ and what it is
 scored against:
 
-* before: σ = the rest's 10-batch-means standard error (``prepare(...).bias_std_rad_s``, as kf_hand reported it),
+* before: σ = the rest's 10-batch-means standard error (``prepare(...).bias_batch_std_rad_s``, as kf_hand reported it),
   scored against the oracle
   (:func:`gyrosim.calibration.truth_calibration`: the bias at the preset's T_ref with zero specific force);
 * after: σ from :mod:`calib.handbias` (white noise ⊕ the hand's rotation during the rest), scored against the
@@ -65,7 +65,7 @@ def cell(hand: str, sensor: str, seeds: int, accelerometer: str = "calibrated", 
         ref = oracle + mc.truth_bias_at_reference(rec, rng, mc.slow_gyro_bias(rec, truth, model, 10_000 + seed, rng))
         b = c.value("gyro", "bias")
         s_new = np.sqrt(np.diag(c.block_covariance([("gyro", "bias")])))
-        s_old = prepare(user, accelerometer=accelerometer).bias_std_rad_s   # what kf_hand reported before
+        s_old = prepare(user, accelerometer=accelerometer).bias_batch_std_rad_s   # what kf_hand reported before
         err_o.append(b - oracle)
         err_r.append(b - ref)
         z_old.append((b - oracle) / s_old)

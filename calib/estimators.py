@@ -116,6 +116,8 @@ def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gat
     if infl.factor > 1 and (note := bias_drift_note(rec, prep)) is not None:
         notes.append(note)
     diag: dict = {"consistency": {"sigma_inflation": infl.to_dict()}}
+    if prep.rest_bias is not None:   # the reported bias is the first rest's mean, at its reference (calib.handbias)
+        diag["gyro_bias"] = prep.rest_bias.to_dict()
     if check_hand and status == "ok" and not prep.noise.noise_free:   # noise-free: methods differ by discretisation
         status, diag["consistency"]["hand_cross_check"] = _hand_check(rec, theta[0:6], cov[3:, 3:], notes, status)
     gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],

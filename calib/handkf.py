@@ -100,6 +100,7 @@ from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import _apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare, rest_mask
+from .noiselevels import WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density  # noqa: F401 (re-exported)
 from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
 from .fastkf import regressor_half_window, run_filter
@@ -117,9 +118,6 @@ CUTOFF_HZ = 4.0            # below the tremor band (8–12 Hz), above the schedu
 ORDER = 4
 CONFOUND_CORRELATION = 0.98
 LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
-WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)
-WHITE_BAND2_HZ = 25.0      # … and above its second harmonic (16–24 Hz) when the rate allows (white_density)
-WHITE_SEGMENT_S = 4.0      # Welch segments of white_density (Blackman–Harris main lobe ±1 Hz)
 PASSES = 3
 # kf_hand's a_e: "gauss_markov" (the high-passed Gauss–Markov family, _gm_from_residual; the default) or "band" (a
 # Gauss–Markov floor + a Butterworth band-pass, _band_from_residual; opt-in, calib.handkf:kf_hand_band — docs/hand.md,
@@ -540,32 +538,6 @@ def bias_drift(gyro_rad_s: np.ndarray, t_s: np.ndarray, rests: tuple[tuple[int, 
     return BiasDrift(q, x, 3 * k, thr, tuple(tuple(float(v) for v in m) for m in means), tuple(mids))
 
 
-def white_density(x: np.ndarray, rate_hz: float) -> float | None:
-    """White-noise density N (per √Hz, mean of the axes) of rest samples ``x`` (N, 3) from their spectrum
-    above the tremor band (Welch, one-sided PSD 2N²): the rest segment's standard deviation would count the
-    hand's tremor as sensor noise.  The band starts at ``WHITE_BAND2_HZ`` (25 Hz, above the tremor's
-    second harmonic) when the rate leaves ≥ 10 Hz above it, else at ``WHITE_BAND_HZ`` (15 Hz), and ends at
-    0.45 f_s; the window is Blackman–Harris (sidelobes −92 dB) over ``WHITE_SEGMENT_S`` = 4-s segments, so
-    that its main lobe (±4 bins) spans ±1 Hz and a 24-Hz line does not reach 25 Hz (with 1-s segments it
-    did: +6 % on N, synthetic rest of tests/test_hand.py; the same rest gives the same number of
-    independent PSD averages either way, more bins of fewer segments).  Both because a shaky hand's tremor is
-    ~60 dB above the sensor's white floor: (i) a Hann window's sidelobes (−31 dB, falling 18 dB/octave)
-    leak it 3–7 bins away, into 15–20 Hz; (ii) what is quadratic in the tremor — the centripetal
-    ω_tr × (ω_tr × r) of the rotational tremor at the lever arm — sits at the sum frequencies, 16–24 Hz
-    for an 8–12 Hz tremor.  Measured (zhou2020_sim_consumer, true N = 1.47e-4 m/s²/√Hz, shaky hand, 3
-    seeds): Hann 15–45 Hz 1.65–1.85e-4 (R = σ_f²/D overstated ×1.25–1.6, σ pessimistic), Blackman–Harris
-    15–45 Hz 1.47–1.64e-4, Blackman–Harris 25–45 Hz 1.43–1.50e-4.  None when the rate leaves no such band
-    or the rest is shorter than 2 s."""
-    hi = 0.45 * rate_hz
-    if hi <= WHITE_BAND_HZ + 5.0 or x.shape[0] < 2 * rate_hz:
-        return None
-    lo = WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ
-    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
-                             nperseg=int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), axis=0)
-    band = (f >= lo) & (f <= hi)
-    return float(np.sqrt(np.mean(pxx[band]) / 2.0))
-
-
 def _acc_theta(theta: np.ndarray) -> np.ndarray:
     """θ_a = [b_a, S_a, G_a] (9,) of an 18-vector θ (``THETA`` order)."""
     return np.concatenate([theta[theta_slice("acc_bias")], theta[theta_slice("acc_scale")],
@@ -604,7 +576,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     nz = prep.noise
     arw = white_density(rec.gyro_rad_s[ra:rb], rec.rate_hz)
     vrw = white_density(rec.acc_m_s2[ra:rb], rec.rate_hz)
-    cfg0 = prep.config
+    # the bias state's prior: the batch means' σ, as before calib.handbias (Prepared.bias_batch_std_rad_s)
+    cfg0 = replace(prep.config, prior_gyro_bias_rad_s=tuple(prep.bias_batch_std_rad_s))
     if arw is not None and vrw is not None:   # never below the quantisation / discretisation floors
         cfg0 = type(cfg0)(**{**cfg0.__dict__,
                              "arw_rad_s_sqrt_hz": max(arw, nz.gyro_floor_rad_s / math.sqrt(rec.rate_hz)),

@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import signal as sp_signal
 
 __all__ = ["NoiseLevels", "estimate_noise", "quantization_step"]
 
@@ -121,3 +122,34 @@ def estimate_noise(gyro_rad_s: np.ndarray, acc_m_s2: np.ndarray, rest: tuple[int
     f_floor = max(lsb_f / math.sqrt(12.0), gravity_m_s2 * dt * dt * wdot_max / 12.0, NUMERICAL_FLOOR_ACC_M_S2)
     return NoiseLevels(max(g_meas, g_floor), max(f_meas, f_floor), g_meas, f_meas, g_floor, f_floor, lsb_g, lsb_f,
                        rate_hz)
+
+
+WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)
+WHITE_BAND2_HZ = 25.0      # … and above its second harmonic (16–24 Hz) when the rate allows (white_density)
+WHITE_SEGMENT_S = 4.0      # Welch segments of white_density (Blackman–Harris main lobe ±1 Hz)
+
+
+def white_density(x: np.ndarray, rate_hz: float) -> float | None:
+    """White-noise density N (per √Hz, mean of the axes) of rest samples ``x`` (N, 3) from their spectrum
+    above the tremor band (Welch, one-sided PSD 2N²): the rest segment's standard deviation would count the
+    hand's tremor as sensor noise.  The band starts at ``WHITE_BAND2_HZ`` (25 Hz, above the tremor's
+    second harmonic) when the rate leaves ≥ 10 Hz above it, else at ``WHITE_BAND_HZ`` (15 Hz), and ends at
+    0.45 f_s; the window is Blackman–Harris (sidelobes −92 dB) over ``WHITE_SEGMENT_S`` = 4-s segments, so
+    that its main lobe (±4 bins) spans ±1 Hz and a 24-Hz line does not reach 25 Hz (with 1-s segments it
+    did: +6 % on N, synthetic rest of tests/test_hand.py; the same rest gives the same number of
+    independent PSD averages either way, more bins of fewer segments).  Both because a shaky hand's tremor is
+    ~60 dB above the sensor's white floor: (i) a Hann window's sidelobes (−31 dB, falling 18 dB/octave)
+    leak it 3–7 bins away, into 15–20 Hz; (ii) what is quadratic in the tremor — the centripetal
+    ω_tr × (ω_tr × r) of the rotational tremor at the lever arm — sits at the sum frequencies, 16–24 Hz
+    for an 8–12 Hz tremor.  Measured (zhou2020_sim_consumer, true N = 1.47e-4 m/s²/√Hz, shaky hand, 3
+    seeds): Hann 15–45 Hz 1.65–1.85e-4 (R = σ_f²/D overstated ×1.25–1.6, σ pessimistic), Blackman–Harris
+    15–45 Hz 1.47–1.64e-4, Blackman–Harris 25–45 Hz 1.43–1.50e-4.  None when the rate leaves no such band
+    or the rest is shorter than 2 s."""
+    hi = 0.45 * rate_hz
+    if hi <= WHITE_BAND_HZ + 5.0 or x.shape[0] < 2 * rate_hz:
+        return None
+    lo = WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ
+    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
+                             nperseg=int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), axis=0)
+    band = (f >= lo) & (f <= hi)
+    return float(np.sqrt(np.mean(pxx[band]) / 2.0))
