@@ -56,9 +56,9 @@ def _acc_first(rec):
 METHODS = {
     "kf_hand": kf_hand,
     "kf_hand, acc. first": _acc_first,
-    "kf_hand_joint": lambda r: kf_hand(r, accelerometer="estimate"),
+    "kf_hand_joint (default)": lambda r: kf_hand(r, accelerometer="estimate"),
     "kf_session_r": lambda r: calibrate(r, accelerometer="calibrated"),
-    "kf_joint (default)": lambda r: calibrate(r),
+    "kf_joint": lambda r: calibrate(r),
 }
 
 

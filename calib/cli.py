@@ -117,6 +117,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .inputs import KF
 
     check_output_paths({"--json": args.json, "--rrd": args.rrd}, _files(args.recording))
+    if args.method is None:   # the default: the hand-aware filter, unless a hand-blind allowance was given
+        args.method = "kf_session" if args.external_acc is not None else "hand"
     method = args.method
     if method in DEPRECATED_METHODS:  # the former spellings: still run, with a note
         method = DEPRECATED_METHODS[method]
@@ -130,7 +132,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                                "--method hand models the hand's acceleration and estimates its spectrum from the data")
         from .handkf import kf_hand
 
-        result = kf_hand(rec, accelerometer=args.accelerometer, gravity_m_s2=args.gravity)
+        result = kf_hand(rec, accelerometer=args.accelerometer, gravity_m_s2=args.gravity, keep_history=True)
     else:
         result = calibrate(rec, method, accelerometer=args.accelerometer,
                            external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity)
@@ -1030,8 +1032,9 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="calibrate a recording (HDF5 or CSV): gyro and accelerometer bias, scale factor, "
                                    "non-orthogonality; exit 1 when the result fails its own check (status inconsistent/diverged)")
     r.add_argument("recording", help=RECORDING_HELP)
-    r.add_argument("--method", default="kf_session", choices=("kf_session", "iterated_session", "hand", "kf", "iterated"),
-                   help="kf_session: one filter pass with a session-wide external-acceleration allowance (the result "
+    r.add_argument("--method", default=None, choices=("kf_session", "iterated_session", "hand", "kf", "iterated"),
+                   help="default: hand (kf_session when --external-acc is given); "
+                        "kf_session: one filter pass with a session-wide external-acceleration allowance (the result "
                         "is labelled kf_joint, or kf_session_r with --accelerometer calibrated: the registered "
                         "estimators it equals); iterated_session: re-linearised passes (Gauss–Newton on the batch "
                         "posterior; iterated_joint / iterated_session_r); hand: the hand's lever arm and coloured external "

@@ -105,7 +105,7 @@ from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, 
                           verdict)
 from .fastkf import regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity
-from .kalman import (BLOCK_LABELS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, StateLayout, initial_covariance, leave_out_means, m_matrix,
+from .kalman import (BLOCK_LABELS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, FilterHistory, StateLayout, initial_covariance, leave_out_means, m_matrix,
                      theta_slice)
 from .handchecks import check_hand_assumptions
 from .handbias import rest_bias
@@ -545,7 +545,7 @@ def _acc_theta(theta: np.ndarray) -> np.ndarray:
 
 
 def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None,
-            g_sensitivity: bool = False, sway: str = "gauss_markov") -> Calibration:
+            g_sensitivity: bool = False, sway: str = "gauss_markov", keep_history: bool = False) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
     the registered ``kf_hand``: 24 states, 27 when the recording's temperature moved (s_T), 30 with the opt-in
     ``g_sensitivity`` too — :func:`hand_layout`) or "estimate" (the registered ``kf_hand_joint``: + the
@@ -671,7 +671,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                          layout, cfg, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
                          x0=x0[None], lever_regressor=kreg, hand0=h0, rows=rows,
                          temperature_rel_c=None if not layout.models_temperature else thermal[0],
-                         specific_force_m_s2=f_lp if layout.models_g_sensitivity else None, sensor0=sens0)
+                         specific_force_m_s2=f_lp if layout.models_g_sensitivity else None, sensor0=sens0,
+                         keep_history=keep_history and p == PASSES - 1)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
         if out.sensor_extra is not None:
@@ -798,11 +799,14 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                  "residual_rms_m_s2": gf.residual_rms_m_s2, "samples": gf.samples}}
     cal = Calibration.from_linear(gyro=gyro, accelerometer=acc_params, covariance=cov, status=status,
                                   warnings=prep.warnings + tuple(obs_notes + notes), method=REGISTERED_NAME[accelerometer],
-                                  diagnostics={"hand": hand, "consistency": {"sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
+                                  diagnostics={"hand": hand, "consistency": {**checks[0].to_dict(), "sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
                                                                      "sigma_factor": infl.sigma_factor,
                                                                      "applied": "one-sided"}},
                                                 "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
+                                                          # the hand-blind filters' R allowance (calib run's JSON key):
+                                                          # none here, a_e is modelled (diagnostics.hand)
+                                                          "external_acc_allowance_m_s2": 0.0,
                                                           "gravity_m_s2": cfg0.gravity_m_s2},
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": drift.to_dict(),
@@ -815,6 +819,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                                 "filter": {"states": list(layout.names), "passes": PASSES,
                                                            "samples": int(n), "rate_hz": fs,
                                                            "start_s": float(rec.t_s[a])}})
+    if keep_history:   # the last pass's √P, θ̂, innovations and NIS per step (calib run --rrd shows P converge)
+        cal = replace(cal, history=FilterHistory(rec.t_s[a + 1:], out.sd_history[0], out.theta_history[0],
+                                                 out.innovation[0], out.nis[0], layout.names))
     if estimate:   # the noise densities among the effects too, as calib run's joint filter (calib export reads them)
         cal = replace(cal, gyro=cal.gyro + (WhiteNoise(density=np.full(3, cfg0.arw_rad_s_sqrt_hz)),),
                       accelerometer=cal.accelerometer + (WhiteNoise(density=np.full(3, cfg0.vrw_m_s2_sqrt_hz)),))

@@ -236,7 +236,8 @@ def test_apply_round_trip_gives_zero_errors(tmp_path, capsys):
         assert np.all(np.abs(second.value("gyro", "bias")) < 4 * (first.std("gyro", "bias") + second.std("gyro", "bias")))
     # the compensated HDF5 names what it was compensated with; the input is untouched
     comp = load_hdf5(tmp_path / "compensated.h5")
-    assert comp.meta["compensated_by"]["method"] == "kf_joint"  # calib run labels its result with the registered name it equals
+    # calib run labels its result with the registered name it equals (the default --method hand: kf_hand_joint)
+    assert comp.meta["compensated_by"]["method"] == "kf_hand_joint"
     capsys.readouterr()
     assert calib_main(["apply", str(cal_path), str(rec_path), "--out", str(rec_path)]) == 2
     assert "never overwritten" in capsys.readouterr().err

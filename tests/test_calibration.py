@@ -66,7 +66,7 @@ def test_data_from_an_independent_generator(independent_csv, tmp_path):
     path, truth = independent_csv
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     out_json, out_rrd = tmp_path / "r.json", tmp_path / "r.rrd"
-    assert calib_main(["run", str(path), "--gyro-unit", "deg/s", "--acc-unit", "g",
+    assert calib_main(["run", str(path), "--gyro-unit", "deg/s", "--acc-unit", "g", "--method", "kf_session",
                        "--json", str(out_json), "--rrd", str(out_rrd)]) == 0
     assert hashlib.sha256(path.read_bytes()).hexdigest() == digest  # the input is never modified
     d = json.loads(out_json.read_text())

@@ -112,8 +112,9 @@ def test_confounded_lever_arm_is_refused_with_the_motion_that_separates_it():
 
 
 def test_calib_run_exit_codes_and_coaching_with_a_hand(kin, tmp_path, capsys):
-    """`calib run` on a CSV with a hand: the default (joint filter, blind to the hand) exits 1 and says
-    by how much σ is understated; --method hand exits 0; both coach: the external acceleration seen
+    """`calib run` on a CSV with a hand: the hand-blind joint filter (``--method kf_session``, the default
+    before the hand-aware one became it) exits 1 and says by how much σ is understated; --method hand (the
+    default) exits 0; both coach: the external acceleration seen
     (injected 0.07 tremor + 0.02 sway + the lever arm's ω²r: > 0.07 m/s²) and σ reached ≥ the ideal
     hand's (the bound of the same rotations with the sensor's white noise only: no estimator is below it
     by more than its scatter)."""
@@ -122,7 +123,7 @@ def test_calib_run_exit_codes_and_coaching_with_a_hand(kin, tmp_path, capsys):
     truth = ig.generate(tmp_path / "hand.csv", seed=3, **NOISE, **HAND_KW)
     assert truth["scale_factor"].shape == (3,)
     args = [str(tmp_path / "hand.csv"), "--gyro-unit", "deg/s", "--acc-unit", "g"]
-    assert calib_main(["run", *args, "--json", str(tmp_path / "a.json")]) == 1
+    assert calib_main(["run", *args, "--method", "kf_session", "--json", str(tmp_path / "a.json")]) == 1
     out = capsys.readouterr().out
     assert "σ is understated" in out or "σ inflated" in out
     assert calib_main(["run", *args, "--method", "hand", "--accelerometer", "calibrated",

@@ -82,8 +82,9 @@ def test_kf_hand_joint_agrees_with_kf_joint_without_a_hand(kin):
 def test_calib_run_method_hand_estimates_the_accelerometer(kin, tmp_path):
     """``calib run --method hand`` with the default ``--accelerometer estimate`` runs kf_hand_joint: exit 0
     on a hand session with a raw accelerometer, the JSON carries the accelerometer's parameters with σ (as
-    kf_session's does) and the hand's; the default (kf_session, blind to the hand) is not ok on the same
-    file (measured: diverged, exit 1)."""
+    kf_session's does) and the hand's; kf_session (blind to the hand; the default before this one) is not ok
+    on the same file (measured: diverged, exit 1).  Without --method, calib run runs this method (the same
+    numbers), and with --external-acc (an allowance only the hand-blind filters take) kf_session."""
     d = ig.generate_arrays(seed=2, kin=kin, **NOISE, **HAND_KW, **ACC_KW)
     csv = ig.write_csv(tmp_path / "s.csv", d)
     args = [str(csv), "--gyro-unit", "deg/s", "--acc-unit", "g"]
@@ -91,7 +92,10 @@ def test_calib_run_method_hand_estimates_the_accelerometer(kin, tmp_path):
     out = json.loads((tmp_path / "h.json").read_text())
     assert out["method"] == "kf_hand_joint" and out["status"] == "ok"
     assert out["hand"]["lever_arm_m"][1] == pytest.approx(0.07, abs=0.005)
-    assert calib_main(["run", *args, "--json", str(tmp_path / "s.json")]) != 0
+    assert calib_main(["run", *args, "--json", str(tmp_path / "d.json")]) == 0
+    default = json.loads((tmp_path / "d.json").read_text())
+    assert default["method"] == "kf_hand_joint" and default["gyro"] == out["gyro"]
+    assert calib_main(["run", *args, "--method", "kf_session", "--json", str(tmp_path / "s.json")]) != 0
     blind = json.loads((tmp_path / "s.json").read_text())
     assert blind["method"] == "kf_joint"
     assert set(blind["accelerometer"]) == set(out["accelerometer"])     # the same accelerometer report
@@ -241,3 +245,29 @@ def test_without_a_temperature_channel_a_drifting_gyro_warns_that_the_accelerome
         cal = estimators.kf_hand_joint(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], meta={"rate_hz": 100.0}))
         drifted = cal.diagnostics["gyro_bias_drift"]["rate_random_walk_rad_s_sqrt_s"] > 0
         assert any(w.startswith("accelerometer bias drift not modelled") for w in cal.warnings) == drifted
+
+
+def test_calib_run_default_is_the_hand_aware_filter_with_p_in_the_rerun_recording(kin, tmp_path):
+    """The default ``calib run`` (no --method) is kf_hand_joint and its .rrd shows the filter's √P converging
+    (the last pass's history: /calib/P/S has finite values that end no larger than they began — information
+    only accumulates in a filter whose S is a constant — and the JSON's σ of S_x is that final √P times the
+    inflation's σ factor, ≥ 1); --external-acc, an allowance only the hand-blind filters take, selects
+    kf_session (labelled kf_joint)."""
+    import rerun as rr
+
+    d = ig.generate_arrays(seed=4, kin=kin, **NOISE, **HAND_KW, **ACC_KW)
+    csv = ig.write_csv(tmp_path / "s.csv", d)
+    args = [str(csv), "--gyro-unit", "deg/s", "--acc-unit", "g"]
+    assert calib_main(["run", *args, "--json", str(tmp_path / "d.json"), "--rrd", str(tmp_path / "d.rrd")]) == 0
+    out = json.loads((tmp_path / "d.json").read_text())
+    assert out["method"] == "kf_hand_joint"
+    sx = []
+    for chunk in rr.chunk.RrdReader(str(tmp_path / "d.rrd")).stream():
+        if chunk.entity_path == "/calib/P/S/x":
+            sx += [float(np.asarray(v).ravel()[0]) for v in chunk.to_record_batch().column("Scalars:scalars").to_pylist()]
+    assert len(sx) > 1000 and np.all(np.isfinite(sx)) and sx[-1] < sx[0]
+    factor = out["consistency"]["sigma_inflation"]["sigma_factor"]
+    # S is reported at the temperature it was pinned at; without a temperature channel that is S itself
+    assert out["gyro"]["std"]["scale_factor"][0] == pytest.approx(sx[-1] * factor, rel=1e-9)
+    assert calib_main(["run", *args, "--external-acc", "0.1", "--json", str(tmp_path / "k.json")]) in (0, 1)
+    assert json.loads((tmp_path / "k.json").read_text())["method"] == "kf_joint"
