@@ -34,9 +34,9 @@ def run_demo(out: str | Path, *, schedule: str = "zhou2020", hand: str = "typica
              progress: Callable[[int], None] | None = None, log: Callable[[str], None] = lambda msg: None) -> DemoResult:
     """Simulate ``schedule`` × ``hand`` × ``sensor`` (seed ``seed``), calibrate it with the paper-family joint
     filter (:func:`calib.calibrate.calibrate`, ``kf_session``: Zhou's Figures 2–3 on the paper's sensor; ``calib
-    run``'s default is the hand-aware filter since issue 13 — with this preset's noise the two agree in S, G, and the
-    filter's own gyro bias is 3× tighter than the rest mean the hand-aware one reports, measured on seed 1), validate the attitude on the free-style
-    session of seed + 1000 (:func:`calib.validation.validate_attitude`), and write :data:`DEMO_FILES`
+    run``'s default is the hand-aware filter (docs/hand.md) — with this preset's noise the two agree in S, G, and
+    the filter's own gyro bias is 3× tighter than the rest mean the hand-aware one reports, measured on seed 1),
+    validate the attitude on the free-style session of seed + 1000 (:func:`calib.validation.validate_attitude`), and write :data:`DEMO_FILES`
     into ``out`` (created).  ``progress(physics_steps)`` follows the simulation; ``log(text)`` the stages."""
     from gyrosim.hand import load_hand
     from gyrosim.recording import save_hdf5
