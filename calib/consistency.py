@@ -59,15 +59,14 @@ semi-definite, or parameters no sensor has (|S|, |G| > 0.3; |b_a| > 0.5 g; |b_g|
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 from scipy import stats
 
 __all__ = ["Consistency", "check_innovations", "check_estimate", "verdict", "RestGravity", "rest_gravity",
-           "Inflation", "innovation_inflation", "apply_inflation", "deflate_when_significant", "INFLATION_BLOCK_S",
-           "FixedParameterEffect",
+           "Inflation", "innovation_inflation", "apply_inflation", "INFLATION_BLOCK_S", "FixedParameterEffect",
            "fixed_parameter_effect"]
 
 WINDOW_S = 1.0
@@ -77,8 +76,6 @@ DIVERGED_FRACTION = 0.5
 DIVERGED_MEAN_FACTOR = 10.0
 INFLATION_BLOCK_S = 4.0
 INFLATION_QUANTILE = 0.95
-DEFLATION_QUANTILE = 0.05          # κ̂ below χ²_d/d's 5 % quantile: the model's low-frequency power is significantly too high
-DEFLATION_FLOOR_QUANTILE = 0.001   # σ is shrunk no further than a correct model's κ̂ reaches 0.1 % of the time
 
 
 @dataclass(frozen=True)
@@ -184,15 +181,6 @@ class Inflation:
                 "covariance_factor": self.factor, "sigma_factor": self.sigma_factor, "block_s": INFLATION_BLOCK_S,
                 "fixed_parameters_accounted": self.nuisance, "long_run_variance_ignoring_fixed": self.kappa_ignoring_fixed}
 
-    def deflation_note(self) -> str | None:
-        """What a factor below 1 (:func:`deflate_when_significant`) did, for the result's warnings."""
-        if self.factor >= 1.0:
-            return None
-        return (f"σ deflated ×{self.sigma_factor:.2f} from the innovations: they carry {self.kappa:.2f}× the "
-                "low-frequency power the model (its slow external acceleration fitted to this session) expects, "
-                f"significantly less (χ²'s {DEFLATION_QUANTILE:.0%} quantile), so its own σ overstated the error; "
-                f"shrunk at most to χ²'s {DEFLATION_FLOOR_QUANTILE:.1%} quantile")
-
     def warning(self, hand_aware: bool = False) -> str | None:
         """The inflation's warning; ``hand_aware``: for a filter that already models the hand (``kf_hand``),
         whose excess low-frequency power is what its lever-arm + Gauss–Markov model does not describe."""
@@ -245,27 +233,6 @@ def apply_inflation(status: str, notes: list[str], infl: Inflation, can_fail: bo
                                        else "Use the hand-aware method (kf_hand) or a steadier hand"))
         return "inconsistent"
     return status
-
-
-def deflate_when_significant(infl: Inflation) -> Inflation:
-    """The inflation test's lower side: κ̂ below χ²_d/d's ``DEFLATION_QUANTILE`` (5 %, the mirror of the
-    inflation's 95 %) says the innovations carry significantly less low-frequency power than the filter's
-    disturbance model — its fitted slow external acceleration too high where the parameters' information lies —
-    and the sandwich Var θ̂ ≈ κ P (module docstring) shrinks σ as it grows it; never below χ²_d/d's
-    ``DEFLATION_FLOOR_QUANTILE`` (0.1 %): a κ̂ further down is no scale error of the model (measured: the x-IMU3
-    hand-held session's κ̂ 0.027, its slow acceleration not a hand's) and σ is not shrunk for it.  Under a correct
-    model it fires 5 % of the time by at most that floor, as the inflation fires 5 % of the time upwards.
-    Measured (kf_hand, accelerometer calibrated, 20 paired seeds per cell): NEES(6) consumer 4.37, 5.50, 4.88, 3.39 →
-    4.37, 5.59, 5.20, 4.36, MPU-9250 4.24, 4.13, 4.05, 3.73 → 4.51, 4.36, 4.84, 4.74 (ideal/steady/typical/shaky).
-    Not for kf_hand_joint: there κ̂ falls below it with S, G already honest (MPU-9250 steady NEES(15) 15.6 → 18.7,
-    above its band) — its low-frequency deficit is in the accelerometer's directions, not S, G's."""
-    if infl.dof <= 0 or infl.factor != 1.0:
-        return infl
-    lo = float(stats.chi2.ppf(DEFLATION_QUANTILE, infl.dof) / infl.dof)
-    if infl.kappa >= lo:
-        return infl
-    floor = float(stats.chi2.ppf(DEFLATION_FLOOR_QUANTILE, infl.dof) / infl.dof)
-    return replace(infl, factor=max(infl.kappa, floor))
 
 
 def innovation_inflation(whitened: np.ndarray, t_s: np.ndarray, block_s: float = INFLATION_BLOCK_S,

@@ -101,7 +101,7 @@ from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import _apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare, rest_mask
 from .noiselevels import WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density  # noqa: F401 (re-exported)
-from .consistency import (INFLATION_BLOCK_S, check_estimate, deflate_when_significant, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
+from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
 from .fastkf import regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity
@@ -686,12 +686,10 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     ol = layout.offset("lever_arm")
     _confounding(P, ol, layout)
     infl_test = innovation_inflation(out.whitened[0], t[1:])
-    # κ̂ applied above its χ² 95 % quantile, as for every method, and with the accelerometer calibrated also below
-    # its 5 % quantile, floored at the 0.1 % one (calib.consistency.deflate_when_significant). The unbounded
-    # two-sided factor was withdrawn when the measured x-IMU3 hand-held session's κ̂ = 0.027 shrank σ ×0.16 and
-    # left an "ok" G_y 19 σ from the factory calibration; that session is now `inconsistent` (handchecks check 4:
-    # its slow acceleration implies 3.7 m of travel) and the floor shrinks σ at most ×0.74 there
-    infl = infl_test if estimate else deflate_when_significant(infl_test)
+    # one-sided (κ̂ applied only above its χ² 95 % quantile), as for every method: the two-sided factor
+    # (_sandwich_factor) brought gyrosim's hand cells into their NEES band but, on the measured x-IMU3 hand-held
+    # session, κ̂ = 0.027 shrank σ ×0.16 and left an "ok" G_y 19 σ from the factory calibration (3.2 σ one-sided)
+    infl = infl_test
     blocks = ["gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
     idx = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in blocks])
     cov = np.zeros((3 + idx.size, 3 + idx.size))
@@ -728,8 +726,6 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     if thermal is not None:
         notes = notes + [temperature["note"]]
     status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.noise_free, hand_aware=True)
-    if (note := infl.deflation_note()) is not None:
-        notes.append(note)
     if prep.noise.noise_free and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
@@ -811,8 +807,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                   warnings=prep.warnings + tuple(obs_notes + notes), method=REGISTERED_NAME[accelerometer],
                                   diagnostics={"hand": hand, "consistency": {**checks[0].to_dict(), "sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
                                                                      "sigma_factor": infl.sigma_factor,
-                                                                     "applied": "one-sided" if infl is infl_test
-                                                                                else "deflated: below the 5 % quantile, floored at the 0.1 %"}},
+                                                                     "applied": "one-sided"}},
                                                 "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
                                                           # the hand-blind filters' R allowance (calib run's JSON key):
