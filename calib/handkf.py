@@ -100,7 +100,8 @@ from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import _apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare, rest_mask
-from .noiselevels import WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density  # noqa: F401 (re-exported)
+from .noiselevels import (WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density,  # noqa: F401 (re-exported)
+                          white_variance_relative_sd)
 from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
 from .fastkf import regressor_half_window, run_filter
@@ -612,6 +613,12 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     along = float(np.mean((np.linalg.norm(f_lp0, axis=1) - cfg0.gravity_m_s2) ** 2)) - sigma_f2 * rho
     sigma_s, tau, tau_hp, hp_order = math.sqrt(max(3.0 * along, r_var)), 1.0, math.inf, 1
     tremor_rms = math.sqrt(max(float(np.mean(np.sum((acc0 - f_lp0) ** 2, axis=1))) - 3 * sigma_f2 * (1 - rho), 0.0))
+    # what that subtraction resolves: 2σ of the white-noise variance removed (its N² measured on the first rest), as an
+    # RMS — on a noisy sensor the "tremor" is the noise estimate's error (the paper's preset, VRW 15 mg/√Hz: 0.67 m/s²
+    # reported, the hand's 0.09)
+    rel_n2 = white_variance_relative_sd(rec.acc_m_s2[ra:rb], fs) if vrw is not None and cfg0.vrw_m_s2_sqrt_hz == vrw else None
+    tremor_resolution = math.sqrt(2.0 * 3 * sigma_f2 * (1 - rho) * rel_n2) if rel_n2 is not None else 0.0
+    tremor_resolved = tremor_rms > tremor_resolution
     still = rest_mask(prep, n)
     # the gyro's g-sensitivity and (a warming sensor) the scale's temperature coefficient: kf_hand (calibrated
     # accelerometer); kf_hand_joint on a warming sensor: + the accelerometer bias's temperature coefficient c_a
@@ -785,12 +792,16 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                  "highpass_tau_s": tau_hp if math.isfinite(tau_hp) else None,
                                  "highpass_order": hp_order, "acc_rms_m_s2": cfg.ext_acc_rms_a_m_s2,
                                  "psd_one_sided_0hz_m2_s4_per_hz": 4 * sigma_s**2 * tau if not math.isfinite(tau_hp) else 0.0,
-                                 "tremor_band_rms_m_s2": tremor_rms, "lowpass_hz": CUTOFF_HZ,
+                                 "tremor_band_rms_m_s2": tremor_rms, "tremor_band_resolution_m_s2": tremor_resolution,
+                                 "tremor_band_resolved": tremor_resolved, "lowpass_hz": CUTOFF_HZ,
                                  "update_every_samples": dec, **_band_report(band)}}
     notes.append(f"hand: lever arm r̂ = {np.array2string(r_hat * 100, precision=1)} ± "
                  f"{np.array2string(r_sd * 100, precision=1)} cm (body); slow external acceleration "
                  f"{cfg.ext_acc_rms_a_m_s2:.3f} m/s² RMS (τ {tau:.2f} s, high-pass "
-                 f"{'none' if not math.isfinite(tau_hp) else f'order {hp_order}, {tau_hp:.1f} s'}); tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed")
+                 f"{'none' if not math.isfinite(tau_hp) else f'order {hp_order}, {tau_hp:.1f} s'}); "
+                 + (f"tremor-band acceleration {tremor_rms:.3f} m/s² RMS removed" if tremor_resolved else
+                    f"tremor-band acceleration not resolved: {tremor_rms:.3f} m/s² RMS is within what the sensor's "
+                    f"noise, measured on the first rest, leaves uncertain ({tremor_resolution:.3f} m/s²)"))
     gyro = {"bias": rbias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
             "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
     acc_params = None

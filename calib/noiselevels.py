@@ -145,6 +145,23 @@ def white_density(x: np.ndarray, rate_hz: float) -> float | None:
     seeds): Hann 15–45 Hz 1.65–1.85e-4 (R = σ_f²/D overstated ×1.25–1.6, σ pessimistic), Blackman–Harris
     15–45 Hz 1.47–1.64e-4, Blackman–Harris 25–45 Hz 1.43–1.50e-4.  None when the rate leaves no such band
     or the rest is shorter than 2 s."""
+    p = _white_band_psd(x, rate_hz)
+    return None if p is None else float(np.sqrt(np.mean(p) / 2.0))
+
+
+def white_variance_relative_sd(x: np.ndarray, rate_hz: float) -> float | None:
+    """Relative standard deviation of :func:`white_density`'s N² (its band's mean PSD): the spread of the band's
+    PSD values (each a Welch average) over √(their number / 2) — adjacent Blackman–Harris bins are correlated,
+    about two per independent value.  What subtracting the white noise's variance from a band's power can resolve
+    (kf_hand's tremor-band RMS) follows from it.  None as for :func:`white_density`."""
+    p = _white_band_psd(x, rate_hz)
+    if p is None or np.mean(p) <= 0:
+        return None
+    return float(np.std(p) / np.mean(p) * np.sqrt(2.0 / p.size))
+
+
+def _white_band_psd(x: np.ndarray, rate_hz: float) -> np.ndarray | None:
+    """The one-sided PSD values (bins × axes) of :func:`white_density`'s band, None when there is none."""
     hi = 0.45 * rate_hz
     if hi <= WHITE_BAND_HZ + 5.0 or x.shape[0] < 2 * rate_hz:
         return None
@@ -152,4 +169,4 @@ def white_density(x: np.ndarray, rate_hz: float) -> float | None:
     f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
                              nperseg=int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), axis=0)
     band = (f >= lo) & (f <= hi)
-    return float(np.sqrt(np.mean(pxx[band]) / 2.0))
+    return pxx[band]
