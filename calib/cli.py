@@ -132,10 +132,12 @@ def cmd_run(args: argparse.Namespace) -> int:
                                "--method hand models the hand's acceleration and estimates its spectrum from the data")
         from .handkf import kf_hand
 
-        result = kf_hand(rec, accelerometer=args.accelerometer, gravity_m_s2=args.gravity, keep_history=True)
-    else:
+        result = kf_hand(rec, accelerometer=args.accelerometer, gravity_m_s2=args.gravity,
+                         keep_history=args.rrd is not None)
+    else:   # the per-step history (√P, θ̂, innovations, NIS: 0.3–0.5 KB a sample) only feeds the .rrd, never the JSON
         result = calibrate(rec, method, accelerometer=args.accelerometer,
-                           external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity)
+                           external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity,
+                           keep_history=args.rrd is not None)
     d = result.to_dict()
     from .calibrate import prepare
     from .coach import coach
