@@ -194,7 +194,7 @@ def iterated_joint(rec: Recording) -> Calibration:
 
 
 def kf_hand_joint(rec: Recording) -> Calibration:
-    """``kf_hand`` with the accelerometer estimated jointly (33 states, 39 on a warming session: + its bias, scale factor and
+    """``kf_hand`` with the accelerometer estimated jointly (36 states, 42 on a warming session: + its bias, scale factor and
     non-orthogonality; :func:`calib.handkf.kf_hand` with ``accelerometer="estimate"``) — for a raw
     accelerometer, as ``calib run`` has by default."""
     return kf_hand(rec, accelerometer="estimate")

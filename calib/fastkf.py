@@ -133,13 +133,13 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
 @njit(cache=True, fastmath=False)
 def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
             kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg, offs_x, sens0,
-            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q):  # pragma: no cover
+            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q, dreg):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
     hand = hand0.copy()                                        # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
     #                                                            (general shaping filter, lti_d > 0: component i of axis j at 3 + 3i + j)
-    sens = sens0.copy()                                        # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12): calib.kalman.SENSOR_EXTRA_BLOCKS
+    sens = sens0.copy()                                        # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15): calib.kalman.SENSOR_EXTRA_BLOCKS
     P = P0.copy()
     qout = np.zeros((B, 4))
     nis_out = np.full((B, N - 1), np.nan)
@@ -155,14 +155,14 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
         o_ea, o_el, o_e2 = -1, -1, -1
     lrow = np.zeros((9, n))
     lv = np.zeros(9)
-    o_tb, o_ts, o_gs, o_ta = offs_x[0], offs_x[1], offs_x[2], offs_x[3]
+    o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
     acc_states = o_ba >= 0
     E = np.zeros((3, 18))
     ecols = np.zeros(18, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, 44))                                     # φ 2 + accelerometer 9 + c_a 3 + lever arm 3 + a_e ≤ 27
-    hcols = np.zeros(44, dtype=np.int64)
+    Hc = np.zeros((3, 47))                                     # φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27
+    hcols = np.zeros(47, dtype=np.int64)
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -328,6 +328,9 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 if o_ta >= 0:                                  # the accelerometer bias at this sample's temperature
                     ba = ba + sx[9:12] * dtemp[b, k]
                 fh = Mia @ (a[b, k] - ba)
+                if o_dl >= 0:                                  # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t), per axis
+                    for i in range(3):
+                        fh[i] += sx[12 + i] * dreg[b, k, i]
                 fr = np.empty(3)                               # regressor: gravity predicted in the body frame
                 for i in range(3):
                     fr[i] = C[2, i] * gz                       # Ĉᵀ g_up
@@ -351,7 +354,7 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             z[i] -= lti_c[l] * hd[3 + 3 * l + i]
                 m = m_rows
                 for i in range(3):
-                    for e in range(41):
+                    for e in range(47):
                         Hc[i, e] = 0.0
                 Hc[1, 0] = gz                                  # [g_up×] on φ_x
                 hcols[0] = 0
@@ -365,6 +368,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     nh = _nb_put(Hc, hcols, nh, CMa @ _nb_jg(fr), o_ga)  # Ĉ M̂_a⁻¹ J_G(f)
                     if o_ta >= 0:
                         nh = _nb_put(Hc, hcols, nh, CMa * dtemp[b, k], o_ta)  # Ĉ M̂_a⁻¹ (T − T₀): c_a
+                if o_dl >= 0:
+                    nh = _nb_put(Hc, hcols, nh, -(C * dreg[b, k]), o_dl)  # −Ĉ diag(ḟ): f̃ = f − δ ḟ
                 if o_lv >= 0:
                     nh = _nb_put(Hc, hcols, nh, C @ kreg[b, k], o_lv)   # Ĉ K(ω, ω̇)
                 if o_ea >= 0:
@@ -476,6 +481,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             sx[6 + j] += x[o_gs + j]
                         if o_ta >= 0:
                             sx[9 + j] += x[o_ta + j]
+                        if o_dl >= 0:
+                            sx[12 + j] += x[o_dl + j]
                     q = _nb_qmul(_nb_qexp(x[0:3]), q)
                     q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
             if keep:
@@ -494,9 +501,9 @@ class FilterRun:
     asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, ``HAND_NOMINALS``: lever
     arm r (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂) — with a
     general shaping filter its state i of nav axis j at 3 + 3i + j) and the whitened innovations L⁻¹ν of the two
-    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 12): the gyro's
-    temperature coefficients c_b (rad/s/°C), s_T (1/°C) and g-sensitivity k (rad/s per m/s²), and the
-    accelerometer bias's temperature coefficient c_a (m/s²/°C), with a layout
+    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 15): the gyro's
+    temperature coefficients c_b (rad/s/°C), s_T (1/°C) and g-sensitivity k (rad/s per m/s²), the
+    accelerometer bias's temperature coefficient c_a (m/s²/°C) and its delay behind the gyro δ (s), with a layout
     that has those blocks (:data:`calib.kalman.SENSOR_EXTRA_BLOCKS`)."""
 
     layout: StateLayout
@@ -578,7 +585,7 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
                rest_mask: np.ndarray | None = None, x0: np.ndarray | None = None, rows: int = 2,
                lever_regressor: np.ndarray | None = None, hand0: np.ndarray | None = None,
                temperature_rel_c: np.ndarray | None = None, specific_force_m_s2: np.ndarray | None = None,
-               sensor0: np.ndarray | None = None) -> FilterRun:
+               sensor0: np.ndarray | None = None, acc_rate_m_s3: np.ndarray | None = None) -> FilterRun:
     """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
 
     ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even
@@ -596,7 +603,7 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     the high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` … (:data:`calib.kalman.EXT_ACC_EXTRA_BLOCKS`)
     runs a_e as the general shaping filter of :meth:`calib.kalman.FilterConfig.ext_acc_model` (the band-limited
     sway, or the same Gauss–Markov family), discretised exactly per step (:func:`ext_acc_discrete`).  ``sensor0``
-    (≤ 12,) or (B, ≤ 12): the nominal c_b, s_T, k of the gyro's extra blocks and c_a of the accelerometer's
+    (≤ 15,) or (B, ≤ 15): the nominal c_b, s_T, k of the gyro's extra blocks and c_a, δ of the accelerometer's
     (default 0; missing ones 0).
     ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), the sensor temperature relative to the filter's
     reference, needed by a layout with ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then
@@ -604,6 +611,9 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     ``acc_temp_bias`` f̃ = M_a f + b_a + c_a (T − T₀) + v (``ACC_THERMAL_BLOCKS``; T at the update's sample);
     ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²), needed by a layout with ``gyro_g_sens``:
     b_g,i += k_i f_i (:data:`calib.kalman.G_SENS_BLOCKS`).
+    ``acc_rate_m_s3`` (N, 3) or (B, N, 3): ḟ̃, the time derivative of the (compensated) specific force (body, m/s³),
+    needed by a layout with ``acc_delay``: the accelerometer samples f̃_i(t) = f_i(t − δ_i), so the update uses
+    f̃ + diag(δ̂) ḟ̃ and H's δ block is −Ĉ diag(ḟ̃) (first order in δ; :data:`calib.kalman.ACC_DELAY_BLOCKS`).
     """
     if rows not in (2, 3):
         raise ValueError(f"rows must be 2 or 3, got {rows}")
@@ -656,6 +666,12 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         freg = arr(np.broadcast_to(np.asarray(specific_force_m_s2, float), (B, N, 3)))
     else:
         freg = np.zeros((B, 1, 3))
+    if layout.models_acc_delay:
+        if acc_rate_m_s3 is None:
+            raise ValueError("a layout with the accelerometer's delay needs acc_rate_m_s3 (N, 3): ḟ, body, m/s³")
+        dreg = arr(np.broadcast_to(np.asarray(acc_rate_m_s3, float), (B, N, 3)))
+    else:
+        dreg = np.zeros((B, 1, 3))
     if layout.models_temperature:
         if temperature_rel_c is None:
             raise ValueError("a layout with a temperature block needs temperature_rel_c (N,), T − T₀ in °C")
@@ -667,10 +683,10 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
         float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
         float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
-        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti)
+        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti, dreg)
     return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
                      hand if layout.models_hand else None, wht,
-                     sens if (layout.models_temperature or layout.models_g_sensitivity) else None)
+                     sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None)
 
 
 @dataclass(frozen=True)

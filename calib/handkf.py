@@ -31,6 +31,16 @@ nav ENU; f the specific force, g_b gravity in the body):
   family): b_g,i = b_i + k_i f_i with f the (calibrated, low-passed) specific force — a bias step after every
   change of attitude, which a random walk can only cover by inflating σ; three states, prior σ 1e-3 rad/s
   per m/s² (0.56 °/s/g), reported in ``diagnostics["gyro_g_sensitivity"]``;
+* the accelerometer's delay behind the gyro, δ (s): f̃(t) = f(t − δ), to first order f = f̃ + δ ḟ̃ (ḟ̃ the
+  derivative of the low-passed f̃, body) — one state for the triad (``acc_delay``, :func:`_common_delay_prior`,
+  prior σ 10 ms).  The filter's attitude comes from the gyro and its levelling measurement from the
+  accelerometer, so a skew between them reads as an attitude error δ ω × g_b during every turn: at 1 rad/s a
+  1-ms skew is 10 mm/s², the signature of a 1e-3 scale factor error over the same turn.  Two triads' anti-alias
+  filters of different bandwidth make such a skew (MPU-9250 DLPF setting 3: gyro 5.9 ms, accelerometer 4.88 ms);
+  unmodelled it stayed in the innovations, and σ of S, G was inflated for it (MPU-9250 preset, ideal hand, 20 seeds:
+  NEES(6) 4.24 → 4.85 with δ estimated: δ̂ −0.81 ms mean, 0.16 ms spread over the seeds, reported σ 0.16–0.21 ms,
+  against the simulated gyro's 0.82-ms low-pass delay);
+  reported in ``diagnostics["acc_delay"]``;
 * the scale factor's temperature dependence (``gyro_temp_scale``), when the recording has a temperature
   channel that moved ≥ ``THERMAL_MIN_SPAN_C`` (a board warming after power-on): S_i(T) = S_i(T₀) +
   s_T,i (T − T₀), three states with a vague prior.  A session spanning a degree cannot measure s_T, but it
@@ -59,8 +69,8 @@ standard deviation would count the tremor as sensor noise (and make σ pessimist
 
 Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
 :func:`calib.fastkf.run_filter` with the :func:`hand_layout`: attitude, S, G, gyro bias, lever arm,
-x, z, z₂ (:data:`calib.kalman.HAND_BIAS`), [s_T], [g-sensitivity] — 24 states, 27 with s_T (a temperature
-channel that moved) or with the opt-in g-sensitivity alone, 30 with both; the unused z₂
+x, z, z₂ (:data:`calib.kalman.HAND_BIAS`), [s_T], [g-sensitivity], δ — 27 states, 30 with s_T (a temperature
+channel that moved) or with the opt-in g-sensitivity alone, 33 with both; the unused z₂
 (m = 1) or z (no high-pass) inert):
 
 1. pass 1: σ_s from the session's (|f_lp| − g)² (as ``kf_session_r``), τ = 1 s, no high-pass, r̂ = 0;
@@ -106,7 +116,7 @@ from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, 
                           verdict)
 from .fastkf import regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity
-from .kalman import (BLOCK_LABELS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, FilterHistory, StateLayout, initial_covariance, leave_out_means, m_matrix,
+from .kalman import (ACC_DELAY_BLOCKS, BLOCK_LABELS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, FilterHistory, StateLayout, initial_covariance, leave_out_means, m_matrix,
                      theta_slice)
 from .handchecks import check_hand_assumptions
 from .handbias import rest_bias
@@ -134,16 +144,18 @@ THERMAL_MIN_SPAN_C = 0.2   # the scale factor's temperature coefficient is a sta
 THERMAL_SMOOTH_S = 2.0     # the temperature channel is averaged over this window (its quantisation and noise)
 
 
-def hand_layout(temperature: bool, g_sensitivity: bool = False, band: bool = False) -> StateLayout:
+def hand_layout(temperature: bool, g_sensitivity: bool = False, band: bool = False, delay: bool = True) -> StateLayout:
     """kf_hand's states: :data:`calib.kalman.HAND_BIAS` (attitude, S, G, gyro bias, lever arm, x, z, z₂), then
     the scale factor's temperature coefficient s_T when the session's temperature moved (``temperature``), then
-    with ``g_sensitivity`` the gyro's g-sensitivity (diagonal: b_g,i = b_i + k_i f_i, f the specific force) — 24 to
-    30 states.  The g-sensitivity is off by default: on the measured x-IMU3 hand-held session it took the lever
+    with ``g_sensitivity`` the gyro's g-sensitivity (diagonal: b_g,i = b_i + k_i f_i, f the specific force), then
+    with ``delay`` (default) the accelerometer's delay behind the gyro (``acc_delay``: one δ, :func:`_common_delay_prior`)
+    — 27 to 33 states (24 to 30 without δ).  The g-sensitivity is off by default: on the measured x-IMU3 hand-held session it took the lever
     arm's information (r̂ 5.3 → 2.0 cm, σ ×2.5–3); on the MPU-9250 preset it brought NEES into its band.  ``band``:
     the band-limited sway's extra shaping-filter states (:data:`calib.kalman.EXT_ACC_EXTRA_BLOCKS`; with x, z, z₂
     they hold the floor and the band-pass's 2·``BAND_ORDER`` states per nav axis)."""
     return StateLayout(HAND_BIAS.blocks + (("gyro_temp_scale",) if temperature else ())
-                       + (G_SENS_BLOCKS if g_sensitivity else ()) + (EXT_ACC_EXTRA_BLOCKS[:2 * BAND_ORDER - 2] if band else ()))
+                       + (G_SENS_BLOCKS if g_sensitivity else ()) + (EXT_ACC_EXTRA_BLOCKS[:2 * BAND_ORDER - 2] if band else ())
+                       + (ACC_DELAY_BLOCKS if delay else ()))
 
 
 def _band_config(band: dict) -> dict:
@@ -171,15 +183,16 @@ def _band_report(band: dict | None) -> dict:
 JOINT_GYRO_THERMAL = True
 
 
-def joint_layout(temperature: bool, gyro_thermal: bool | None = None) -> StateLayout:
+def joint_layout(temperature: bool, gyro_thermal: bool | None = None, delay: bool = True) -> StateLayout:
     """kf_hand_joint's states: :data:`calib.kalman.HAND_JOINT` (33), and when the session's temperature moved
     (``temperature``) the accelerometer bias's temperature coefficient c_a (``acc_temp_bias``, 3 states) and —
-    ``gyro_thermal``, default ``JOINT_GYRO_THERMAL`` — the gyro scale's s_T (``gyro_temp_scale``, as kf_hand):
-    33, 36 or 39 states."""
+    ``gyro_thermal``, default ``JOINT_GYRO_THERMAL`` — the gyro scale's s_T (``gyro_temp_scale``, as kf_hand), and
+    with ``delay`` (default) the accelerometer's delay δ (as kf_hand): 36, 39 or 42 states (33, 36 or 39 without δ)."""
+    dl = ACC_DELAY_BLOCKS if delay else ()
     if not temperature:
-        return HAND_JOINT
+        return StateLayout(HAND_JOINT.blocks + dl)
     gt = JOINT_GYRO_THERMAL if gyro_thermal is None else gyro_thermal
-    return StateLayout(HAND_JOINT.blocks + (("gyro_temp_scale",) if gt else ()) + ("acc_temp_bias",))
+    return StateLayout(HAND_JOINT.blocks + (("gyro_temp_scale",) if gt else ()) + ("acc_temp_bias",) + dl)
 
 
 def _smoothed_temperature(temp_c: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -547,13 +560,15 @@ def _acc_theta(theta: np.ndarray) -> np.ndarray:
 
 
 def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None,
-            g_sensitivity: bool = False, sway: str = "gauss_markov", keep_history: bool = False) -> Calibration:
+            g_sensitivity: bool = False, sway: str = "gauss_markov", keep_history: bool = False,
+            delay: bool = True) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
-    the registered ``kf_hand``: 24 states, 27 when the recording's temperature moved (s_T), 30 with the opt-in
+    the registered ``kf_hand``: 27 states, 30 when the recording's temperature moved (s_T), 33 with the opt-in
     ``g_sensitivity`` too — :func:`hand_layout`) or "estimate" (the registered ``kf_hand_joint``: + the
-    accelerometer's bias, scale factor and non-orthogonality, 33 states, 39 when the recording's temperature moved
+    accelerometer's bias, scale factor and non-orthogonality, 36 states, 42 when the recording's temperature moved
     (s_T and the accelerometer bias's c_a — :func:`joint_layout`) — what ``calib run`` estimates by
-    default).  With the accelerometer estimated, every pass applies its error model at the current
+    default).  ``delay``: the accelerometer's delay behind the gyro is a state (default; three fewer states without
+    it).  With the accelerometer estimated, every pass applies its error model at the current
     estimate, f̂ = M̂_a⁻¹(f̃ − b̂_a), *before* the nav-frame tremor low-pass (the low-pass of a rotated
     body-frame bias is not the bias), and hands the kernel the low-passed f̂ mapped back through
     f̃_lp = M̂_a f̂_lp + b̂_a, so the kernel's own compensation at the nominal gives f̂_lp again; the prior of
@@ -624,8 +639,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # accelerometer); kf_hand_joint on a warming sensor: + the accelerometer bias's temperature coefficient c_a
     # (and the gyro scale's s_T, JOINT_GYRO_THERMAL)
     thermal = session_temperature(None if rec.temp_c is None else rec.temp_c[a:], fs)
-    layout = (joint_layout(thermal is not None) if estimate
-              else hand_layout(thermal is not None, g_sensitivity, band=sway == "band"))
+    layout = (joint_layout(thermal is not None, delay=delay) if estimate
+              else hand_layout(thermal is not None, g_sensitivity, band=sway == "band", delay=delay))
     band = None
     dt_rest = 0.0      # the rest's mean temperature − T₀ (its accelerometer mean levels the initial attitude)
     if thermal is not None and layout.has("acc_temp_bias"):
@@ -671,6 +686,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         else:
             p0 = initial_covariance(layout, cfg, tilt_sigma_rad=tilt)
         _g_sensitivity_prior(p0, layout, f_rest)                # no-ops without those blocks
+        _common_delay_prior(p0, layout)
         _sensor_extra_prior(x0, layout, sens0)
         # the kernel compensates at θ̂_a again
         f_kernel = f_lp @ m_matrix(th_a[3:6], th_a[6:9]).T + th_a[0:3] + acc_temp if estimate else f_lp
@@ -680,6 +696,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                          x0=x0[None], lever_regressor=kreg, hand0=h0, rows=rows,
                          temperature_rel_c=None if not layout.models_temperature else thermal[0],
                          specific_force_m_s2=f_lp if layout.models_g_sensitivity else None, sensor0=sens0,
+                         acc_rate_m_s3=np.gradient(f_lp, t, axis=0) if layout.models_acc_delay else None,
                          keep_history=keep_history and p == PASSES - 1)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
@@ -755,6 +772,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                          f"{THERMAL_MIN_SPAN_C} °C), so the accelerometer bias is taken as constant; if the board was "
                          "warming, σ of S, G may be ~20 % small — record the temperature (kf_hand_joint then models "
                          "b_a(T)) or warm the sensor up first")
+    if layout.models_acc_delay:
+        dly = _delay_report(sens0, P, layout, infl.factor)
+        notes.append(f"timing: the accelerometer samples {dly['delay_s'] * 1e3:+.2f} ± {dly['std_s'] * 1e3:.2f} ms after the gyro "
+                     "(estimated; negative: before) — a skew between the triads or their low-pass filters' different delays, "
+                     "modelled so that it does not enter S and G")
     r_hat = hand0[:3]
     # the lever arm's σ: its information sits at the turns' ω̇ and ω² (0.1–1 Hz, inside the sway band, where the
     # fitted model understates the power), above the < 0.125 Hz that κ̂'s 4-s blocks measure; the same one-sided
@@ -831,6 +853,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                                 "temperature": {k: v for k, v in temperature.items() if k != "note"},
                                                 **({"gyro_g_sensitivity": _g_sensitivity_report(sens0, P, layout, infl.factor)}
                                                    if layout.models_g_sensitivity else {}),
+                                                **({"acc_delay": _delay_report(sens0, P, layout, infl.factor)}
+                                                   if layout.models_acc_delay else {}),
                                                 "assumptions": assumptions.to_dict(),
                                                 **extra,
                                                 "filter": {"states": list(layout.names), "passes": PASSES,
@@ -874,6 +898,21 @@ def _g_sensitivity_prior(p0: np.ndarray, layout, f_rest_m_s2: np.ndarray) -> Non
     p0[ob:ob + 3, ob:ob + 3] += F @ pk @ F
     p0[ob:ob + 3, og:og + 3] = -F @ pk
     p0[og:og + 3, ob:ob + 3] = -pk @ F
+
+
+def _common_delay_prior(p0: np.ndarray, layout) -> None:
+    """One delay for the whole accelerometer triad: the three ``acc_delay`` states' prior is σ² 𝟙𝟙ᵀ (rank one), so
+    with no process noise every update moves them together and they stay one number δ.  Two chips' (or two dies')
+    anti-alias filters and sampling set one offset between the triads; a per-axis δ_i took other misfits instead
+    (measured on the x-IMU3 hand-held session: δ = +5.4, −3.6, −15.3 ms per axis, and G_y moved 36 σ from the factory
+    calibration)."""
+    o = layout.offset("acc_delay")
+    if o < 0:
+        return
+    v = float(np.mean(np.diag(p0)[o:o + 3]))
+    p0[o:o + 3, :] = 0.0
+    p0[:, o:o + 3] = 0.0
+    p0[o:o + 3, o:o + 3] = v
 
 
 def _sensor_extra_prior(x0: np.ndarray, layout, sens: np.ndarray) -> None:
@@ -939,6 +978,19 @@ def _g_sensitivity_report(sens: np.ndarray, P: np.ndarray, layout, inflation: fl
     return {"model": "b_g,i = b_i + k_i f_i (f the specific force, body; diagonal g-sensitivity)",
             "k_rad_s_per_m_s2": k.tolist(), "std_rad_s_per_m_s2": sd.tolist(), "covariance_rad2_s2_per_m2_s4": cov.tolist(),
             "k_deg_s_per_g": (k * to_deg_g).tolist(), "std_deg_s_per_g": (sd * to_deg_g).tolist()}
+
+
+def _delay_report(sens: np.ndarray, P: np.ndarray, layout, inflation: float) -> dict:
+    """``diagnostics["acc_delay"]``: the accelerometer's delay behind the gyro δ (s; f̃(t) = f(t − δ), positive: the
+    accelerometer lags; one number for the triad, :func:`_common_delay_prior`) with its σ — a finding for the user: a
+    timing skew between the two triads, or their anti-alias filters' different group delays (the MPU-9250's DLPF
+    setting 3: gyro 5.9 ms, accelerometer 4.88 ms — InvenSense RM-MPU-9250A-00 register map, CONFIG and ACCEL_CONFIG 2
+    — so δ ≈ −1 ms)."""
+    o = layout.offset("acc_delay")
+    d = float(np.mean(sens[12:15]))
+    sd = math.sqrt(max(float(P[o, o]), 0.0) * inflation)
+    return {"model": "f̃(t) = f(t − δ): the accelerometer samples δ after the gyro (first order in δ; one δ for the triad)",
+            "delay_s": d, "std_s": sd}
 
 
 def _gravity_fit_lever_free(rec: Recording, prep, start: int, kreg: np.ndarray, r_m: np.ndarray,

@@ -80,7 +80,7 @@ from gyrosim.rotations import quat_normalize, skew
 
 __all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
            "HAND_JOINT", "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "ACC_THERMAL_BLOCKS", "SENSOR_EXTRA_BLOCKS",
-           "EXT_ACC_BLOCKS", "EXT_ACC_EXTRA_BLOCKS", "HAND_BIAS_TS",
+           "EXT_ACC_BLOCKS", "EXT_ACC_EXTRA_BLOCKS", "HAND_BIAS_TS", "ACC_DELAY_BLOCKS",
            "HAND_BIAS_THERMAL",
            "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
            "m_matrix", "BLOCK_LABELS"]
@@ -103,7 +103,7 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
           "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2", "gyro_temp_bias", "gyro_temp_scale",
           "gyro_g_sens", "ext_acc_s3", "ext_acc_s4", "ext_acc_s5", "ext_acc_s6", "ext_acc_s7", "ext_acc_s8",
-          "acc_temp_bias")
+          "acc_temp_bias", "acc_delay")
 THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:11]
 THERMAL_BLOCKS = BLOCKS[11:13]
@@ -115,12 +115,17 @@ EXT_ACC_BLOCKS = ("ext_acc", "ext_acc_lp", "ext_acc_lp2") + EXT_ACC_EXTRA_BLOCKS
 assert all(b in BLOCKS for b in EXT_ACC_BLOCKS)
 ACC_THERMAL_BLOCKS = ("acc_temp_bias",)   # the accelerometer bias's temperature coefficient c_a (m/s²/°C): b_a += c_a (T − T₀)
 assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
-# their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k, c_a)
-SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS + ACC_THERMAL_BLOCKS
+# the accelerometer's delay behind the gyro per axis, δ_i (s): f̃_i(t) = f_i(t − δ_i), to first order
+# f_i(t) = f̃_i(t) + δ_i ḟ̃_i(t) — two sensors' anti-alias filters of different bandwidth (MPU-9250: 41 Hz gyro,
+# 44.8 Hz accelerometer DLPF) or a sampling skew
+ACC_DELAY_BLOCKS = ("acc_delay",)
+assert all(b in BLOCKS for b in ACC_DELAY_BLOCKS)
+# their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k, c_a, δ)
+SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS + ACC_THERMAL_BLOCKS + ACC_DELAY_BLOCKS
 _SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
           "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
           "ext_acc_lp2": "ael2", "gyro_temp_bias": "cb", "gyro_temp_scale": "sT",
-          "gyro_g_sens": "kg", **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)}, "acc_temp_bias": "ca"}
+          "gyro_g_sens": "kg", **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)}, "acc_temp_bias": "ca", "acc_delay": "dt"}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",
@@ -130,7 +135,8 @@ BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyr
                 "gyro_temp_scale": "gyro scale factor temperature coefficient",
                 "gyro_g_sens": "gyro g-sensitivity (diagonal)",
                 **{f"ext_acc_s{i}": f"external acceleration's band-pass state {i}" for i in range(3, 9)},
-                "acc_temp_bias": "accelerometer bias temperature coefficient"}
+                "acc_temp_bias": "accelerometer bias temperature coefficient",
+                "acc_delay": "accelerometer delay behind the gyro"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -184,6 +190,10 @@ class StateLayout:
     @property
     def models_g_sensitivity(self) -> bool:
         return self.has("gyro_g_sens")
+
+    @property
+    def models_acc_delay(self) -> bool:
+        return self.has("acc_delay")
 
 
 PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated accelerometer, static bias)
@@ -310,6 +320,7 @@ class FilterConfig:
     prior_gyro_temp_scale_per_c: float = 0.01
     prior_gyro_g_sens_rad_s_per_m_s2: float = 1e-3
     prior_acc_temp_bias_m_s2_c: float = 0.1
+    prior_acc_delay_s: float = 0.01
     ext_acc_band_hz: tuple[float, float] | None = None
     ext_acc_band_rms_m_s2: float = 0.0
     ext_acc_band_order: int = 2
@@ -373,7 +384,8 @@ class FilterConfig:
                 "gyro_temp_bias": np.full(3, self.prior_gyro_temp_bias_rad_s_c),
                 "gyro_temp_scale": np.full(3, self.prior_gyro_temp_scale_per_c),
                 "gyro_g_sens": np.full(3, self.prior_gyro_g_sens_rad_s_per_m_s2),
-                "acc_temp_bias": np.full(3, self.prior_acc_temp_bias_m_s2_c)}[block]   # with ext_acc: ext_acc_stationary
+                "acc_temp_bias": np.full(3, self.prior_acc_temp_bias_m_s2_c),
+                "acc_delay": np.full(3, self.prior_acc_delay_s)}[block]   # with ext_acc: ext_acc_stationary
 
     def ext_acc_stationary(self) -> np.ndarray:
         """Stationary covariance (k, k) of one nav axis's (x, z[, z₂]) (k = 1 + high-pass order; k = 1 for
@@ -504,7 +516,7 @@ class ZhouFilter:
 
     def __init__(self, config: FilterConfig, quat0_nb: np.ndarray, rate_hz: float, layout: StateLayout = PAPER,
                  theta0: np.ndarray | None = None, p0: np.ndarray | None = None, x0: np.ndarray | None = None) -> None:
-        if layout.models_hand or layout.models_temperature or layout.models_g_sensitivity:
+        if layout.models_hand or layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay:
             raise ValueError("the hand's blocks (lever arm, external acceleration) and the temperature blocks run in "
                              "the compiled filter only (calib.fastkf.run_filter)")
         self.config = config

@@ -61,7 +61,7 @@ from gyrosim.strapdown import integrate_gyro
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
 from .handkf import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature, white_density
-from .kalman import EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
+from .kalman import ACC_DELAY_BLOCKS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -199,7 +199,7 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
               bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1,
               temperature_rel_c: np.ndarray | None = None, g_sensitivity: bool = False,
               estimate_accelerometer: bool = False, band_hz: tuple[float, float] | None = None,
-              band_rms_m_s2: float = 0.0, band_order: int = 2) -> np.ndarray:
+              band_rms_m_s2: float = 0.0, band_order: int = 2, delay: bool = True) -> np.ndarray:
     """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.kalman.HAND` states (module
     docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
     rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
@@ -218,8 +218,10 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     kf_hand's band-limited sway — a_e is then the Gauss–Markov floor (``sigma_s_m_s2``, ``tau_s``) plus a
     Butterworth band-pass of ``band_order`` poles per edge with RMS ``band_rms_m_s2``
     (:meth:`calib.kalman.FilterConfig.ext_acc_model`), the same model the filter fitted.  S, G are rows 3:9 of the
-    result either way (S at T₀).  The layout is :func:`hand_crlb_layout`'s."""
-    from .handkf import _g_sensitivity_prior, _variance_ratio, lever_regressor
+    result either way (S at T₀).  ``delay``: the accelerometer's delay behind the gyro is one more nuisance state
+    (as in ``kf_hand``: one δ for the triad, prior σ 10 ms; regressor ḟ of the true specific force).  The layout is
+    :func:`hand_crlb_layout`'s."""
+    from .handkf import _common_delay_prior, _g_sensitivity_prior, _variance_ratio, lever_regressor
 
     th = np.asarray(theta_true, float)
     m = np.eye(3) + np.diag(th[0:3]) + np.array([[0, th[5], th[4]], [th[5], 0, th[3]], [th[4], th[3], 0]])
@@ -234,8 +236,9 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
                   ext_acc_band_hz=None if band_hz is None else (float(band_hz[0]), float(band_hz[1])),
                   ext_acc_band_rms_m_s2=float(band_rms_m_s2), ext_acc_band_order=int(band_order))
     layout = hand_crlb_layout(bias_rw_rad_s_sqrt_s > 0, temperature_rel_c is not None, g_sensitivity, estimate_accelerometer,
-                              2 * int(band_order) - 2 if band_hz is not None else 0)
+                              2 * int(band_order) - 2 if band_hz is not None else 0, delay)
     p0 = initial_covariance(layout, cfg)
+    _common_delay_prior(p0, layout)
     p0[3:9, 3:9] = np.eye(6) * vague**2
     vague_blocks = ("lever_arm", "acc_bias", "acc_scale", "acc_nonorth") if estimate_accelerometer else ("lever_arm",)
     for blk in vague_blocks:
@@ -261,20 +264,21 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
                      lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz),
                      rows=3 if estimate_accelerometer else 2,
                      temperature_rel_c=temperature_rel_c if layout.models_temperature else None,
-                     specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if layout.has("gyro_g_sens") else None)
+                     specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if layout.has("gyro_g_sens") else None,
+                     acc_rate_m_s3=np.gradient(acc, t_s, axis=0) if layout.models_acc_delay else None)
     return run.p[0]
 
 
 def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, estimate_accelerometer: bool,
-                     band_states: int = 0) -> StateLayout:
+                     band_states: int = 0, delay: bool = True) -> StateLayout:
     """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.handkf.hand_layout`; ``band_states`` extra
     shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.handkf.joint_layout`) on a
-    session whose temperature moved (``temperature``) or not."""
+    session whose temperature moved (``temperature``) or not; ``delay``: with the accelerometer's delay δ."""
     if estimate_accelerometer:
-        return joint_layout(temperature)
+        return joint_layout(temperature, delay=delay)
     base = HAND_BIAS if bias_rw else HAND
     return StateLayout(base.blocks + (("gyro_temp_scale",) if temperature else ()) + (G_SENS_BLOCKS if g_sensitivity else ())
-                       + EXT_ACC_EXTRA_BLOCKS[:band_states])
+                       + EXT_ACC_EXTRA_BLOCKS[:band_states] + (ACC_DELAY_BLOCKS if delay else ()))
 
 
 def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:

@@ -1,5 +1,5 @@
 """``kf_hand_joint``: the hand-aware calibration with a raw accelerometer (its bias, scale factor and
-non-orthogonality estimated with the gyro's, 33 states) — what ``calib run --method hand`` runs.
+non-orthogonality estimated with the gyro's, and its delay behind the gyro: 36 states) — what ``calib run --method hand`` runs.
 
 Data from the independent generator (tests/independent_generator.py: imports nothing of ours), which
 injects a lever arm (closed-form ω̇), tremor and sway (sums of sines in nav) and a raw accelerometer
@@ -51,7 +51,7 @@ def test_kf_hand_joint_on_an_independent_hand_with_a_raw_accelerometer(kin):
         cal = estimators.kf_hand_joint(rec)
         assert cal.status == "ok", cal.warnings
         assert cal.method == "kf_hand_joint" and cal.diagnostics["accelerometer_mode"] == "estimate"
-        assert len(cal.diagnostics["filter"]["states"]) == 33
+        assert len(cal.diagnostics["filter"]["states"]) == 36   # HAND_JOINT + the accelerometer delay δ
         e, c = _err_cov(cal, d)
         n6 += float(e[:6] @ np.linalg.solve(c[:6, :6], e[:6]))
         n15 += float(e @ np.linalg.solve(c, e))
@@ -200,8 +200,8 @@ def test_kf_hand_joint_reports_the_accelerometer_bias_at_a_stated_temperature(ki
 
 def test_joint_hand_bound_with_the_temperature_blocks_as_nuisance(kin):
     """kf_hand_joint's hand-aware bound on a warming session: the accelerometer bias's c_a and the gyro scale's
-    s_T as vague nuisance states (``hand_crlb(..., estimate_accelerometer=True, temperature_rel_c=…)``, 39
-    states), S and b_a mapped to the temperatures where they decouple.  Nuisance parameters cannot add
+    s_T as vague nuisance states (``hand_crlb(..., estimate_accelerometer=True, temperature_rel_c=…)``, 42
+    states with the accelerometer delay δ), S and b_a mapped to the temperatures where they decouple.  Nuisance parameters cannot add
     information: every σ of S, G and b_a ≥ the bound without them (to 1e-9 relative, the recursion's rounding);
     b_a at its T_a stays within 1.1× (measured 1.01–1.07 on this schedule: deterministic, no noise drawn) — the
     point of stating T_a."""

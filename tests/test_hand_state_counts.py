@@ -1,5 +1,6 @@
 """kf_hand's state counts as its docstrings and ``calib bench`` state them, against :func:`calib.handkf.hand_layout`
-(they said "24 states" after the temperature block made it 27 on a warming sensor)."""
+(they said "24 states" after the temperature block made it 27 on a warming sensor; the accelerometer's delay δ
+adds three more)."""
 
 from __future__ import annotations
 
@@ -12,11 +13,12 @@ from calib.kalman import HAND_JOINT
 
 def test_state_counts_in_the_docstrings_are_the_layouts():
     n = {(t, g): hand_layout(t, g).n for t in (False, True) for g in (False, True)}
-    assert n == {(False, False): 24, (True, False): 27, (False, True): 27, (True, True): 30}
+    assert n == {(False, False): 27, (True, False): 30, (False, True): 30, (True, True): 33}
+    assert {t: hand_layout(t, delay=False).n for t in (False, True)} == {False: 24, True: 27}
     assert HAND_JOINT.n == 33
     doc = " ".join(kf_hand.__doc__.split())
-    assert "24 states, 27 when the recording's temperature moved (s_T), 30 with the opt-in" in doc
-    assert "33 states" in doc
+    assert "27 states, 30 when the recording's temperature moved (s_T), 33 with the opt-in" in doc
+    assert "36 states" in doc
     # calib bench times kf_hand on a warming MPU-9250 session: the s_T block is on, g-sensitivity off
     src = open(bench.__file__, encoding="utf-8").read()
     (label,) = re.findall(r'"kf_hand \((\d+) states', src)
@@ -24,13 +26,15 @@ def test_state_counts_in_the_docstrings_are_the_layouts():
 
 
 def test_kf_hand_joint_state_counts_are_its_layouts():
-    """kf_hand_joint: 33 states, 39 when the recording's temperature moved (s_T and the accelerometer bias's c_a:
-    :func:`calib.handkf.joint_layout`); calib bench's session is a warming MPU-9250, so its label says 39."""
+    """kf_hand_joint: 36 states, 42 when the recording's temperature moved (s_T and the accelerometer bias's c_a:
+    :func:`calib.handkf.joint_layout`; both with the accelerometer's delay δ); calib bench's session is a warming
+    MPU-9250, so its label says 42."""
     from calib.handkf import joint_layout
 
-    assert joint_layout(False).n == 33 and joint_layout(True).n == 39
+    assert joint_layout(False).n == 36 and joint_layout(True).n == 42
+    assert joint_layout(False, delay=False).n == 33
     doc = " ".join(kf_hand.__doc__.split())
-    assert "33 states, 39 when the recording's temperature moved" in doc
+    assert "36 states, 42 when the recording's temperature moved" in doc
     src = open(bench.__file__, encoding="utf-8").read()
     (label,) = re.findall(r'"kf_hand_joint \((\d+) states', src)
     assert int(label) == joint_layout(True).n
