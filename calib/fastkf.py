@@ -660,18 +660,18 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         s0 = np.concatenate([s0, np.zeros(s0.shape[:-1] + (ns - s0.shape[-1],))], axis=-1)
     sens0 = arr(np.broadcast_to(s0, (B, ns)))
     offs_x = np.array([layout.offset(b) for b in SENSOR_EXTRA_BLOCKS], dtype=np.int64)
-    if layout.models_g_sensitivity:
-        if specific_force_m_s2 is None:
-            raise ValueError("a layout with the gyro's g-sensitivity needs specific_force_m_s2 (N, 3), body, m/s²")
-        freg = arr(np.broadcast_to(np.asarray(specific_force_m_s2, float), (B, N, 3)))
-    else:
-        freg = np.zeros((B, 1, 3))
-    if layout.models_acc_delay:
-        if acc_rate_m_s3 is None:
-            raise ValueError("a layout with the accelerometer's delay needs acc_rate_m_s3 (N, 3): ḟ, body, m/s³")
-        dreg = arr(np.broadcast_to(np.asarray(acc_rate_m_s3, float), (B, N, 3)))
-    else:
-        dreg = np.zeros((B, 1, 3))
+    def body_regressor(used: bool, x: np.ndarray | None, need: str) -> np.ndarray:
+        """(B, N, 3) of a per-sample body-frame regressor a block needs; a (B, 1, 3) placeholder without the block."""
+        if not used:
+            return np.zeros((B, 1, 3))
+        if x is None:
+            raise ValueError(f"a layout with {need}")
+        return arr(np.broadcast_to(np.asarray(x, float), (B, N, 3)))
+
+    freg = body_regressor(layout.models_g_sensitivity, specific_force_m_s2,
+                          "the gyro's g-sensitivity needs specific_force_m_s2 (N, 3), body, m/s²")
+    dreg = body_regressor(layout.models_acc_delay, acc_rate_m_s3,
+                          "the accelerometer's delay needs acc_rate_m_s3 (N, 3): ḟ, body, m/s³")
     if layout.models_temperature:
         if temperature_rel_c is None:
             raise ValueError("a layout with a temperature block needs temperature_rel_c (N,), T − T₀ in °C")
