@@ -663,9 +663,8 @@ def monte_carlo(
         sd_acc = sdh[oa:oa + 9] if estimate else None
         sd_plain_joint = None
         if thermal is not None and not estimate:
-            base = HAND_BIAS if hand_psd["bias_rw_rad_s_sqrt_s"] > 0 else HAND
-            lay_t = StateLayout(base.blocks + ("gyro_temp_scale",) + (G_SENS_BLOCKS if g_sens else ())
-                                + (EXT_ACC_EXTRA_BLOCKS[:2 * hand_psd["band_order"] - 2] if hand_psd.get("band_hz") else ()))
+            lay_t = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, False,
+                                     2 * hand_psd["band_order"] - 2 if hand_psd.get("band_hz") else 0)   # hand_crlb's
             t_r, jt = scale_at_temperature(ph, lay_t, thermal[1])
             sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
             if t_oracle is not None:   # S(T) = S(T₀) + s_T (T − T₀) at T = the oracle's reference, every axis
