@@ -8,7 +8,7 @@ estimates δ (one state for the triad) and must (1) find it honestly, (2) keep S
 one where there is none.
 
 Tolerances.  Under an honest σ, each session's z = (δ̂ − δ)/σ_δ is N(0, 1): Σz² over 6 sessions is χ²(6), two-sided
-99.9 % interval [0.38, 22.5]; the summed NEES of S, G over the same 6 sessions is χ²(36), interval [14.4, 67.0]
+99.9 % interval [0.30, 24.1]; the summed NEES of S, G over the same 6 sessions is χ²(36), interval [14.4, 70.6]
 (scipy.stats.chi2.ppf(0.0005 / 0.9995, dof)).  Without the skew δ̂ must be within 3.3 σ of 0 (99.9 % two-sided).
 """
 
