@@ -772,8 +772,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                          f"{THERMAL_MIN_SPAN_C} °C), so the accelerometer bias is taken as constant; if the board was "
                          "warming, σ of S, G may be ~20 % small — record the temperature (kf_hand_joint then models "
                          "b_a(T)) or warm the sensor up first")
-    if layout.models_acc_delay:
-        dly = _delay_report(sens0, P, layout, infl.factor)
+    dly = _delay_report(sens0, P, layout, infl.factor) if layout.models_acc_delay else None
+    if dly is not None:
         notes.append(f"timing: the accelerometer samples {dly['delay_s'] * 1e3:+.2f} ± {dly['std_s'] * 1e3:.2f} ms after the gyro "
                      "(estimated; negative: before) — a skew between the triads or their low-pass filters' different delays, "
                      "modelled so that it does not enter S and G")
@@ -853,8 +853,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                                 "temperature": {k: v for k, v in temperature.items() if k != "note"},
                                                 **({"gyro_g_sensitivity": _g_sensitivity_report(sens0, P, layout, infl.factor)}
                                                    if layout.models_g_sensitivity else {}),
-                                                **({"acc_delay": _delay_report(sens0, P, layout, infl.factor)}
-                                                   if layout.models_acc_delay else {}),
+                                                **({"acc_delay": dly} if dly is not None else {}),
                                                 "assumptions": assumptions.to_dict(),
                                                 **extra,
                                                 "filter": {"states": list(layout.names), "passes": PASSES,

@@ -115,9 +115,10 @@ EXT_ACC_BLOCKS = ("ext_acc", "ext_acc_lp", "ext_acc_lp2") + EXT_ACC_EXTRA_BLOCKS
 assert all(b in BLOCKS for b in EXT_ACC_BLOCKS)
 ACC_THERMAL_BLOCKS = ("acc_temp_bias",)   # the accelerometer bias's temperature coefficient c_a (m/s²/°C): b_a += c_a (T − T₀)
 assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
-# the accelerometer's delay behind the gyro per axis, δ_i (s): f̃_i(t) = f_i(t − δ_i), to first order
+# the accelerometer's delay behind the gyro, one state per axis, δ_i (s): f̃_i(t) = f_i(t − δ_i), to first order
 # f_i(t) = f̃_i(t) + δ_i ḟ̃_i(t) — two sensors' anti-alias filters of different bandwidth (MPU-9250: 41 Hz gyro,
-# 44.8 Hz accelerometer DLPF) or a sampling skew
+# 44.8 Hz accelerometer DLPF) or a sampling skew; kf_hand ties the three into one δ with a rank-one prior
+# (calib.handkf._common_delay_prior)
 ACC_DELAY_BLOCKS = ("acc_delay",)
 assert all(b in BLOCKS for b in ACC_DELAY_BLOCKS)
 # their nominals: calib.fastkf.FilterRun.sensor_extra (c_b, s_T, k, c_a, δ)
