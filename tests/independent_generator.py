@@ -159,7 +159,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
                     sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
                     bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
-                    temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
+                    bias_flicker_rad_s: float = 0.0, temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
                     wobble_bands=()) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
@@ -176,7 +176,9 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
 
     A drifting gyro bias (a consumer gyro warming up): ``bias_ramp_rad_s2`` adds a linear trend per axis
     and ``bias_walk_rad_s_sqrt_s`` K a random walk (Euler sum of N(0, K² Δt) steps per sample, its own
-    random stream); ``bias_rad_s`` in the result stays the bias at t = 0, ``bias_path_rad_s`` the whole path.
+    random stream); ``bias_flicker_rad_s`` B a bias-instability (1/f) floor, two-sided PSD B²/(2πf) (IEEE Std 952's
+    convention; Kasdin–Walter, :func:`independent_noise.flicker`, its own stream), as a warmed-up MEMS gyro drifts;
+    ``bias_rad_s`` in the result stays the bias at t = 0, ``bias_path_rad_s`` the whole path.
 
     A warming sensor: ``temperature_c`` (N,) the sensor temperature (°C, recorded in ``temp_c``) and
     ``scale_per_c`` (3,) the scale factor's temperature coefficient (1/°C): the gyro's scale is
@@ -220,6 +222,10 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
         steps_rw = np.random.default_rng([seed, 19]).normal(size=(n, 3)) * bias_walk_rad_s_sqrt_s / math.sqrt(rate_hz)
         steps_rw[0] = 0.0
         bias_path = bias_path + np.cumsum(steps_rw, axis=0)
+    if bias_flicker_rad_s > 0:
+        from independent_noise import flicker
+        fl = flicker(n, bias_flicker_rad_s, np.random.default_rng([seed, 29]))
+        bias_path = bias_path + fl - fl[0]
     clean = omega @ _m(scale, nonortho).T + bias_path
     temp = None
     if temperature_c is not None:
