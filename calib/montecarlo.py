@@ -338,6 +338,35 @@ def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
     return _per_axis_at_temperatures(model.gyro, t_c, slope)
 
 
+def truth_gyro_scale_at_rate(rec, rate_rad_s: np.ndarray, t_c: np.ndarray) -> np.ndarray:
+    """The simulated device's gyro scale factor change (3,) at the rates a calibration states its S for
+    (``diagnostics["scale_reference_rate"]``, :func:`calib.handkf.scale_reference_rate`): axis i's chord slope over
+    ±m_i, (δ_i(+m_i e_i) − δ_i(−m_i e_i)) / 2m_i, minus its slope at 0 rad/s (which
+    :func:`truth_scale_at_temperature` already counts), of the deterministic, non-affine, pointwise error effects at
+    the temperature T_i (scoring only: it reads the truth).  A nonlinearity k ω|ω| reads k m_i; a temperature-
+    dependent scale, linear in the rate, nothing — the accelerometer's counterpart is
+    :func:`truth_acc_scale_at_gravity`."""
+    from gyrosim.sensor_model import stored_sensor_model
+
+    model = stored_sensor_model(rec.meta or {})
+    if model is None:
+        return np.zeros(3)
+    m = np.asarray(rate_rad_s, float)
+    zero = np.zeros((2, 3))
+
+    def chord_minus_slope(e, ctx, i):
+        if not m[i] > 0:
+            return None
+        x = np.zeros((2, 3))
+        x[0, i], x[1, i] = m[i], -m[i]
+        d, s0 = e.delta(x, ctx), e.delta_dx(zero, ctx)
+        if d is None:
+            return None
+        chord = float(np.asarray(d)[0, i] - np.asarray(d)[1, i]) / (2.0 * m[i])
+        return chord - (0.0 if s0 is None else float(s0[0, i, i]))
+    return _per_axis_at_temperatures(model.gyro, t_c, chord_minus_slope)
+
+
 def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     """The simulated device's accelerometer bias change (3,) at the temperatures ``t_c`` (°C, one per axis)
     relative to the oracle's bias: the value at zero input of its deterministic, non-affine, pointwise error
@@ -567,6 +596,11 @@ def monte_carlo(
                 t_r = np.asarray(temp["scale_reference_temperature_c"], float)
                 tm[3:6] += truth_scale_at_temperature(rec, t_r)
                 t_ref_m[m].append(t_r)
+            srate = c.diagnostics.get("scale_reference_rate", {})
+            if "rate_rad_s" in srate:   # S as the chord slope over the session's rates (a nonlinearity's share)
+                t_s = np.asarray(temp["scale_reference_temperature_c"], float) if (
+                    temp.get("modelled") and "scale_reference_temperature_c" in temp) else np.full(3, t_session)
+                tm[3:6] += truth_gyro_scale_at_rate(rec, np.asarray(srate["rate_rad_s"], float), t_s)
             gb = c.diagnostics.get("gyro_bias", {})
             if "rest_index_range" in gb:   # the bias at the rest it states (calib.handbias), not at T_ref, f = 0
                 rng_ = tuple(gb["rest_index_range"])

@@ -159,7 +159,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
                     sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
                     bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
-                    bias_flicker_rad_s: float = 0.0, temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
+                    bias_flicker_rad_s: float = 0.0, scale_nonlinearity_per_rad_s=(0.0, 0.0, 0.0), temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
                     wobble_bands=()) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
@@ -179,6 +179,9 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     random stream); ``bias_flicker_rad_s`` B a bias-instability (1/f) floor, two-sided PSD B²/(2πf) (IEEE Std 952's
     convention; Kasdin–Walter, :func:`independent_noise.flicker`, its own stream), as a warmed-up MEMS gyro drifts;
     ``bias_rad_s`` in the result stays the bias at t = 0, ``bias_path_rad_s`` the whole path.
+
+    A gyro whose scale is not linear: ``scale_nonlinearity_per_rad_s`` k (3,) adds k_i ω_i|ω_i| per axis to the
+    true rate's response (odd-symmetric; ``scale_factor`` in the result stays the slope at 0 rad/s).
 
     A warming sensor: ``temperature_c`` (N,) the sensor temperature (°C, recorded in ``temp_c``) and
     ``scale_per_c`` (3,) the scale factor's temperature coefficient (1/°C): the gyro's scale is
@@ -226,7 +229,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
         from independent_noise import flicker
         fl = flicker(n, bias_flicker_rad_s, np.random.default_rng([seed, 29]))
         bias_path = bias_path + fl - fl[0]
-    clean = omega @ _m(scale, nonortho).T + bias_path
+    clean = omega @ _m(scale, nonortho).T + bias_path + np.asarray(scale_nonlinearity_per_rad_s, float) * omega * np.abs(omega)
     temp = None
     if temperature_c is not None:
         temp = np.asarray(temperature_c, float)
