@@ -2,6 +2,8 @@
 "mpu9250: which effect set the excess").
 
     python benchmarks/mpu9250_ablation.py --seeds 50 --out docs/mpu9250_ablation.json
+    python benchmarks/mpu9250_ablation.py --base warmup,g_sensitivity --method kf_hand --seeds 200 \
+        --variants full,-bias_instability,-scale_nonlinearity,-scale_nonlinearity-bias_instability,... --out X.json
 
 The ideal hand (its MuJoCo truth is simulated once), the preset with its accelerometer calibrated (white noise
 only), zhou2020 schedule, 100 Hz, kf_hand on the user's view of each file; one row per variant, each removing one
@@ -29,6 +31,10 @@ VARIANTS = {"full": (), "-g_sensitivity": ("g_sensitivity",), "-temperature_bias
             "-temperature_scale": ("temperature_scale",), "-warm-up": ("warmup",),
             "-scale_nonlinearity": ("scale_nonlinearity",), "-bias_instability": ("bias_instability",),
             "-random_walk": ("random_walk",), "-bandwidth": ("bandwidth",), "-quantization": ("quantization",),
+            "-scale_nonlinearity-bias_instability": ("scale_nonlinearity", "bias_instability"),
+            "-scale_nonlinearity-bias_instability-random_walk": ("scale_nonlinearity", "bias_instability", "random_walk"),
+            "white noise + bandwidth": tuple(e for e in ALL if e != "bandwidth"),
+            "white noise + quantization": tuple(e for e in ALL if e != "quantization"),
             "white noise only": ALL}
 
 
@@ -63,6 +69,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--base", default="",
+                    help="effects removed from every row too, e.g. 'warmup,g_sensitivity': the warmed-up MPU-9250 of "
+                         "docs/hand.md (a board powered long before the session, without its g-sensitivity)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--method", default="calib.handkf:kf_hand_g_sensitivity",
                     help="the estimator (docs/hand.md's table: kf_hand with the g-sensitivity block on)")
@@ -70,16 +79,19 @@ def main() -> None:
     rows = {}
     for name in a.variants.split(","):
         t0 = time.time()
-        r = monte_carlo("zhou2020", "ideal", variant(VARIANTS[name]), a.seeds, 100.0, (a.method,))
+        base = tuple(x for x in a.base.split(",") if x)
+        r = monte_carlo("zhou2020", "ideal", variant(base + tuple(d for d in VARIANTS[name] if d not in base)), a.seeds,
+                        100.0, (a.method,))
         st = r.methods[a.method]
         rows[name] = {"rmse": st.rmse[3:9].tolist(), "efficiency_hand": st.efficiency_hand[3:9].tolist(),
                       "sqrt_crlb_hand": r.sqrt_crlb_hand[3:9].tolist(), "z_rms": st.z_rms[3:9].tolist(),
                       "nees": st.nees_mean, "nees_band": list(st.nees_band), "statuses": st.statuses,
                       "bias_rw_rad_s_sqrt_s": r.hand_psd.get("bias_rw_rad_s_sqrt_s"), "seconds": time.time() - t0}
         print(f"{name:20s} RMSE " + " ".join(f"{v:.2e}" for v in st.rmse[3:9]) + " | eff. hand "
-              + " ".join(f"{v:.2f}" for v in st.efficiency_hand[3:9]) + f" | NEES {st.nees_mean:.2f} | q_b "
+              + " ".join(f"{v:.2f}" for v in st.efficiency_hand[3:9]) + f" | NEES {st.nees_mean:.2f} | z RMS " + " ".join(f"{v:.2f}" for v in st.z_rms[3:9]) + " | q_b "
               f"{r.hand_psd.get('bias_rw_rad_s_sqrt_s', 0):.2e}", flush=True)
         write_json_atomic(a.out, {"seeds": a.seeds, "hand": "ideal", "sensor": "mpu9250 (accelerometer calibrated)",
+                                  "base_removed": a.base,
                                   "method": a.method, "rows": rows})
 
 
