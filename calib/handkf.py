@@ -52,8 +52,8 @@ nav ENU; f the specific force, g_b gravity in the body):
 * likewise at a rate: a gyro's scale is not exactly linear (k ω|ω|, ±0.1 % of full scale on the MPU-9250), and a
   linear S learnt from the session's turns is the chord slope over ±m_i, m_i = Σ|ω_i|³/Σω_i²
   (:func:`scale_reference_rate`, reported in ``diagnostics["scale_reference_rate"]``);
-* a gyro bias drift that the temperature does not explain (a flicker floor or a random walk — the rests cannot tell):
-  σ is the two models' mixture (:func:`_drift_ambiguity`, ``diagnostics["gyro_bias_drift"]["constant_bias_check"]``);
+* a gyro bias drift while the recorded temperature stayed flat (a flicker floor or a random walk — the rests cannot
+  tell): σ is the two models' mixture (:func:`_drift_ambiguity`, ``diagnostics["gyro_bias_drift"]["constant_bias_check"]``);
 * with the accelerometer estimated (``kf_hand_joint``) and a temperature channel that moved: the accelerometer
   bias's temperature dependence, b_a(T) = b_a(T₀) + c_a (T − T₀) (``acc_temp_bias``, three states, prior σ
   0.1 m/s²/°C) — the "zero-g level change vs. temperature" of a MEMS accelerometer (InvenSense PS-MPU-9250A-01
@@ -653,6 +653,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     q0 = prep.quat0_nb
     obs_notes: list[str] = []
     out_const = None      # the last pass with a constant gyro bias, when the rests saw a drift the temperature does not explain
+    # a recorded temperature that stayed flat: the drift is not a warm-up (_drift_ambiguity); without a channel it may be
+    flat_temperature = thermal is None and rec.temp_c is not None and bool(np.all(np.isfinite(rec.temp_c[a:])))
     for p in range(PASSES):
         theta[theta_slice("gyro_bias")] = prep.theta0[theta_slice("gyro_bias")]   # each pass starts at the rest's bias
         m = m_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")])
@@ -706,7 +708,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                               specific_force_m_s2=f_lp if layout.models_g_sensitivity else None, sensor0=sens0,
                               acc_rate_m_s3=np.gradient(f_lp, t, axis=0) if layout.models_acc_delay else None,
                               keep_history=keep)
-        if p == PASSES - 1 and drift.q_rad2_s3 > 0 and thermal is None:
+        if p == PASSES - 1 and drift.q_rad2_s3 > 0 and flat_temperature:
             # the bias-drift ambiguity (_drift_ambiguity): the last pass once more with a constant bias
             out_const = _run(replace(cfg, gyro_bias_rw_rad_s_sqrt_s=0.0), False)
         out = _run(cfg, keep_history and p == PASSES - 1)
@@ -786,6 +788,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                          "a bias-instability (flicker) floor, which moves the bias more inside the session; σ of the "
                          "reported parameters is the two models' mixture (× up to "
                          f"{max(ambiguity['sigma_factor']):.2f} on the random walk's alone, _drift_ambiguity)")
+        elif thermal is None:
+            notes.append("gyro bias drift and no temperature channel: a warm-up (a ramp, which the random walk covers) "
+                         "cannot be told from a warmed-up gyro's bias-instability floor, under which σ of S, G is "
+                         "~15 % small (measured on a warmed-up MPU-9250); record the temperature — a flat one lets the "
+                         "filter model the floor (_drift_ambiguity)")
         if estimate and thermal is None:
             # the drift is most often a warming board, whose accelerometer bias drifts too, and without a
             # temperature channel no state models that (measured on the MPU-9250 preset with its channel removed:
@@ -926,6 +933,10 @@ def _drift_ambiguity(cov_rw: np.ndarray, cov_const: np.ndarray, infl_const) -> t
         σ_i² = max(σ_i,rw², (σ_i,rw² + κ̂₀ σ_i,const²) / 2),   C ← D C_rw D,   D_ii = σ_i / σ_i,rw
 
     (the random-walk model's correlations and estimate kept — its S error is 7 % smaller on the same seeds).
+    Applied when the recording's temperature channel stayed flat (< ``THERMAL_MIN_SPAN_C``): then the drift is not
+    a warm-up.  Without a channel a warm-up's ramp is as likely, and on it the constant-bias pass's κ̂₀ is 5–38
+    (flicker: 1.9–3.3): the mixture took the MPU-9250 preset with its channel removed from NEES(6) 5.93 to 2.2
+    (kf_hand, 50 seeds) — so there the random walk stays alone, with a warning.
     Measured (200 seeds, ideal hand, NEES(6), band [5.52, 6.48]): the warmed-up MPU-9250 8.04 → 6.75; with its
     g-sensitivity (a bias step at each change of attitude, which the constant-bias pass reads as drift) 7.25 →
     5.21; the larger of the two σ instead of the mixture gave 5.96 and 4.21.  ``cov_rw``: the reported block
