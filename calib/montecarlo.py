@@ -355,16 +355,21 @@ def truth_gyro_scale_at_rate(rec, rate_rad_s: np.ndarray, t_c: np.ndarray) -> np
     zero = np.zeros((2, 3))
 
     def chord_minus_slope(e, ctx, i):
-        if not m[i] > 0:
+        chord = _chord_slope(e, ctx, i, m[i]) if m[i] > 0 else None
+        if chord is None:
             return None
-        x = np.zeros((2, 3))
-        x[0, i], x[1, i] = m[i], -m[i]
-        d, s0 = e.delta(x, ctx), e.delta_dx(zero, ctx)
-        if d is None:
-            return None
-        chord = float(np.asarray(d)[0, i] - np.asarray(d)[1, i]) / (2.0 * m[i])
+        s0 = e.delta_dx(zero, ctx)
         return chord - (0.0 if s0 is None else float(s0[0, i, i]))
     return _per_axis_at_temperatures(model.gyro, t_c, chord_minus_slope)
+
+
+def _chord_slope(e, ctx, i: int, amplitude: float) -> float | None:
+    """Axis i's chord slope of effect ``e`` over ±``amplitude`` (its input's unit), (δ_i(+a e_i) − δ_i(−a e_i)) / 2a,
+    or None where the effect has no δ — the scale a calibration measures at that operating point (scoring only)."""
+    x = np.zeros((2, 3))
+    x[0, i], x[1, i] = amplitude, -amplitude
+    d = e.delta(x, ctx)
+    return None if d is None else float(np.asarray(d)[0, i] - np.asarray(d)[1, i]) / (2.0 * amplitude)
 
 
 def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
@@ -401,12 +406,7 @@ def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.806
     if model is None:
         return np.zeros(3)
 
-    def chord(e, ctx, i):
-        x = np.zeros((2, 3))
-        x[0, i], x[1, i] = gravity_m_s2, -gravity_m_s2
-        d = e.delta(x, ctx)
-        return None if d is None else float(np.asarray(d)[0, i] - np.asarray(d)[1, i]) / (2.0 * gravity_m_s2)
-    return _per_axis_at_temperatures(model.accelerometer, t_c, chord)
+    return _per_axis_at_temperatures(model.accelerometer, t_c, lambda e, ctx, i: _chord_slope(e, ctx, i, gravity_m_s2))
 
 
 def truth_bias_at_reference(rec, index_range: tuple[int, int], slow_bias_rad_s: np.ndarray | None = None) -> np.ndarray:
