@@ -70,7 +70,9 @@ nav ENU; f the specific force, g_b gravity in the body):
 
 Noise levels from the data, as every estimator here (:mod:`calib.noiselevels`), but from the first
 rest's spectrum *above* the tremor band (:func:`white_density`): a hand's rest is not still, and its
-standard deviation would count the tremor as sensor noise (and make σ pessimistic by that much).
+standard deviation would count the tremor as sensor noise (and make σ pessimistic by that much) — or at
+2–6 Hz when an output low-pass (a DLPF) rolls the band above the tremor off (:func:`white_density_check`:
+the low band higher *and* the high band falling; reported in ``diagnostics["noise"]`` with a warning).
 
 Estimation (iterated, each pass linearised at the previous pass's estimate; compiled kernel
 :func:`calib.fastkf.run_filter` with the :func:`hand_layout`: attitude, S, G, gyro bias, lever arm,
@@ -115,7 +117,7 @@ from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import _apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare, rest_mask
-from .noiselevels import (WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density,  # noqa: F401 (re-exported)
+from .noiselevels import (WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density, white_density_check,  # noqa: F401 (re-exported)
                           white_variance_relative_sd)
 from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
@@ -596,8 +598,13 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     prep = prepare(rec, accelerometer=accelerometer, gravity_m_s2=gravity_m_s2)
     ra, rb = prep.rest_range
     nz = prep.noise
-    arw = white_density(rec.gyro_rad_s[ra:rb], rec.rate_hz)
-    vrw = white_density(rec.acc_m_s2[ra:rb], rec.rate_hz)
+    # the densities from the rest's spectrum above the tremor, or at 2–6 Hz when an output low-pass rolls it off
+    wd_g = white_density_check(rec.gyro_rad_s[ra:rb], rec.rate_hz)
+    wd_a = white_density_check(rec.acc_m_s2[ra:rb], rec.rate_hz)
+    arw = wd_g.density if wd_g is not None else None
+    vrw = wd_a.density if wd_a is not None else None
+    rolloff_notes = [n for n in (wd_g.note("gyro", "rad/s") if wd_g else None,
+                                 wd_a.note("accelerometer", "m/s²") if wd_a else None) if n]
     # the bias state's prior: the batch means' σ, as before calib.handbias (Prepared.bias_batch_std_rad_s)
     cfg0 = replace(prep.config, prior_gyro_bias_rad_s=tuple(prep.bias_batch_std_rad_s))
     if arw is not None and vrw is not None:   # never below the quantisation / discretisation floors
@@ -733,7 +740,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     cov = np.zeros((3 + idx.size, 3 + idx.size))
     # the first rest's mean at its stated reference (time, temperature, specific force), σ without the hand's
     # rotation that cancels in the mean (calib.handbias); uncorrelated with the filter's states
-    rbias = rest_bias(rec.gyro_rad_s, rec.t_s, (ra, rb), cfg0.arw_rad_s_sqrt_hz,
+    # N for the rest mean's σ: the 2–6 Hz density when that band is higher, roll-off found or not (cautious)
+    n_rest = max(cfg0.arw_rad_s_sqrt_hz, wd_g.rest_mean_density if wd_g is not None else 0.0)
+    rbias = rest_bias(rec.gyro_rad_s, rec.t_s, (ra, rb), n_rest,
                       compensate_acc(rec.acc_m_s2, _acc_theta(theta)) if estimate else rec.acc_m_s2, rec.temp_c)
     cov[:3, :3] = np.diag(rbias.std_rad_s**2)
     # the temperature block (thermal is not None): S is reported at the temperature the session pinned it best
@@ -823,6 +832,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                          tremor_rms, r_hat, r_sd, check_accelerometer=not estimate,
                                          slow_residual_m_s2=slow_resid, slow_residual_t_s=t, rate_hz=fs)
     notes.extend(assumptions.warnings)
+    notes.extend(rolloff_notes)
     if not assumptions.trustworthy and status == "ok":
         status = "inconsistent"
     if sway == "band" and status == "ok":
@@ -876,7 +886,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                                           # the hand-blind filters' R allowance (calib run's JSON key):
                                                           # none here, a_e is modelled (diagnostics.hand)
                                                           "external_acc_allowance_m_s2": 0.0,
-                                                          "gravity_m_s2": cfg0.gravity_m_s2},
+                                                          "gravity_m_s2": cfg0.gravity_m_s2,
+                                                          # the rest's spectrum: the density above the tremor and at
+                                                          # 2–6 Hz, and whether an output low-pass rolled it off
+                                                          "gyro_white_density_check": wd_g.to_dict() if wd_g else None,
+                                                          "acc_white_density_check": wd_a.to_dict() if wd_a else None},
                                                 "rest_segments": prep.rest.to_list(),
                                                 "gyro_bias_drift": {**drift.to_dict(),
                                                                     **({"constant_bias_check": ambiguity}

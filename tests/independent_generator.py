@@ -160,7 +160,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
                     bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
                     bias_flicker_rad_s: float = 0.0, scale_nonlinearity_per_rad_s=(0.0, 0.0, 0.0), temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
-                    wobble_bands=()) -> dict:
+                    wobble_bands=(), output_lowpass_hz: float | None = None, output_lowpass_order: int = 2) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
@@ -193,7 +193,12 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     A hand that turns a little (tremor, sway — real rotation, which the gyro sees and the accelerometer's tilt
     follows): ``wobble_bands`` ((f_lo, f_hi, rms_rad), ...) makes the attitude q ⊗ exp(φ) with φ(t) from
     :func:`attitude_wobble`, and the body rate exp(φ)ᵀ ω + J_r(φ) φ̇ with J_r ≈ I − ½[φ]× (error O(|φ|² |φ̇|));
-    ``omega_rad_s`` and ``quat_nb`` in the result are the total."""
+    ``omega_rad_s`` and ``quat_nb`` in the result are the total.
+
+    A sensor with an output low-pass (a MEMS DLPF, an AHRS's decimation filter): ``output_lowpass_hz`` f_c filters
+    both triads' outputs, noise included, with a causal digital Butterworth low-pass of ``output_lowpass_order``
+    poles (scipy's bilinear design; gain 1 at 0 Hz, its state started at the first sample) — white noise then keeps
+    its density only below f_c.  The true parameters are unchanged (the filter is linear with unit DC gain)."""
     rng = np.random.default_rng(seed)
     t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
     n = omega.shape[0]
@@ -243,6 +248,12 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     acc = (gravity_body + f_hand) @ _m(acc_scale, acc_nonortho).T + acc_bias + rng.normal(size=(n, 3)) * acc_noise_g * G
     if temp is not None and np.any(np.asarray(acc_bias_per_c, float) != 0.0):
         acc = acc + np.multiply.outer(temp - temp[0], np.asarray(acc_bias_per_c, float))
+    if output_lowpass_hz is not None:
+        from scipy import signal
+        b, a = signal.butter(output_lowpass_order, output_lowpass_hz, fs=rate_hz)
+        zi = signal.lfilter_zi(b, a)[:, None]
+        gyro = signal.lfilter(b, a, gyro, axis=0, zi=zi * gyro[:1])[0]
+        acc = signal.lfilter(b, a, acc, axis=0, zi=zi * acc[:1])[0]
     mag = None
     if field_enu_ut is not None:
         mag = np.einsum("nji,j->ni", dcm, np.asarray(field_enu_ut, float))
