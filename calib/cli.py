@@ -98,6 +98,13 @@ def _print_calibration(cal, truth) -> None:
         v = cal.value(triad, kind) * scale
         sd = cal.std(triad, kind) * scale
         print(f"  {name:<18} " + "  ".join(f"{a:+.5f}±{b:.5f}" for a, b in zip(v, sd)) + f" {unit}")
+    ref = (cal.diagnostics or {}).get("scale_reference_rate")
+    if ref:   # where S holds (calib.handkf.scale_reference_rate): the user applies it at other rates
+        m = np.degrees(ref["rate_rad_s"])
+        top = np.degrees(ref["max_abs_rate_rad_s"])
+        print(f"  scale factor holds at ±{', '.join(f'{v:.0f}' for v in m)} °/s (x, y, z: the chord over the rates this "
+              f"session turned at, up to {', '.join(f'{v:.0f}' for v in top)} °/s); at other rates a gyro's scale "
+              "nonlinearity adds to it — calibrate at the rates you will use")
     if truth is not None:
         err_s = cal.scale_factor - truth.value("gyro", "scale_factor")
         err_g = cal.nonorthogonality - truth.value("gyro", "nonorthogonality")
