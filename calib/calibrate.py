@@ -343,6 +343,7 @@ def calibrate(
                    min_rest_s=min_rest_s)
     warnings = list(prep.warnings)
     a, b = prep.bias.index_range
+    refuse_if_nothing_observed(rec, prep.bias.value_rad_s, a, b, prep.start)
     passes = 1 if method == "kf_session" else max(1, iterations)
     theta0, q0, p0 = prep.theta0, prep.quat0_nb, prep.p0
     obs = None
@@ -518,6 +519,27 @@ def true_gyro_parameters(rec: Recording) -> dict[str, np.ndarray] | None:
         return None
     return {"bias_rad_s": truth.value("gyro", "bias"), "scale_factor": truth.value("gyro", "scale_factor"),
             "nonorthogonality": truth.value("gyro", "nonorthogonality")}
+
+
+def refuse_if_nothing_observed(rec: Recording, bias_rad_s: np.ndarray, ra: int, rb: int, start: int) -> None:
+    """Every gyro S, G unobservable from the motion after ``start`` (:func:`motion_unobservable`, the parameter Gram
+    of Zhou §4): the filter, which starts at the rest that gave the bias (the first one ≥ 2 s), would see
+    no rotation that determines them — a session whose early rests came out shorter (a hand that never held still
+    2 s before turning; rests cut by correlated noise, as an output low-pass did before :func:`calib.rest.detect_rest`
+    scaled its test) or that does not turn.  Its S, G would be the prior, 0 ± 5 %, with status "ok" (kf_hand, the last
+    rest ending the file: a crash in its low-pass): refused instead, saying where the filter starts and how much
+    rotation comes before it."""
+    names = {f"{b}_{ax}" for b in "SG" for ax in "xyz"}
+    enough = rec.n - start >= int(2.0 * rec.rate_hz) + 32
+    if enough and not names <= set(motion_unobservable(rec, bias_rad_s, start)):
+        return
+    w2 = np.sum((rec.gyro_rad_s - np.mean(rec.gyro_rad_s[ra:rb], axis=0)) ** 2, axis=1)
+    before = float(np.sum(w2[:start]) / max(float(np.sum(w2)), 1e-300))
+    raise RecordingError(
+        f"no gyro scale factor or non-orthogonality is determined by this session: the filter starts at the first rest "
+        f"of ≥ 2 s (t = {rec.t_s[ra]:.2f}–{rec.t_s[rb - 1]:.2f} s, which gives the bias) and {100 * before:.0f} % of the "
+        "session's rotation comes before it. Hold the sensor still for ≥ 2 s before the turns, then turn about each "
+        "axis (Zhou 2020 Table 5); if the rests are there, check the rest segments calib reports")
 
 
 def motion_unobservable(rec: Recording, bias_rad_s: np.ndarray, start: int) -> list[str]:

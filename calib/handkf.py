@@ -116,7 +116,8 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
-from .calibrate import _apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare, rest_mask
+from .calibrate import (_apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare,
+                        refuse_if_nothing_observed, rest_mask)
 from .noiselevels import (WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density, white_density_check,  # noqa: F401 (re-exported)
                           white_variance_relative_sd)
 from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
@@ -619,6 +620,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     tilt = _tilt_sigma(rec, ra, rb, cfg0.gravity_m_s2)
     prep = replace(prep, start=max(rb - 1, prep.start))
     a = prep.start
+    refuse_if_nothing_observed(rec, prep.bias.value_rad_s, ra, rb, a)
     t = rec.t_s[a:]
     n = t.size
     sigma_f2 = cfg0.vrw_m_s2_sqrt_hz**2 * fs
@@ -723,7 +725,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         hand0 = out.hand[0].copy()
         if out.sensor_extra is not None:
             sens0 = out.sensor_extra[0].copy()
-        if estimate and p == 0:   # calib run's observability check: gyro warnings, an undetermined accelerometer refused
+        if p == 0:   # calib run's observability check: gyro warnings, an undetermined accelerometer refused
             _apply_observability(prep, _observability(replace(prep, layout=layout), out, p0), obs_notes)
     P = out.p[0]
     global _LAST

@@ -112,11 +112,44 @@ def _local_level(t: np.ndarray, means: np.ndarray, quiet: np.ndarray, w: int, ra
 
 
 def detect_rest(rec: Recording, window_s: float = 0.5, min_segment_s: float = 1.0) -> RestSegments:
-    """Find the rest segments of ``rec`` (see module docstring)."""
+    """Find the rest segments of ``rec`` (see module docstring).
+
+    The mean test takes the window mean's variance as σ²/w, white noise's.  Behind an output low-pass (a DLPF) the
+    samples are correlated and the window mean varies ×(1 + 2Σρ_k) more: the test then cut a rest into pieces
+    shorter than the bias needs (the independent generator behind a 10-Hz Butterworth: its 8-s first rest in four
+    1.0–1.4-s pieces, the first ≥ 2-s rest the session's last, and kf_hand's filter saw 4 s of a 112-s session).
+    So the rests are found once, the longest one's spectrum is checked for a roll-off
+    (:func:`calib.noiselevels.white_density_check`), and when one is found they are found again with the mean's
+    variance scaled by the variance inflation N_low² f_s / σ² (the low band's density over the samples' spread:
+    a first-order 10-Hz corner at 100 Hz gives ~3).  Without a roll-off nothing changes."""
     fs = rec.rate_hz
     w = max(5, int(round(window_s * fs)))
     if rec.n < 4 * w:
         raise RecordingError(f"recording of {rec.n} samples is too short for rest detection (need ≥ {4 * w})")
+    first = _detect(rec, w, min_segment_s, 1.0)
+    vif = _mean_variance_inflation(rec, first)
+    return first if vif <= 1.0 else _detect(rec, w, min_segment_s, vif)
+
+
+def _mean_variance_inflation(rec: Recording, rest: RestSegments) -> float:
+    """The window mean's variance over white noise's, from the longest rest's gyro spectrum: N_low² f_s / σ² when
+    :func:`calib.noiselevels.white_density_check` finds an output low-pass there, else 1."""
+    from .noiselevels import white_density_check
+
+    if not rest.index_ranges:
+        return 1.0
+    a, b = max(rest.index_ranges, key=lambda r: r[1] - r[0])
+    x = rec.gyro_rad_s[a:b]
+    chk = white_density_check(x, rec.rate_hz)
+    var = float(np.mean(np.var(x, axis=0)))
+    if chk is None or not chk.rolled_off or var <= 0:
+        return 1.0
+    return max(1.0, chk.density**2 * rec.rate_hz / var)
+
+
+def _detect(rec: Recording, w: int, min_segment_s: float, mean_variance_factor: float) -> RestSegments:
+    """The module docstring's steps 1–4, the window mean's variance taken as ``mean_variance_factor`` × σ²/w."""
+    fs = rec.rate_hz
     # remove a running offset so slow drifts do not count as motion: variance is offset-free already
     vg = _sliding_var(rec.gyro_rad_s, w)
     va = _sliding_var(rec.acc_m_s2, w)
@@ -126,9 +159,10 @@ def detect_rest(rec: Recording, window_s: float = 0.5, min_segment_s: float = 1.
     q = float(stats.chi2.ppf(0.999, dof) / dof)
     quiet = (vg <= floor_g * q) & (va <= floor_a * q)
     means = _sliding_mean(rec.gyro_rad_s, w)
-    radius = math.sqrt(floor_g / 3 / w) * math.sqrt(stats.chi2.ppf(0.999, 3))
+    mean_var = mean_variance_factor * floor_g / 3 / w          # per axis, (rad/s)²
+    radius = math.sqrt(mean_var) * math.sqrt(stats.chi2.ppf(0.999, 3))
     level = _local_level(rec.t_s, means, quiet, w, radius)
-    dist2 = np.sum((means - level) ** 2, axis=1) * w / (floor_g / 3)
+    dist2 = np.sum((means - level) ** 2, axis=1) / mean_var
     rest = quiet & (dist2 <= stats.chi2.ppf(0.999, 3))
     edges = np.diff(np.concatenate([[0], rest.astype(np.int8), [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)

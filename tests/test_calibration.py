@@ -105,6 +105,28 @@ def test_schedule_without_horizontal_rotations_warns_by_name():
     assert "G_x" not in w and "G_y" not in w
 
 
+@pytest.mark.parametrize("method, accelerometer", [("kf_session", "calibrated"), ("kf_session", "estimate"),
+                                                   ("hand", "calibrated"), ("hand", "estimate")])
+def test_a_session_whose_first_long_rest_comes_after_the_turns_is_refused(method, accelerometer):
+    """The filter starts at the rest that gives the bias (the first ≥ 2 s).  The independent generator's session with
+    its first 9 s cut off leaves only pauses < 2 s before the last rest: nothing turns after it.  Before, ``kf_session``
+    with a calibrated accelerometer answered S, G = the prior 0 ± 0.05 with status ok (and a warning), with the
+    accelerometer estimated it refused for the accelerometer's sake, and kf_hand crashed in its low-pass (ValueError: padlen); now both refuse,
+    saying where the filter starts and how much rotation comes before it."""
+    import independent_generator as ig
+    from calib.handkf import kf_hand
+    from gyrosim.errors import RecordingError
+    from gyrosim.recording import Recording
+
+    d = ig.generate_arrays(seed=0, gyro_noise_deg_s=0.1, acc_noise_g=0.001)
+    k = d["t_s"] >= 9.0
+    rec = Recording(d["t_s"][k] - d["t_s"][k][0], d["gyro_rad_s"][k], d["acc_m_s2"][k], meta={"rate_hz": 100.0})
+    run = (lambda: calibrate(rec, method, accelerometer=accelerometer)) if method == "kf_session" else (
+        lambda: kf_hand(rec, accelerometer=accelerometer))
+    with pytest.raises(RecordingError, match=r"starts at the first rest of ≥ 2 s \(t = 93.*100 % of the session's rotation"):
+        run()
+
+
 def test_filter_divergence_is_named():
     # a 6 cm rotation-centre offset and no tremor: the rest data allow no external acceleration,
     # the centripetal ω²r then dwarfs the accelerometer noise and the innovations leave their band
