@@ -36,6 +36,12 @@ NUMERICAL_FLOOR_ACC_M_S2 = 1e-6
 NUMERICAL_FLOOR_GYRO_RAD_S = 1e-8
 
 
+def _rolled_off_sigma(x: np.ndarray, rate_hz: float) -> float:
+    """N_low √f_s when :func:`white_density_check` finds an output low-pass in rest samples ``x``, else 0."""
+    chk = white_density_check(x, rate_hz)
+    return chk.density * math.sqrt(rate_hz) if chk is not None and chk.rolled_off else 0.0
+
+
 def quantization_step(x: np.ndarray) -> float:
     """The smallest positive step between distinct values of any channel of ``x`` (N, 3) — the LSB
     of a quantised channel (0 if a channel is constant everywhere)."""
@@ -122,13 +128,8 @@ def estimate_noise(gyro_rad_s: np.ndarray, acc_m_s2: np.ndarray, rest: tuple[int
     # an output low-pass below Nyquist (white_density_check: found in the rest's spectrum) leaves the spread the
     # filtered noise's, N² × its equivalent bandwidth (a first-order 10-Hz corner at 100 Hz: σ 0.56 of N√f_s) — the
     # density that integrates is the low band's, so the per-sample σ is raised to N_low √f_s
-    for meas, x in ((0, g_rest), (1, f_rest)):
-        chk = white_density_check(x, rate_hz)
-        if chk is not None and chk.rolled_off:
-            if meas == 0:
-                g_meas = max(g_meas, chk.density * math.sqrt(rate_hz))
-            else:
-                f_meas = max(f_meas, chk.density * math.sqrt(rate_hz))
+    g_meas = max(g_meas, _rolled_off_sigma(g_rest, rate_hz))
+    f_meas = max(f_meas, _rolled_off_sigma(f_rest, rate_hz))
     g_floor = max(lsb_g / math.sqrt(12.0), NUMERICAL_FLOOR_GYRO_RAD_S)
     f_floor = max(lsb_f / math.sqrt(12.0), gravity_m_s2 * dt * dt * wdot_max / 12.0, NUMERICAL_FLOOR_ACC_M_S2)
     return NoiseLevels(max(g_meas, g_floor), max(f_meas, f_floor), g_meas, f_meas, g_floor, f_floor, lsb_g, lsb_f,
@@ -243,32 +244,32 @@ def white_density_check(x: np.ndarray, rate_hz: float) -> WhiteDensity | None:
     10-Hz corner still leaves 2–6 Hz 13 % low in N², 7 % in N).  Source: the white-noise PSD through a linear
     filter, S_y = |H|² S_x (Papoulis & Pillai, *Probability, Random Variables and Stochastic Processes*, 4th ed.,
     §9-3).  None as for :func:`white_density`."""
-    p = _white_band_psd(x, rate_hz)
-    if p is None:
+    psd = _rest_psd(x, rate_hz)
+    band = _high_band_hz(rate_hz)
+    if psd is None or band is None:
         return None
-    hi = 0.45 * rate_hz
-    lo = WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ
-    ph, sh = _band_mean_and_rel_sd(p)
+    lo, hi = band
+    ph, sh = _band_mean_and_rel_sd(_select(psd, lo, hi))
     n_high = float(np.sqrt(ph / 2.0))
-    pl = _psd_band(x, rate_hz, *ROLLOFF_BAND_HZ)
+    pl = _select(psd, *ROLLOFF_BAND_HZ)
     if pl is None or ph <= 0:
-        return WhiteDensity(n_high, n_high, (lo, hi), None, ROLLOFF_BAND_HZ, None, None, None, None, False)
+        return WhiteDensity(n_high, n_high, band, None, ROLLOFF_BAND_HZ, None, None, None, None, False)
     ml, sl = _band_mean_and_rel_sd(pl)
     ratio = ml / ph
     z = float(math.log(ratio) / math.hypot(sl, sh)) if ratio > 0 and math.isfinite(sl) else -math.inf
-    slope, slope_z = _log_slope(x, rate_hz, lo, hi)
+    slope, slope_z = _log_slope(psd, lo, hi)
     n_low = float(np.sqrt(ml / 2.0))
     rolled = z > ROLLOFF_Z and slope_z > SLOPE_Z
-    return WhiteDensity(n_low if rolled else n_high, n_high, (lo, hi), n_low, ROLLOFF_BAND_HZ, float(ratio), z,
+    return WhiteDensity(n_low if rolled else n_high, n_high, band, n_low, ROLLOFF_BAND_HZ, float(ratio), z,
                         slope, slope_z, rolled)
 
 
-def _log_slope(x: np.ndarray, rate_hz: float, lo_hz: float, hi_hz: float) -> tuple[float, float]:
+def _log_slope(psd: tuple[np.ndarray, np.ndarray], lo_hz: float, hi_hz: float) -> tuple[float, float]:
     """The slope of ln PSD (mean of the axes) on ln f over [lo_hz, hi_hz] and −slope over its standard error (the
     residual scatter's, ×√2 for the correlated bins)."""
-    p = _psd_band(x, rate_hz, lo_hz, hi_hz)
-    f = _band_freqs(x, rate_hz, lo_hz, hi_hz)
-    lp, lf = np.log(np.maximum(p.mean(axis=1), 1e-300)), np.log(f)
+    f_all, pxx = psd
+    keep = (f_all >= lo_hz) & (f_all <= hi_hz)
+    lp, lf = np.log(np.maximum(pxx[keep].mean(axis=1), 1e-300)), np.log(f_all[keep])
     dx = lf - lf.mean()
     slope = float(np.sum(dx * (lp - lp.mean())) / np.sum(dx**2))
     resid = lp - lp.mean() - slope * dx
@@ -289,25 +290,30 @@ def white_variance_relative_sd(x: np.ndarray, rate_hz: float) -> float | None:
 
 def _white_band_psd(x: np.ndarray, rate_hz: float) -> np.ndarray | None:
     """The one-sided PSD values (bins × axes) of :func:`white_density`'s band, None when there is none."""
+    psd, band = _rest_psd(x, rate_hz), _high_band_hz(rate_hz)
+    return None if psd is None or band is None else _select(psd, *band)
+
+
+def _high_band_hz(rate_hz: float) -> tuple[float, float] | None:
+    """:func:`white_density`'s band (Hz): from 25 Hz (15 Hz when the rate leaves < 10 Hz above 25) to 0.45 f_s;
+    None when the rate leaves no such band."""
     hi = 0.45 * rate_hz
-    if hi <= WHITE_BAND_HZ + 5.0 or x.shape[0] < 2 * rate_hz:
+    if hi <= WHITE_BAND_HZ + 5.0:
         return None
-    lo = WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ
-    return _psd_band(x, rate_hz, lo, hi)
+    return (WHITE_BAND2_HZ if hi >= WHITE_BAND2_HZ + 10.0 else WHITE_BAND_HZ), hi
 
 
-def _band_freqs(x: np.ndarray, rate_hz: float, lo_hz: float, hi_hz: float) -> np.ndarray:
-    """The bin frequencies (Hz) of :func:`_psd_band`'s values."""
-    f = np.fft.rfftfreq(int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), 1.0 / rate_hz)
-    return f[(f >= lo_hz) & (f <= hi_hz)]
-
-
-def _psd_band(x: np.ndarray, rate_hz: float, lo_hz: float, hi_hz: float) -> np.ndarray | None:
-    """Welch's one-sided PSD (Blackman–Harris, ``WHITE_SEGMENT_S`` segments) of the de-meaned ``x`` (N, 3) at the
-    bins in [lo_hz, hi_hz] (bins × axes); None when the rest is shorter than 2 s or no bin falls there."""
-    if x.shape[0] < 2 * rate_hz or hi_hz >= 0.5 * rate_hz:
+def _rest_psd(x: np.ndarray, rate_hz: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Welch's one-sided PSD (Blackman–Harris, ``WHITE_SEGMENT_S`` segments) of the de-meaned ``x`` (N, 3): the bin
+    frequencies (Hz) and the values (bins × axes); None when the rest is shorter than 2 s."""
+    if x.shape[0] < 2 * rate_hz:
         return None
-    f, pxx = sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
-                             nperseg=int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), axis=0)
+    return sp_signal.welch(x - x.mean(axis=0), fs=rate_hz, window="blackmanharris",
+                           nperseg=int(min(x.shape[0], WHITE_SEGMENT_S * rate_hz)), axis=0)
+
+
+def _select(psd: tuple[np.ndarray, np.ndarray], lo_hz: float, hi_hz: float) -> np.ndarray | None:
+    """The PSD values (bins × axes) at the bins in [lo_hz, hi_hz]; None when fewer than two fall there."""
+    f, pxx = psd
     band = (f >= lo_hz) & (f <= hi_hz)
     return pxx[band] if band.sum() >= 2 else None
