@@ -49,7 +49,7 @@ import numpy as np
 from scipy import stats
 
 from gyrosim.calibration import truth_calibration
-from gyrosim.errors import GyrosimError
+from gyrosim.errors import GyrosimError, RecordingError
 from gyrosim.estimator import as_user_file, estimated_triads, load_estimator
 from gyrosim.hand import load_hand
 from gyrosim.rotations import quat_conjugate, quat_rotate
@@ -501,7 +501,9 @@ def _with_population_prior(p: np.ndarray, offset: int, sigma_filter: float, sigm
 
 
 def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.ndarray, statuses: list[str],
-           filter_cols: slice, sqrt_crlb_hand: np.ndarray | None = None) -> MethodStats:
+           filter_cols: slice, sqrt_crlb_hand: np.ndarray | None = None, refused: int = 0) -> MethodStats:
+    """Statistics over the scored seeds (``statuses`` theirs); ``refused`` sessions (RecordingError) are counted in
+    the statuses as "refused" and scored nowhere — the NEES band is that of the scored seeds."""
     err = est - truth
     n, p = err.shape
     rmse = np.sqrt(np.mean(err**2, axis=0))
@@ -517,6 +519,8 @@ def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.nd
     counts: dict[str, int] = {}
     for s in statuses:
         counts[s] = counts.get(s, 0) + 1
+    if refused:
+        counts["refused"] = refused
     ef, cf = err[:, 3:], cov[:, 3:, 3:]       # every parameter but the gyro bias (the rest's average)
     nees_f = np.einsum("bi,bij,bj->b", ef, np.linalg.inv(cf), ef)
     band_f = (stats.chi2.ppf(0.025, (p - 3) * n) / n, stats.chi2.ppf(0.975, (p - 3) * n) / n)
@@ -563,6 +567,7 @@ def monte_carlo(
     est = {m: [] for m in methods}
     cov = {m: [] for m in methods}
     status = {m: [] for m in methods}
+    refused: dict[str, list[str]] = {m: [] for m in methods}   # seeds a method refused (calib run's exit 2): counted, not scored
     truths = []
     truth_m = {m: [] for m in methods}          # per method: S at the temperature its calibration states, if it does
     t_ref_m = {m: [] for m in methods}
@@ -579,7 +584,11 @@ def monte_carlo(
         slow_cache: dict = {}
         t_session = float(np.mean(rec.temp_c)) if rec.temp_c is not None else 25.0
         for m in methods:
-            c = runners[m](user)
+            try:
+                c = runners[m](user)
+            except RecordingError as exc:   # this session is bad input for the method: a status, not a crash
+                refused[m].append(str(exc))
+                continue
             if "hand" in c.diagnostics and "external_acc_psd" in c.diagnostics["hand"]:
                 psd.append(c.diagnostics["hand"]["external_acc_psd"])
             if "gyro_bias_drift" in c.diagnostics:
@@ -625,6 +634,9 @@ def monte_carlo(
                 first = (rec, c)
         if progress is not None:
             progress(1)
+    for m in methods:
+        if not est[m]:
+            raise RecordingError(f"{m} refused every one of the {seeds} sessions; the first: {refused[m][0]}")
     truths_arr = np.stack(truths)
     rec0, c0 = first
     prep0 = prepare(rec0, accelerometer=accelerometer)
@@ -751,6 +763,6 @@ def monte_carlo(
             if sd_plain_joint is not None and not t_ref_a_m[m]:
                 sqrt_hand_m[m] = sd_plain_joint
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
-                        sqrt_hand_m.get(m, sqrt_hand)) for m in methods}
+                        sqrt_hand_m.get(m, sqrt_hand), refused=len(refused[m])) for m in methods}
     return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
                             accelerometer, names, sqrt_hand, hand_psd, sqrt_hand_m)

@@ -7,6 +7,7 @@ device's at its reference 25 °C.  Its bound used to be kf_hand's — S at T_r �
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from calib.montecarlo import _with_population_prior, monte_carlo
 
@@ -38,3 +39,32 @@ def test_kf_is_scored_against_the_bound_of_s_at_the_oracles_temperature():
     np.testing.assert_allclose(b_kh, r.sqrt_crlb_hand)                 # the table's column: kf_hand's quantity
     np.testing.assert_allclose(r.methods["kf"].efficiency_hand, r.methods["kf"].rmse / b_kf)
     np.testing.assert_allclose(r.hand_psd["sqrt_crlb_hand_sg_at_oracle_reference"], b_kf[3:9])
+
+
+_PICKY_CALLS = []
+
+
+def picky_kf_hand(rec):
+    """kf_hand that refuses every other session it is given (a RecordingError, calib run's exit 2)."""
+    from calib.handkf import kf_hand
+    from gyrosim.errors import RecordingError
+
+    _PICKY_CALLS.append(1)
+    if len(_PICKY_CALLS) % 2 == 0:
+        raise RecordingError("refused for the test")
+    return kf_hand(rec)
+
+
+def test_montecarlo_counts_a_refused_session_instead_of_crashing():
+    """A method may refuse a session (bad input for it: calib.calibrate.refuse_if_nothing_observed, an undetermined
+    accelerometer): the Monte Carlo counts it as status "refused" and scores the other seeds — the NEES band is that
+    of the scored ones (before, one refusal ended a 1000-session campaign)."""
+    from calib.montecarlo import monte_carlo
+
+    _PICKY_CALLS.clear()
+    r = monte_carlo("zhou2020", "ideal", "zhou2020_sim", seeds=3, methods=("test_montecarlo_bound_per_method:picky_kf_hand",))
+    st = r.methods["test_montecarlo_bound_per_method:picky_kf_hand"]
+    assert st.statuses.get("refused") == 1 and sum(st.statuses.values()) == 3, st.statuses
+    from scipy import stats
+
+    assert st.nees_band[0] == pytest.approx(stats.chi2.ppf(0.025, 6 * 2) / 2)   # 2 scored seeds
