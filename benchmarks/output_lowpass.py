@@ -5,7 +5,7 @@
     python benchmarks/output_lowpass.py --method kf_hand_joint --cutoffs 10 --seeds 30 --out X.json
 
 gyrosim's MPU-9250 preset, its accelerometer calibrated (white noise only) unless the method estimates it, with both
-triads' ``bandwidth`` effect at each cut-off (the preset's own gyro effect, its accelerometer's appended at the same
+triads' ``bandwidth`` effect at each cut-off (the preset's own effects, both set to the same
 cut-off), the ideal hand (one MuJoCo truth), zhou2020 schedule, 100 Hz: :func:`calib.montecarlo.monte_carlo` per
 cut-off.  Prints the rest bias's err/σ RMS per axis, NEES of S, G against its band and the statuses.
 """
@@ -25,12 +25,9 @@ from gyrosim.sensor_model import load_sensor
 
 def with_output_lowpass(cutoff_hz: float, estimate_accelerometer: bool):
     """The MPU-9250 preset with both triads' output low-pass at ``cutoff_hz`` (Hz)."""
-    m = load_sensor("mpu9250")
-    acc_bw = next(e for e in m.accelerometer if e.kind == "bandwidth")
-    acc = tuple(e for e in m.accelerometer if estimate_accelerometer or e.is_white_noise or e.kind == "bandwidth")
-    if acc_bw not in acc:
-        acc = acc + (acc_bw,)
-    acc = tuple(replace(e, cutoff_hz=cutoff_hz) if e.kind == "bandwidth" else e for e in acc)
+    m = load_sensor("mpu9250")   # its accelerometer has a bandwidth effect: kept (calibrated: with the white noise only)
+    acc = tuple(replace(e, cutoff_hz=cutoff_hz) if e.kind == "bandwidth" else e for e in m.accelerometer
+                if estimate_accelerometer or e.is_white_noise or e.kind == "bandwidth")
     gyro = tuple(replace(e, cutoff_hz=cutoff_hz) if e.kind == "bandwidth" else e for e in m.gyro)
     calibrated = "" if estimate_accelerometer else ", accelerometer calibrated"
     return replace(m, accelerometer=acc, gyro=gyro, name=f"mpu9250 (output low-pass {cutoff_hz:g} Hz{calibrated})")

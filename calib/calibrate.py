@@ -78,7 +78,7 @@ from .inputs import KF, check_recording
 from .kalman import (BLOCK_LABELS, JOINT, PAPER, FilterConfig, FilterHistory, StateLayout, ZhouFilter,
                      initial_covariance, leave_out_means, m_matrix, theta_slice)
 from .handbias import RestBias, rest_bias
-from .noiselevels import NoiseLevels, estimate_noise, white_density_check
+from .noiselevels import NoiseLevels, estimate_noise
 from .observability import JointObservability, joint_observability, missing_poses
 from .rest import BiasEstimate, RestSegments, detect_rest, static_bias
 
@@ -195,7 +195,7 @@ def prepare(
     # below, once the accelerometer's calibration is known.
     # N_g from the rest's spectrum above the tremor band (a hand's tremor is not sensor noise), else the spread
     # (at 2–6 Hz when that band is higher: an output low-pass, or a hand's motion that averages out of the mean)
-    wd = white_density_check(rec.gyro_rad_s[a:b], fs)
+    wd = noise.gyro_white
     n_g = (wd.rest_mean_density if wd is not None else 0.0) or arw    # 0 (noise-free): the floored σ
     rbias = rest_bias(rec.gyro_rad_s, rec.t_s, (a, b), n_g, rec.acc_m_s2, rec.temp_c)
     bias_std = rbias.std_rad_s

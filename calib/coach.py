@@ -31,7 +31,7 @@ from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import Prepared, rest_mask
 from .fastkf import run_filter
-from .handkf import _lowpass, white_density
+from .handkf import _lowpass
 from .kalman import PAPER, initial_covariance, m_matrix
 
 __all__ = ["Coaching", "coach"]
@@ -84,10 +84,9 @@ def coach(rec: Recording, cal: Calibration, prep: Prepared, top: int = 3) -> Coa
     """The findings of the module docstring for ``cal`` (a calibration of ``rec``; ``prep`` its
     :func:`calib.calibrate.prepare`)."""
     fs, a = rec.rate_hz, prep.start
-    ra, rb = prep.rest_range
     cfg = prep.config
-    arw = white_density(rec.gyro_rad_s[ra:rb], fs) or cfg.arw_rad_s_sqrt_hz
-    vrw = white_density(rec.acc_m_s2[ra:rb], fs) or cfg.vrw_m_s2_sqrt_hz
+    arw = prep.noise.gyro_density_rad_s_sqrt_hz or cfg.arw_rad_s_sqrt_hz     # the rest's spectrum (prepare's)
+    vrw = prep.noise.acc_density_m_s2_sqrt_hz or cfg.vrw_m_s2_sqrt_hz
     g = cfg.gravity_m_s2
     f = rec.acc_m_s2
     if cal.has("accelerometer", "bias"):   # the calibration's own accelerometer, so |f̂| − g is the hand's

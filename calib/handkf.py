@@ -600,10 +600,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     ra, rb = prep.rest_range
     nz = prep.noise
     # the densities from the rest's spectrum above the tremor, or at 2–6 Hz when an output low-pass rolls it off
-    wd_g = white_density_check(rec.gyro_rad_s[ra:rb], rec.rate_hz)
-    wd_a = white_density_check(rec.acc_m_s2[ra:rb], rec.rate_hz)
-    arw = wd_g.density if wd_g is not None else None
-    vrw = wd_a.density if wd_a is not None else None
+    # (prepare's, on the same rest: calib.noiselevels.estimate_noise)
+    wd_g, wd_a = nz.gyro_white, nz.acc_white
+    arw, vrw = nz.gyro_density_rad_s_sqrt_hz, nz.acc_density_m_s2_sqrt_hz
     rolloff_notes = [n for n in (wd_g.note("gyro", "rad/s") if wd_g else None,
                                  wd_a.note("accelerometer", "m/s²") if wd_a else None) if n]
     # the bias state's prior: the batch means' σ, as before calib.handbias (Prepared.bias_batch_std_rad_s)

@@ -60,7 +60,7 @@ from gyrosim.strapdown import integrate_gyro
 
 from .calibrate import METHODS, calibrate, prepare
 from .fastkf import crlb_joint, run_filter
-from .handkf import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature, white_density
+from .handkf import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature
 from .kalman import ACC_DELAY_BLOCKS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
@@ -645,8 +645,7 @@ def monte_carlo(
         config = noise
     else:              # a hand's rest is not still: the sensor's white noise from above the tremor band (both
         # accelerometer modes: with the rest's spread the bounds counted the tremor as sensor noise, efficiency < 1)
-        ra, rb = prep0.rest_range
-        arw, vrw = white_density(rec0.gyro_rad_s[ra:rb], rate_hz), white_density(rec0.acc_m_s2[ra:rb], rate_hz)
+        arw, vrw = prep0.noise.gyro_density_rad_s_sqrt_hz, prep0.noise.acc_density_m_s2_sqrt_hz
         config = replace(noise, external_acc_allowance_m_s2=0.0, arw_rad_s_sqrt_hz=arw or noise.arw_rad_s_sqrt_hz,
                          vrw_m_s2_sqrt_hz=vrw or noise.vrw_m_s2_sqrt_hz)
     tr = rec0.truth

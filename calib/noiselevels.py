@@ -36,9 +36,8 @@ NUMERICAL_FLOOR_ACC_M_S2 = 1e-6
 NUMERICAL_FLOOR_GYRO_RAD_S = 1e-8
 
 
-def _rolled_off_sigma(x: np.ndarray, rate_hz: float) -> float:
-    """N_low √f_s when :func:`white_density_check` finds an output low-pass in rest samples ``x``, else 0."""
-    chk = white_density_check(x, rate_hz)
+def _rolled_off_sigma(chk: WhiteDensity | None, rate_hz: float) -> float:
+    """N_low √f_s when :func:`white_density_check` found an output low-pass in the rest, else 0."""
     return chk.density * math.sqrt(rate_hz) if chk is not None and chk.rolled_off else 0.0
 
 
@@ -67,6 +66,10 @@ class NoiseLevels:
     gyro_lsb_rad_s: float
     acc_lsb_m_s2: float
     rate_hz: float
+    # the rest's spectrum per triad (white_density_check; None when the rest or the rate leaves no band): the densities
+    # every estimator reads from this rest, computed here once
+    gyro_white: WhiteDensity | None = None
+    acc_white: WhiteDensity | None = None
 
     @property
     def arw_rad_s_sqrt_hz(self) -> float:
@@ -101,6 +104,16 @@ class NoiseLevels:
                        f"{self.acc_floor_m_s2:.2e} m/s² (quantisation/discretisation): the floor is used")
         return out
 
+    @property
+    def gyro_density_rad_s_sqrt_hz(self) -> float | None:
+        """The gyro's white density from the rest's spectrum (:func:`white_density`), None without a band."""
+        return None if self.gyro_white is None else self.gyro_white.density
+
+    @property
+    def acc_density_m_s2_sqrt_hz(self) -> float | None:
+        """The accelerometer's white density from the rest's spectrum (:func:`white_density`), None without a band."""
+        return None if self.acc_white is None else self.acc_white.density
+
     def to_dict(self) -> dict[str, float]:
         return {"gyro_sigma_rad_s": self.gyro_sigma_rad_s, "acc_sigma_m_s2": self.acc_sigma_m_s2,
                 "gyro_measured_rad_s": self.gyro_measured_rad_s, "acc_measured_m_s2": self.acc_measured_m_s2,
@@ -128,12 +141,13 @@ def estimate_noise(gyro_rad_s: np.ndarray, acc_m_s2: np.ndarray, rest: tuple[int
     # an output low-pass below Nyquist (white_density_check: found in the rest's spectrum) leaves the spread the
     # filtered noise's, N² × its equivalent bandwidth (a first-order 10-Hz corner at 100 Hz: σ 0.56 of N√f_s) — the
     # density that integrates is the low band's, so the per-sample σ is raised to N_low √f_s
-    g_meas = max(g_meas, _rolled_off_sigma(g_rest, rate_hz))
-    f_meas = max(f_meas, _rolled_off_sigma(f_rest, rate_hz))
+    g_white, f_white = white_density_check(g_rest, rate_hz), white_density_check(f_rest, rate_hz)
+    g_meas = max(g_meas, _rolled_off_sigma(g_white, rate_hz))
+    f_meas = max(f_meas, _rolled_off_sigma(f_white, rate_hz))
     g_floor = max(lsb_g / math.sqrt(12.0), NUMERICAL_FLOOR_GYRO_RAD_S)
     f_floor = max(lsb_f / math.sqrt(12.0), gravity_m_s2 * dt * dt * wdot_max / 12.0, NUMERICAL_FLOOR_ACC_M_S2)
     return NoiseLevels(max(g_meas, g_floor), max(f_meas, f_floor), g_meas, f_meas, g_floor, f_floor, lsb_g, lsb_f,
-                       rate_hz)
+                       rate_hz, g_white, f_white)
 
 
 WHITE_BAND_HZ = 15.0       # sensor white noise measured above the tremor band (8–12 Hz)

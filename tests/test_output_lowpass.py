@@ -39,7 +39,7 @@ def _rest(rng: np.random.Generator, seconds: float = 9.0) -> np.ndarray:
 def _first_order(x: np.ndarray, fc_hz: float) -> np.ndarray:
     """gyrosim's Bandwidth effect's form, written here: y_k = a y_{k−1} + (1 − a) x_k, a = exp(−2π f_c Δt)."""
     a = np.exp(-2 * np.pi * fc_hz / FS)
-    return signal.lfilter([1 - a], [1, -a], x, axis=0, zi=np.tile(a * x[:1], (1, 1)))[0]
+    return signal.lfilter([1 - a], [1, -a], x, axis=0, zi=a * x[:1])[0]
 
 
 def test_flat_white_noise_is_read_above_the_tremor_and_rarely_called_rolled_off():
