@@ -133,7 +133,8 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
 @njit(cache=True, fastmath=False)
 def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
             kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg, offs_x, sens0,
-            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q, dreg):  # pragma: no cover
+            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q, dreg,
+            rec_on, rK, rH, rHc, rNh, rE, rEc, rNe, rAB, rU):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
@@ -282,6 +283,15 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     for i in range(lti_d):
                         for l in range(lti_d):
                             Pb[offs_ae[i] + j, offs_ae[l] + j] += lti_q[u, i, l]
+            if rec_on and b == 0:                              # the linear error model of this step (calib.spectral_covariance)
+                rNe[k] = ne
+                for e in range(ne):
+                    rEc[k, e] = ecols[e]
+                    for i in range(3):
+                        rE[k, i, e] = E[i, e]
+                if o_ea >= 0:
+                    rAB[k, 0] = math.exp(-dt / gm_tau)
+                    rAB[k, 1] = math.exp(-dt / hp_tau)
             # x ← (I + E) x (non-zero only before the first update: the prior mean x0)
             for i in range(3):
                 s = 0.0
@@ -430,6 +440,16 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             for l in range(m):
                                 s += PHt[r, l] * Si[l, i]
                             K[r, i] = s
+                    if rec_on and b == 0:                      # the update's gain and H (calib.spectral_covariance)
+                        rU[k] = True
+                        rNh[k] = nh
+                        for e in range(nh):
+                            rHc[k, e] = hcols[e]
+                            for i in range(m):
+                                rH[k, i, e] = Hc[i, e]
+                        for r in range(n):
+                            for i in range(m):
+                                rK[k, r, i] = K[r, i]
                     for r in range(n):                         # T = (I − K H) P = P − K (P Hᵀ)ᵀ
                         for c in range(n):
                             s = Pb[r, c]
@@ -495,6 +515,27 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
 
 
 @dataclass(frozen=True)
+class FilterRecord:
+    """The first run's linear error model, per step k (arrays (N, …); row 0 unused), as the kernel applied it:
+    the propagation x ← (I + Ê_k) Φ_ae,k x — Ê_k non-zero in the three φ rows only, ``e`` (3, ne_k) in the columns
+    ``ecols`` (ne_k = ``ne[k]``), Φ_ae the Gauss–Markov a_e's decay ``decay`` [k] = (e^{−Δt/τ}, e^{−Δt/τ_h})
+    (zero without that block) — and, where ``updated``, x ← (I − K_k H_k) x + K_k z_k with ``gain`` K_k (n, rows)
+    and ``h`` (rows, nh_k) in the columns ``hcols``.  For :mod:`calib.spectral_covariance` (the weights of every
+    update on the final estimate)."""
+
+    gain: np.ndarray
+    h: np.ndarray
+    hcols: np.ndarray
+    nh: np.ndarray
+    e: np.ndarray
+    ecols: np.ndarray
+    ne: np.ndarray
+    decay: np.ndarray
+    updated: np.ndarray
+    rows: int = 2
+
+
+@dataclass(frozen=True)
 class FilterRun:
     """B filter runs: final nominal parameters θ̂ (B, 18, ``THETA`` order) and covariance (B, n, n),
     final attitude (B, 4), per-step NIS and innovations (B, N−1[, 3]; NaN where no update), and when
@@ -517,6 +558,7 @@ class FilterRun:
     hand: np.ndarray | None = None
     whitened: np.ndarray | None = None
     sensor_extra: np.ndarray | None = None
+    record: "FilterRecord | None" = None
 
     def block(self, name: str) -> np.ndarray:
         """Nominal of a parameter block (B, 3)."""
@@ -585,7 +627,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
                rest_mask: np.ndarray | None = None, x0: np.ndarray | None = None, rows: int = 2,
                lever_regressor: np.ndarray | None = None, hand0: np.ndarray | None = None,
                temperature_rel_c: np.ndarray | None = None, specific_force_m_s2: np.ndarray | None = None,
-               sensor0: np.ndarray | None = None, acc_rate_m_s3: np.ndarray | None = None) -> FilterRun:
+               sensor0: np.ndarray | None = None, acc_rate_m_s3: np.ndarray | None = None,
+               record: bool = False) -> FilterRun:
     """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
 
     ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even
@@ -678,15 +721,21 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         dtemp = arr(np.broadcast_to(np.asarray(temperature_rel_c, float), (B, N)))
     else:
         dtemp = np.zeros((B, N))
+    # ``record``: the first run's linear error model, step by step (FilterRecord; calib.spectral_covariance)
+    nr = N if record else 1
+    rec_arrays = (np.zeros((nr, layout.n, 3)), np.zeros((nr, 3, 47)), np.zeros((nr, 47), np.int64),
+                  np.zeros(nr, np.int64), np.zeros((nr, 3, 18)), np.zeros((nr, 18), np.int64), np.zeros(nr, np.int64),
+                  np.zeros((nr, 2)), np.zeros(nr, np.bool_))
     theta, p, q, nis, inn, hsd, hth, hand, wht, sens = _kernel(
         g, a, arr(greg), arr(still, np.bool_), arr(t_s), arr(q0), arr(theta0), arr(x0), arr(p0), layout.offsets(),
         config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
         float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
         float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
-        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti, dreg)
+        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti, dreg, bool(record), *rec_arrays)
     return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
                      hand if layout.models_hand else None, wht,
-                     sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None)
+                     sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None,
+                     FilterRecord(*rec_arrays, rows=m_rows) if record else None)
 
 
 @dataclass(frozen=True)

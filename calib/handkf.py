@@ -122,12 +122,13 @@ from .noiselevels import (WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_
                           white_variance_relative_sd)
 from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
-from .fastkf import regressor_half_window, run_filter
+from .fastkf import _j_g, regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity
 from .kalman import (ACC_DELAY_BLOCKS, BLOCK_LABELS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, FilterHistory, StateLayout, initial_covariance, leave_out_means, m_matrix,
                      theta_slice)
 from .handchecks import check_hand_assumptions
 from .handbias import rest_bias
+from .spectral_covariance import gauss_markov_psd, spectral_correction, update_weights
 
 __all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
            "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature", "scale_reference_rate", "joint_layout",
@@ -138,6 +139,7 @@ ORDER = 4
 CONFOUND_CORRELATION = 0.98
 LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
 PASSES = 3
+SPECTRAL_SIGMA = True      # P corrected to the slow residual's measured spectrum (calib.spectral_covariance)
 # kf_hand's a_e: "gauss_markov" (the high-passed Gauss–Markov family, _gm_from_residual; the default) or "band" (a
 # Gauss–Markov floor + a Butterworth band-pass, _band_from_residual; opt-in, calib.handkf:kf_hand_band — docs/hand.md,
 # "A band-limited sway model": not strictly closer to 6 on gyrosim, and ΣNEES 379 (10 seeds) with every seed "ok" on the
@@ -708,18 +710,20 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         f_kernel = f_lp @ m_matrix(th_a[3:6], th_a[6:9]).T + th_a[0:3] + acc_temp if estimate else f_lp
         h0 = np.concatenate([hand0[:3], np.zeros(9)])
 
-        def _run(cfg_, keep: bool):
+        def _run(cfg_, keep: bool, record: bool = False):
             return run_filter(rec.gyro_rad_s[None, a:], f_kernel[None], t, q0[None], theta[None], p0,
                               layout, cfg_, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
                               x0=x0[None], lever_regressor=kreg, hand0=h0, rows=rows,
                               temperature_rel_c=None if not layout.models_temperature else thermal[0],
                               specific_force_m_s2=f_lp if layout.models_g_sensitivity else None, sensor0=sens0,
                               acc_rate_m_s3=np.gradient(f_lp, t, axis=0) if layout.models_acc_delay else None,
-                              keep_history=keep)
+                              keep_history=keep, record=record)
         if p == PASSES - 1 and drift.q_rad2_s3 > 0 and flat_temperature:
             # the bias-drift ambiguity (_drift_ambiguity): the last pass once more with a constant bias
             out_const = _run(replace(cfg, gyro_bias_rw_rad_s_sqrt_s=0.0), False)
-        out = _run(cfg, keep_history and p == PASSES - 1)
+        out = _run(cfg, keep_history and p == PASSES - 1,
+                   record=SPECTRAL_SIGMA and p == PASSES - 1 and sway != "band" and not prep.noise.noise_free
+                   and cfg.ext_acc_rms_m_s2**2 > r_var)
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
         if out.sensor_extra is not None:
@@ -727,6 +731,15 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         if p == 0:   # calib run's observability check: gyro warnings, an undetermined accelerometer refused
             _apply_observability(prep, _observability(replace(prep, layout=layout), out, p0), obs_notes)
     P = out.p[0]
+    spectral = None
+    # P under the slow residual's own spectrum, not the fitted model's (calib.spectral_covariance), when the fitted a_e
+    # carries more than the white noise per update (a hand seen; without one the model is R alone, whose σ the
+    # ideal-hand cells validate, and what the residual shows beyond it is the filter's own estimation error: on the
+    # independent generator without a hand it moved σ of G by up to ×1.2 at random); not for the band model's general
+    # shaping filter (the adjoint follows the Gauss–Markov states), nor for a noise-free sensor (its S, G errors come
+    # from the filter's linearisation, not from a_e: measured 7e-5 against the linear prediction's 1e-5)
+    if SPECTRAL_SIGMA and band is None and not prep.noise.noise_free and cfg.ext_acc_rms_m_s2**2 > r_var:
+        P, spectral = _spectral_sigma(P, out, layout, cfg, cfg0, f_lp, kreg, hand0, fs, dec, r_var, estimate)
     global _LAST
     _LAST = (out, t, upd)
     ol = layout.offset("lever_arm")
@@ -881,7 +894,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                   warnings=prep.warnings + tuple(obs_notes + notes), method=REGISTERED_NAME[accelerometer],
                                   diagnostics={"hand": hand, "consistency": {**checks[0].to_dict(), "sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
                                                                      "sigma_factor": infl.sigma_factor,
-                                                                     "applied": "one-sided"}},
+                                                                     "applied": "one-sided"},
+                                                               "spectral_covariance": spectral},
                                                 "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
                                                           "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
                                                           # the hand-blind filters' R allowance (calib run's JSON key):
@@ -914,6 +928,46 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         cal = replace(cal, gyro=cal.gyro + (WhiteNoise(density=np.full(3, cfg0.arw_rad_s_sqrt_hz)),),
                       accelerometer=cal.accelerometer + (WhiteNoise(density=np.full(3, cfg0.vrw_m_s2_sqrt_hz)),))
     return cal
+
+
+# the states whose σ the slow residual's spectrum corrects (calib.spectral_covariance): those the turns inform, at
+# 0.03–0.5 Hz; not the attitude, the bias's random walk, a_e's own states or the temperature coefficients, whose
+# information lies at the session's own scale, below what a 40-s Welch segment resolves
+SPECTRAL_BLOCKS = ("gyro_scale", "gyro_nonorth", "lever_arm", "acc_bias", "acc_scale", "acc_nonorth", "acc_delay",
+                   "gyro_g_sens")
+
+
+def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, cfg0, f_lp: np.ndarray, kreg: np.ndarray,
+                    hand0: np.ndarray, fs: float, dec: int, r_var: float, estimate: bool):
+    """P with the σ of :data:`SPECTRAL_BLOCKS` from the slow residual's own spectrum (calib.spectral_covariance):
+    P_D = P + ΔP gives each state's variance, and P → D P D, D = diag(σ_D/σ) on those states (1 elsewhere), keeps
+    the model's correlations (so P stays positive definite and the temperature at which a state decouples from its
+    coefficient moves towards T₀, never out of the session).  Returns (P, the correction's report)."""
+    sel = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in SPECTRAL_BLOCKS if layout.has(b)])
+    wts = update_weights(out.record, layout, sel, cfg.ext_acc_highpass_order)
+    r_hat = hand0[:3]
+    fr = f_lp - np.einsum("nij,j->ni", kreg, r_hat)
+    e_fin = np.linalg.norm(fr, axis=1) - cfg0.gravity_m_s2
+    u = fr / np.linalg.norm(fr, axis=1)[:, None]
+    # ∂e/∂β of the estimated terms in e: the lever arm (−uᵀK) and, estimated, the accelerometer's b, S, G (−uᵀ[I, diag f, J_G(f)])
+    jac = [-np.einsum("ni,nij->nj", u, kreg)]
+    blocks = [layout.offset("lever_arm")]
+    if estimate:
+        jac += [-u, -u * f_lp, -np.einsum("ni,nij->nj", u, _j_g(f_lp))]
+        blocks += [layout.offset(b) for b in ("acc_bias", "acc_scale", "acc_nonorth")]
+    jidx = np.concatenate([np.arange(o, o + 3) for o in blocks])
+    corr = spectral_correction(wts, out.record.updated, e_fin, fs, dec,
+                               lambda f: gauss_markov_psd(f, cfg.ext_acc_rms_m_s2, cfg.ext_acc_tau_s,
+                                                          cfg.ext_acc_highpass_tau_s, cfg.ext_acc_highpass_order),
+                               r_var, np.concatenate(jac, axis=1), P[np.ix_(jidx, jidx)])
+    var = np.diag(P)[sel]
+    var_d = var + np.diag(corr.delta)
+    factor = np.sqrt(np.maximum(var_d, 1e-4 * var) / var)
+    d = np.ones(P.shape[0])
+    d[sel] = factor
+    names = [n for b in SPECTRAL_BLOCKS if layout.has(b) for n in (f"{b}_{a}" for a in "xyz")]
+    report = {"sigma_factor": dict(zip(names, factor.tolist())), **corr.to_dict()}
+    return P * np.outer(d, d), report
 
 
 def kf_hand_band(rec: Recording) -> Calibration:

@@ -77,7 +77,9 @@ RUN = {
     "h5_t_ms": ok(r"time converted from ms to s: the file states 100 Hz", "base_h5"),
     "header_t_ms": ok("", SAME),
     "jitter_4ms": ok("", rc=(0, 1)),
-    "gaps_2": ok(r"bridged 10 gap\(s\) of 2–2 missing", SAME, tol=0.25, slow=False),
+    # bridging changes 20 of 18 000 samples, and the iterated filter re-fits its sway model on them: measured 0.30 σ
+    # on G_y once σ follows the residual's own spectrum (calib.spectral_covariance; 0.22 σ against the larger σ before)
+    "gaps_2": ok(r"bridged 10 gap\(s\) of 2–2 missing", SAME, tol=0.35, slow=False),
     "gap_200": err(r"1 gap\(s\) in time.*201\.0 × the 10\.000 ms step.*split the recording"),
     "backwards": err(r"line 102 \(t = 0\.99\) is before line 101.*strictly increasing"),
     "duplicate_row": ok(r"1 row\(s\) repeat the previous row exactly", SAME),

@@ -250,7 +250,7 @@ def test_calib_run_default_is_the_hand_aware_filter_with_p_in_the_rerun_recordin
     """The default ``calib run`` (no --method) is kf_hand_joint and its .rrd shows the filter's √P converging
     (the last pass's history: /calib/P/S has finite values that end no larger than they began — information
     only accumulates in a filter whose S is a constant — and the JSON's σ of S_x is that final √P times the
-    inflation's σ factor, ≥ 1); --external-acc, an allowance only the hand-blind filters take, selects
+    inflation's σ factor, ≥ 1, and the residual spectrum's σ factor); --external-acc, an allowance only the hand-blind filters take, selects
     kf_session (labelled kf_joint)."""
     import rerun as rr
 
@@ -266,6 +266,9 @@ def test_calib_run_default_is_the_hand_aware_filter_with_p_in_the_rerun_recordin
             sx += [float(np.asarray(v).ravel()[0]) for v in chunk.to_record_batch().column("Scalars:scalars").to_pylist()]
     assert len(sx) > 1000 and np.all(np.isfinite(sx)) and sx[-1] < sx[0]
     factor = out["consistency"]["sigma_inflation"]["sigma_factor"]
+    # and the slow residual's spectrum's factor (calib.spectral_covariance; 1 when it did not apply)
+    spectral = out["consistency"].get("spectral_covariance") or {"sigma_factor": {"gyro_scale_x": 1.0}}
+    factor *= spectral["sigma_factor"]["gyro_scale_x"]
     # S is reported at the temperature it was pinned at; without a temperature channel that is S itself
     assert out["gyro"]["std"]["scale_factor"][0] == pytest.approx(sx[-1] * factor, rel=1e-9)
     assert calib_main(["run", *args, "--external-acc", "0.1", "--json", str(tmp_path / "k.json")]) in (0, 1)
