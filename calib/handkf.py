@@ -85,8 +85,12 @@ channel that moved) or with the opt-in g-sensitivity alone, 33 with both; the un
    component of a_e along gravity (attitude-free, so the gyro's own errors do not enter; for an
    isotropic a_e its variance is one axis's), fitted to e's spectrum (:func:`_gm_from_residual`).
 
-The result's σ is the filter's P, inflated from the innovations when they still carry more
-low-frequency power than the model (:func:`calib.consistency.innovation_inflation`).  The hand's
+The result's σ is the filter's P with the σ of S, G, the lever arm and the accelerometer's parameters taken from
+the slow residual's own spectrum rather than the fitted model's (:func:`_spectral_sigma`,
+:mod:`calib.spectral_covariance`: the first-order family cannot follow a hand's band-limited sway, and the filter
+sees its model sampled at the updates, aliased — σ of S, G was 1.2–1.4× too large with gyrosim's typical and shaky
+hands), inflated from the innovations when they still carry more low-frequency power than the model
+(:func:`calib.consistency.innovation_inflation`).  The hand's
 parameters go to ``diagnostics["hand"]``: ``lever_arm_m`` with ``lever_arm_std_m``,
 ``external_acc_psd`` (σ_s, τ, τ_h, m, a_e's RMS, the PSD at 0 Hz, the tremor-band RMS removed) — a
 finding for the user; ``diagnostics["gyro_bias_drift"]`` the bias's random walk found.
@@ -730,7 +734,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
             sens0 = out.sensor_extra[0].copy()
         if p == 0:   # calib run's observability check: gyro warnings, an undetermined accelerometer refused
             _apply_observability(prep, _observability(replace(prep, layout=layout), out, p0), obs_notes)
-    P = out.p[0]
+    P = p_model = out.p[0]
     spectral = None
     # P under the slow residual's own spectrum, not the fitted model's (calib.spectral_covariance), when the fitted a_e
     # carries more than the white noise per update (a hand seen; without one the model is R alone, whose σ the
@@ -760,12 +764,15 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                       compensate_acc(rec.acc_m_s2, _acc_theta(theta)) if estimate else rec.acc_m_s2, rec.temp_c)
     cov[:3, :3] = np.diag(rbias.std_rad_s**2)
     # the temperature block (thermal is not None): S is reported at the temperature the session pinned it best
-    t_ref, jt = scale_at_temperature(P, layout, thermal[1] if thermal is not None else float("nan"))
+    # (the temperatures where S and b_a decouple from their coefficients come from the filter's own P: the spectral
+    # correction scales variances, not where the information lies — scaling S but not s_T moved T_r towards T₀ and
+    # took S_z's RMS error on the MPU-9250's shaky hand from 9.6e-5 to 1.2e-4)
+    t_ref, jt = scale_at_temperature(p_model, layout, thermal[1] if thermal is not None else float("nan"))
     jsel = np.zeros((idx.size, P.shape[0]))
     jsel[np.arange(idx.size), idx] = 1.0
     jsel[:6] = jt                                      # S (at T_r), G
     # the accelerometer's bias likewise at the temperatures T_a,i where b_a and c_a decouple (acc_temp_bias)
-    t_ref_a, ja = acc_bias_at_temperature(P, layout, thermal[1] if thermal is not None else float("nan"))
+    t_ref_a, ja = acc_bias_at_temperature(p_model, layout, thermal[1] if thermal is not None else float("nan"))
     if layout.has("acc_temp_bias"):
         jsel[6:9] = ja
     cov[3:, 3:] = (jsel @ P @ jsel.T) * infl.factor
