@@ -143,7 +143,8 @@ ORDER = 4
 CONFOUND_CORRELATION = 0.98
 LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model is fitted to the residual's PSD
 PASSES = 3
-SPECTRAL_SIGMA = True      # P corrected to the slow residual's measured spectrum (calib.spectral_covariance)
+SPECTRAL_SIGMA = True      # P corrected to the slow residual's measured spectrum (calib.spectral_covariance); False: the
+#                            model's P, for the before/after measurements of docs/hand.md
 # kf_hand's a_e: "gauss_markov" (the high-passed Gauss–Markov family, _gm_from_residual; the default) or "band" (a
 # Gauss–Markov floor + a Butterworth band-pass, _band_from_residual; opt-in, calib.handkf:kf_hand_band — docs/hand.md,
 # "A band-limited sway model": not strictly closer to 6 on gyrosim, and ΣNEES 379 (10 seeds) with every seed "ok" on the
@@ -948,8 +949,8 @@ def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, cfg0, f_lp: np
                     hand0: np.ndarray, fs: float, dec: int, r_var: float, estimate: bool):
     """P with the σ of :data:`SPECTRAL_BLOCKS` from the slow residual's own spectrum (calib.spectral_covariance):
     P_D = P + ΔP gives each state's variance, and P → D P D, D = diag(σ_D/σ) on those states (1 elsewhere), keeps
-    the model's correlations (so P stays positive definite and the temperature at which a state decouples from its
-    coefficient moves towards T₀, never out of the session).  Returns (P, the correction's report)."""
+    the model's correlations, so P stays positive definite (the temperatures where S and b_a are stated still come
+    from the filter's own P: kf_hand).  Returns (P, the correction's report)."""
     sel = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in SPECTRAL_BLOCKS if layout.has(b)])
     wts = update_weights(out.record, layout, sel, cfg.ext_acc_highpass_order)
     r_hat = hand0[:3]

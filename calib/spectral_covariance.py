@@ -48,7 +48,7 @@ from numba import njit
 from scipy import signal as sp_signal
 
 from .fastkf import FilterRecord
-from .kalman import StateLayout
+from .kalman import EXT_ACC_EXTRA_BLOCKS, StateLayout
 
 __all__ = ["update_weights", "SpectralCorrection", "spectral_correction", "gauss_markov_psd"]
 
@@ -116,7 +116,7 @@ def update_weights(record: FilterRecord, layout: StateLayout, states: np.ndarray
     """W_k (N, p, rows) of the module docstring: the weight of update k's nav innovation (rows E, N[, U]) on the
     final estimate of the error states ``states`` (p indices of ``layout``); zero where no update was made.
     ``highpass_order``: the Gauss–Markov a_e's (the kernel propagates z₂ for order 2 only)."""
-    if any(layout.has(b) for b in ("ext_acc_s3", "ext_acc_s4", "ext_acc_s5")):
+    if any(layout.has(b) for b in EXT_ACC_EXTRA_BLOCKS):
         raise ValueError("the adjoint follows the Gauss–Markov a_e (x, z, z₂); the general shaping filter is not supported")
     o_ea = layout.offset("ext_acc") if layout.has("ext_acc") else -1
     o_el = layout.offset("ext_acc_lp") if layout.has("ext_acc_lp") else -1
