@@ -879,6 +879,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                  "tremor_band_rms_m_s2": tremor_rms, "tremor_band_resolution_m_s2": tremor_resolution,
                                  "tremor_band_resolved": tremor_resolved, "lowpass_hz": CUTOFF_HZ,
                                  "update_every_samples": dec, **_band_report(band)}}
+    if spectral is not None:
+        fsg = [v for k, v in spectral["sigma_factor"].items() if k.startswith(("gyro_scale", "gyro_nonorth"))]
+        notes.append(f"σ of S, G follows the slow residual's own spectrum, not the fitted a_e model's: ×{min(fsg):.2f}–"
+                     f"{max(fsg):.2f} (the model's shape and its aliasing at the updates; calib.spectral_covariance, "
+                     "diagnostics.consistency.spectral_covariance)")
     notes.append(f"hand: lever arm r̂ = {np.array2string(r_hat * 100, precision=1)} ± "
                  f"{np.array2string(r_sd * 100, precision=1)} cm (body); slow external acceleration "
                  f"{cfg.ext_acc_rms_a_m_s2:.3f} m/s² RMS (τ {tau:.2f} s, high-pass "
