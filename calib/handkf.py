@@ -743,7 +743,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # independent generator without a hand it moved σ of G by up to ×1.2 at random); not for the band model's general
     # shaping filter (the adjoint follows the Gauss–Markov states), nor for a noise-free sensor (its S, G errors come
     # from the filter's linearisation, not from a_e: measured 7e-5 against the linear prediction's 1e-5)
-    if SPECTRAL_SIGMA and band is None and not prep.noise.noise_free and cfg.ext_acc_rms_m_s2**2 > r_var:
+    # (the gate is the last pass's record= above: the record exists exactly when it applies)
+    if out.record is not None:
         P, spectral = _spectral_sigma(P, out, layout, cfg, cfg0, f_lp, kreg, hand0, fs, dec, r_var, estimate)
     global _LAST
     _LAST = (out, t, upd)

@@ -53,7 +53,6 @@ from .kalman import EXT_ACC_EXTRA_BLOCKS, StateLayout
 __all__ = ["update_weights", "SpectralCorrection", "spectral_correction", "gauss_markov_psd"]
 
 WELCH_SEGMENT_S = 40.0     # e's spectrum: the segments of the a_e fit's own (calib.handkf._gm_from_residual)
-ALIASES = 400              # the model's continuous PSD folded over this many multiples of the update rate
 BAND_TEST = 0.95           # an octave band's S_D/S_M replaces the model's there when outside Welch's own scatter at this level
 
 
@@ -216,7 +215,8 @@ def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2:
     f = np.fft.rfftfreq(length, dt_u)
     # the model's: the continuous a_e PSD folded (a Gauss–Markov τ of 0.02 s is white well past the update rate)
     f_fine = np.linspace(0.0, 10 * fs, 200001)
-    model = _fold(f_fine, model_psd(f_fine), f, f_rep, ALIASES) + 2.0 * r_var_m2_s4 * dt_u
+    # (aliases beyond the table's 10 f_s add zero: fold only those inside it)
+    model = _fold(f_fine, model_psd(f_fine), f, f_rep, int(math.ceil(10 * fs / f_rep)) + 1) + 2.0 * r_var_m2_s4 * dt_u
     # the data's: e's Welch PSD (one-sided, at fs; the record's mean removed once, not each segment's, which
     # would bias the first bins low), folded onto the updates' grid and compared with the model's band by band
     e = np.asarray(residual_m_s2, float)
