@@ -53,7 +53,7 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
         "calib run --method iterated_session": lambda: calibrate(rec, "iterated_session"),
         "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session", accelerometer="calibrated"),
         "kf (paper, 9 states, compiled, no hand check)": lambda: _paper(rec, name="kf", check_hand=False),
-        "kf_hand (30 states: + s_T, δ, 3 passes, compiled)": lambda: kf_hand(rec),
+        "kf_hand (33 states: + c_b, s_T, δ, 3 passes, compiled)": lambda: kf_hand(rec),
         "kf_hand_joint (42 states: + s_T, c_a, δ, 3 passes)": lambda: kf_hand(rec, accelerometer="estimate"),
     }
     best = {k: float("inf") for k in cases}

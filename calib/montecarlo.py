@@ -273,9 +273,11 @@ def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, esti
                      band_states: int = 0, delay: bool = True) -> StateLayout:
     """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.handkf.hand_layout`; ``band_states`` extra
     shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.handkf.joint_layout`) on a
-    session whose temperature moved (``temperature``) or not; ``delay``: with the accelerometer's delay δ."""
+    session whose temperature moved (``temperature``) or not; ``delay``: with the accelerometer's delay δ.  The
+    gyro bias's temperature coefficient c_b (kf_hand's since this round, :data:`calib.handkf.GYRO_TEMP_BIAS`) is
+    in neither: the bound's bias is the random walk of the truth's own end-to-end drift, as before."""
     if estimate_accelerometer:
-        return joint_layout(temperature, delay=delay)
+        return joint_layout(temperature, delay=delay, gyro_temp_bias=False)
     base = HAND_BIAS if bias_rw else HAND
     return StateLayout(base.blocks + (("gyro_temp_scale",) if temperature else ()) + (G_SENS_BLOCKS if g_sensitivity else ())
                        + EXT_ACC_EXTRA_BLOCKS[:band_states] + (ACC_DELAY_BLOCKS if delay else ()))

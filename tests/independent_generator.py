@@ -160,6 +160,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
                     sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
                     bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
                     bias_flicker_rad_s: float = 0.0, scale_nonlinearity_per_rad_s=(0.0, 0.0, 0.0), temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
+                    gyro_bias_per_c=(0.0, 0.0, 0.0),
                     wobble_bands=(), output_lowpass_hz: float | None = None, output_lowpass_order: int = 2) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
@@ -188,7 +189,9 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     S + scale_per_c (T − T[0]) sample by sample (``scale_factor`` in the result is S at T[0]), applied as
     ω_i (1 + ΔS_i(t)) on top of M ω; ``acc_bias_per_c`` (3,) the accelerometer bias's temperature coefficient
     (m/s²/°C): the accelerometer reads its bias plus acc_bias_per_c (T − T[0]) added after M_a, sample by sample
-    (``acc_bias_m_s2`` in the result is the bias at T[0]).
+    (``acc_bias_m_s2`` in the result is the bias at T[0]); ``gyro_bias_per_c`` (3,) the gyro bias's temperature
+    coefficient (rad/s/°C): the gyro reads gyro_bias_per_c (T − T[0]) more, sample by sample (a warming board's bias
+    ramp in the temperature's own shape; ``bias_rad_s`` stays the bias at T[0]).
 
     A hand that turns a little (tremor, sway — real rotation, which the gyro sees and the accelerometer's tilt
     follows): ``wobble_bands`` ((f_lo, f_hi, rms_rad), ...) makes the attitude q ⊗ exp(φ) with φ(t) from
@@ -239,6 +242,7 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     if temperature_c is not None:
         temp = np.asarray(temperature_c, float)
         clean = clean + omega * (temp - temp[0])[:, None] * np.asarray(scale_per_c, float)[None, :]
+        clean = clean + np.multiply.outer(temp - temp[0], np.asarray(gyro_bias_per_c, float))
     if g_sensitivity is not None:
         clean = clean + gravity_body @ np.asarray(g_sensitivity, float).T
     if delay_s:
