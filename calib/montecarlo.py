@@ -394,21 +394,26 @@ def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     return _per_axis_at_temperatures(model.accelerometer, t_c, at_zero)
 
 
-def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.80665) -> np.ndarray:
+def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.80665,
+                               force_m_s2: np.ndarray | None = None) -> np.ndarray:
     """The simulated device's accelerometer scale factor change (3,) at the operating point a gravity calibration
     measures it: the chord slope over ±g of its deterministic, non-affine, pointwise error effects,
     (δ_i(+g e_i) − δ_i(−g e_i)) / 2g, axis i at the temperature T_i (scoring only: it reads the truth).  Every
     method here sees the accelerometer only through |f| = g, so what it can estimate is the scale at g, not the
     oracle's small-signal slope: a nonlinearity k x|x| (the MPU-9250's ±0.5 % of 4 g, k σ 4.25e-5 per m/s²) reads
     k g (σ 4.2e-4, five to nine times the filter's σ of S_a) on this sphere and nothing at 0 m/s²; a temperature-
-    dependent scale reads its polynomial at T_i; a temperature-dependent bias cancels in the chord."""
+    dependent scale reads its polynomial at T_i; a temperature-dependent bias cancels in the chord.  ``force_m_s2``
+    (3,): the chord over ±force_m_s2[i] instead, where a calibration states its S_a holds
+    (``diagnostics["acc_scale_reference_force"]``, :func:`calib.handkf.acc_scale_reference_force`)."""
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
     if model is None:
         return np.zeros(3)
 
-    return _per_axis_at_temperatures(model.accelerometer, t_c, lambda e, ctx, i: _chord_slope(e, ctx, i, gravity_m_s2))
+    amp = np.full(3, gravity_m_s2) if force_m_s2 is None else np.asarray(force_m_s2, float)
+    return _per_axis_at_temperatures(model.accelerometer, t_c,
+                                     lambda e, ctx, i: _chord_slope(e, ctx, i, amp[i]) if amp[i] > 0 else None)
 
 
 def truth_bias_at_reference(rec, index_range: tuple[int, int], slow_bias_rad_s: np.ndarray | None = None) -> np.ndarray:
@@ -624,9 +629,10 @@ def monte_carlo(
                 t_acc = np.asarray(temp["acc_bias_reference_temperature_c"], float)
                 tm[9:12] += truth_acc_bias_at_temperature(rec, t_acc)
                 t_ref_a_m[m].append(t_acc)
-            if estimate:   # the accelerometer's scale where a gravity calibration measures it: at ±g, at the stated
-                # temperature (else the session's mean)
-                tm[12:15] += truth_acc_scale_at_gravity(rec, t_acc)
+            if estimate:   # the accelerometer's scale where a gravity calibration measures it: at ±g, or at the specific
+                # force the method states (kf_hand_joint), at the stated temperature (else the session's mean)
+                fref = c.diagnostics.get("acc_scale_reference_force", {}).get("specific_force_m_s2")
+                tm[12:15] += truth_acc_scale_at_gravity(rec, t_acc, force_m_s2=fref)
             truth_m[m].append(tm)
             gs_m[m] = gs_m[m] or "gyro_g_sensitivity" in c.diagnostics
             est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))

@@ -76,3 +76,31 @@ def test_the_scorer_reads_k_m_for_a_nonlinearity_and_nothing_for_a_temperature_s
     linear = replace(model, gyro=tuple(e for e in model.gyro if e.kind != "scale_nonlinearity"))
     rec2 = apply_sensor(truth, linear, np.random.default_rng(3))
     assert np.allclose(truth_gyro_scale_at_rate(rec2, m, np.full(3, 40.0)), 0.0, atol=1e-15)
+
+
+def test_the_accelerometer_scale_is_stated_and_scored_at_the_force_its_updates_saw():
+    """kf_hand_joint's accelerometer counterpart (calib.handkf.acc_scale_reference_force, ``diagnostics[
+    "acc_scale_reference_force"]``): the same chord rule on the specific force — an axis that is ±g half of the time
+    and 0 otherwise reads g, a tilt sweep its Σ|f|³/Σf² — and the scorer (calib.montecarlo.truth_acc_scale_at_gravity
+    with ``force_m_s2``) reads k m for the MPU-9250 preset's accelerometer nonlinearity k f|f| (its temperature scale
+    taken at the preset's reference, where it is 0), k g without it."""
+    from calib.handkf import acc_scale_reference_force
+    from calib.montecarlo import truth_acc_scale_at_gravity
+    from gyrosim.hand import load_hand
+    from gyrosim.schedule import load_schedule
+    from gyrosim.sensor_model import load_sensor, stored_sensor_model
+    from gyrosim.simulate import apply_sensor, simulate_truth
+
+    g = 9.80665
+    f = np.zeros((400, 3))
+    f[:100, 0], f[100:200, 0] = g, -g
+    f[:, 1] = g * np.cos(np.linspace(0.0, np.pi, 400))
+    m = np.asarray(acc_scale_reference_force(f)["specific_force_m_s2"])
+    assert m[0] == pytest.approx(g) and m[2] == 0.0
+    assert m[1] == pytest.approx(np.sum(np.abs(f[:, 1]) ** 3) / np.sum(f[:, 1] ** 2)) and m[1] < g
+    truth = simulate_truth(load_schedule("static"), load_hand("ideal"), 100.0, seed=0)
+    rec = apply_sensor(truth, load_sensor("mpu9250"), np.random.default_rng(3))
+    k = sum(e.value for e in stored_sensor_model(rec.meta).accelerometer if e.kind == "scale_nonlinearity")
+    at = np.array([4.0, 7.0, 9.0])
+    assert np.allclose(truth_acc_scale_at_gravity(rec, np.full(3, 25.0), force_m_s2=at), k * at, rtol=1e-9, atol=1e-15)
+    assert np.allclose(truth_acc_scale_at_gravity(rec, np.full(3, 25.0)), k * g, rtol=1e-9, atol=1e-15)
