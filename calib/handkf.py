@@ -687,9 +687,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     layout = (joint_layout(thermal is not None, delay=delay) if estimate
               else hand_layout(thermal is not None, g_sensitivity, band=sway == "band", delay=delay))
     band = None
-    dt_rest = 0.0      # the rest's mean temperature − T₀ (its accelerometer mean levels the initial attitude)
-    if thermal is not None and layout.has("acc_temp_bias"):
-        dt_rest = _rest_temperature(rec.temp_c, fs, ra, rb) - thermal[1]
+    # the rest's mean temperature − T₀: its accelerometer mean levels the initial attitude (c_a) and its gyro mean is the
+    # bias's prior (c_b)
+    dt_rest = _rest_temperature(rec.temp_c, fs, ra, rb) - thermal[1] if thermal is not None else 0.0
     q0 = prep.quat0_nb
     obs_notes: list[str] = []
     out_const = None      # the last pass with a constant gyro bias, when the rests saw a drift the temperature does not explain
@@ -734,8 +734,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         else:
             p0 = initial_covariance(layout, cfg, tilt_sigma_rad=tilt)
         _g_sensitivity_prior(p0, layout, f_rest)                # no-ops without those blocks
-        if layout.has("gyro_temp_bias"):
-            _temp_bias_prior(p0, layout, _rest_temperature(rec.temp_c, fs, ra, rb) - thermal[1])
+        _temp_bias_prior(p0, layout, dt_rest)
         _common_delay_prior(p0, layout)
         _sensor_extra_prior(x0, layout, sens0)
         # the kernel compensates at θ̂_a again
@@ -760,7 +759,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                        keep_history and p == PASSES - 1,
                        record=SPECTRAL_SIGMA and p == PASSES - 1 and sway != "band" and not prep.noise.noise_free
                        and cfg.ext_acc_rms_m_s2**2 > r_var)
-            if innovation_inflation(out.whitened[0], t[1:]).factor == 1.0:
+            if qb_factor == ladder[-1] or innovation_inflation(out.whitened[0], t[1:]).factor == 1.0:
                 break
         theta = out.theta[0].copy()
         hand0 = out.hand[0].copy()
@@ -777,8 +776,12 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # shaping filter (the adjoint follows the Gauss–Markov states), nor for a noise-free sensor (its S, G errors come
     # from the filter's linearisation, not from a_e: measured 7e-5 against the linear prediction's 1e-5)
     # (the gate is the last pass's record= above: the record exists exactly when it applies)
+    # the slow residual, f_lp − K r̂ (N, 3, body) and e = |f_lp − K r̂| − g (attitude-free): the spectral σ's data and the
+    # hand-assumption check's displacement data
+    slow_f = f_lp - np.einsum("nij,j->ni", kreg, hand0[:3])
+    slow_resid = np.linalg.norm(slow_f, axis=1) - cfg0.gravity_m_s2
     if out.record is not None:
-        P, spectral = _spectral_sigma(P, out, layout, cfg, cfg0, f_lp, kreg, hand0, fs, dec, r_var, estimate)
+        P, spectral = _spectral_sigma(P, out, layout, cfg, f_lp, slow_f, slow_resid, kreg, fs, dec, r_var, estimate)
     global _LAST
     _LAST = (out, t, upd)
     ol = layout.offset("lever_arm")
@@ -887,8 +890,6 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     infl_r = innovation_inflation(out.whitened[0], t[1:], block_s=LEVER_INFLATION_BLOCK_S)
     r_sd = np.sqrt(np.diag(P[ol:ol + 3, ol:ol + 3]) * max(infl_test.factor, infl_r.factor))
     # kf_hand's own assumptions on this recording (calibrated accelerometer, a hand's tremor and lever arm)
-    # the slow external acceleration's data: |f_lp − K r̂| − g (attitude-free), for the displacement check
-    slow_resid = np.linalg.norm(f_lp - np.einsum("nij,j->ni", kreg, r_hat), axis=1) - cfg0.gravity_m_s2
     assumptions = check_hand_assumptions(rec.acc_m_s2, rec.t_s, prep.rest.index_ranges, np.sqrt(np.diag(cov[3:9, 3:9])),
                                          tremor_rms, r_hat, r_sd, check_accelerometer=not estimate,
                                          slow_residual_m_s2=slow_resid, slow_residual_t_s=t, rate_hz=fs)
@@ -992,18 +993,16 @@ SPECTRAL_BLOCKS = ("gyro_scale", "gyro_nonorth", "lever_arm", "acc_bias", "acc_s
                    "gyro_g_sens")
 
 
-def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, cfg0, f_lp: np.ndarray, kreg: np.ndarray,
-                    hand0: np.ndarray, fs: float, dec: int, r_var: float, estimate: bool):
+def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, f_lp: np.ndarray, slow_f: np.ndarray,
+                    slow_resid: np.ndarray, kreg: np.ndarray, fs: float, dec: int, r_var: float, estimate: bool):
     """P with the σ of :data:`SPECTRAL_BLOCKS` from the slow residual's own spectrum (calib.spectral_covariance):
     P_D = P + ΔP gives each state's variance, and P → D P D, D = diag(σ_D/σ) on those states (1 elsewhere), keeps
     the model's correlations, so P stays positive definite (the temperatures where S and b_a are stated still come
-    from the filter's own P: kf_hand).  Returns (P, the correction's report)."""
+    from the filter's own P: kf_hand).  ``slow_f`` = f_lp − K r̂ (N, 3) and ``slow_resid`` = |slow_f| − g (N,): kf_hand's
+    slow residual.  Returns (P, the correction's report)."""
     sel = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in SPECTRAL_BLOCKS if layout.has(b)])
     wts = update_weights(out.record, layout, sel, cfg.ext_acc_highpass_order)
-    r_hat = hand0[:3]
-    fr = f_lp - np.einsum("nij,j->ni", kreg, r_hat)
-    e_fin = np.linalg.norm(fr, axis=1) - cfg0.gravity_m_s2
-    u = fr / np.linalg.norm(fr, axis=1)[:, None]
+    u = slow_f / np.linalg.norm(slow_f, axis=1)[:, None]
     # ∂e/∂β of the estimated terms in e: the lever arm (−uᵀK) and, estimated, the accelerometer's b, S, G (−uᵀ[I, diag f, J_G(f)])
     jac = [-np.einsum("ni,nij->nj", u, kreg)]
     blocks = [layout.offset("lever_arm")]
@@ -1011,7 +1010,7 @@ def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, cfg0, f_lp: np
         jac += [-u, -u * f_lp, -np.einsum("ni,nij->nj", u, _j_g(f_lp))]
         blocks += [layout.offset(b) for b in ("acc_bias", "acc_scale", "acc_nonorth")]
     jidx = np.concatenate([np.arange(o, o + 3) for o in blocks])
-    corr = spectral_correction(wts, out.record.updated, e_fin, fs, dec,
+    corr = spectral_correction(wts, out.record.updated, slow_resid, fs, dec,
                                lambda f: gauss_markov_psd(f, cfg.ext_acc_rms_m_s2, cfg.ext_acc_tau_s,
                                                           cfg.ext_acc_highpass_tau_s, cfg.ext_acc_highpass_order),
                                r_var, np.concatenate(jac, axis=1), P[np.ix_(jidx, jidx)])
@@ -1080,14 +1079,21 @@ def _g_sensitivity_prior(p0: np.ndarray, layout, f_rest_m_s2: np.ndarray) -> Non
 
     Independent priors would pin b at the rest's reading and misread every change of attitude afterwards
     (measured on the independent generator with 0.3 °/s/g: innovations ×15 their model, "diverged")."""
-    og, ob = layout.offset("gyro_g_sens"), layout.offset("gyro_bias")
-    if og < 0 or ob < 0:
+    _rest_reading_prior(p0, layout, "gyro_g_sens", np.asarray(f_rest_m_s2, float))
+
+
+def _rest_reading_prior(p0: np.ndarray, layout, block: str, f: np.ndarray) -> None:
+    """The gyro bias's prior when the rest that gave it read b + diag(f) x, x the 3-state ``block`` with prior P_x: b =
+    b̄ − F x, so P_bb += F P_x F, P_bx = −F P_x, F = diag(f) (:func:`_g_sensitivity_prior`, :func:`_temp_bias_prior`;
+    several such blocks add).  A no-op without ``block`` or the bias."""
+    ox, ob = layout.offset(block), layout.offset("gyro_bias")
+    if ox < 0 or ob < 0:
         return
-    F = np.diag(np.asarray(f_rest_m_s2, float))
-    pk = p0[og:og + 3, og:og + 3].copy()
-    p0[ob:ob + 3, ob:ob + 3] += F @ pk @ F
-    p0[ob:ob + 3, og:og + 3] = -F @ pk
-    p0[og:og + 3, ob:ob + 3] = -pk @ F
+    F = np.diag(f)
+    px = p0[ox:ox + 3, ox:ox + 3].copy()
+    p0[ob:ob + 3, ob:ob + 3] += F @ px @ F
+    p0[ob:ob + 3, ox:ox + 3] = -F @ px
+    p0[ox:ox + 3, ob:ob + 3] = -px @ F
 
 
 def _temp_bias_prior(p0: np.ndarray, layout, dt_rest_c: float) -> None:
@@ -1096,12 +1102,9 @@ def _temp_bias_prior(p0: np.ndarray, layout, dt_rest_c: float) -> None:
 
         P_bb = s² + ΔT² P_c,   P_bc = −ΔT P_c
 
-    (as :func:`_g_sensitivity_prior` for the specific force; the two add when both blocks are on)."""
-    og, ob = layout.offset("gyro_temp_bias"), layout.offset("gyro_bias")
-    pc = p0[og:og + 3, og:og + 3].copy()
-    p0[ob:ob + 3, ob:ob + 3] += dt_rest_c**2 * pc
-    p0[ob:ob + 3, og:og + 3] = -dt_rest_c * pc
-    p0[og:og + 3, ob:ob + 3] = -dt_rest_c * pc
+    (as :func:`_g_sensitivity_prior` for the specific force; the two add when both blocks are on).  A no-op without
+    the block."""
+    _rest_reading_prior(p0, layout, "gyro_temp_bias", np.full(3, dt_rest_c))
 
 
 def _common_delay_prior(p0: np.ndarray, layout) -> None:
