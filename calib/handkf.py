@@ -147,6 +147,8 @@ LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model
 PASSES = 3
 SPECTRAL_SIGMA = True      # P corrected to the slow residual's measured spectrum (calib.spectral_covariance); False: the
 #                            model's P, for the before/after measurements of docs/hand.md
+PREFILTER_REFERENCE = True  # the correction's reference is the a_e model as the low-passed data can carry it (no aliases:
+#                            calib.spectral_covariance); False: the filter's folded model, as before (docs/hand.md)
 # kf_hand's a_e: "gauss_markov" (the high-passed Gauss–Markov family, _gm_from_residual; the default) or "band" (a
 # Gauss–Markov floor + a Butterworth band-pass, _band_from_residual; opt-in, calib.handkf:kf_hand_band — docs/hand.md,
 # "A band-limited sway model": not strictly closer to 6 on gyrosim, and ΣNEES 379 (10 seeds) with every seed "ok" on the
@@ -361,6 +363,12 @@ def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.
 def _lowpass(x: np.ndarray, rate_hz: float) -> np.ndarray:
     b, a = sp_signal.butter(ORDER, min(CUTOFF_HZ / (rate_hz / 2), 0.9))
     return sp_signal.filtfilt(b, a, x, axis=0)
+
+
+def _lowpass_gain2(f_hz: np.ndarray, rate_hz: float) -> np.ndarray:
+    """|H(f)|² of :func:`_lowpass` (zero-phase: the Butterworth's |H_b|², squared), at any f (periodic in ``rate_hz``)."""
+    b, a = sp_signal.butter(ORDER, min(CUTOFF_HZ / (rate_hz / 2), 0.9))
+    return np.abs(sp_signal.freqz(b, a, worN=np.asarray(f_hz, float), fs=rate_hz)[1]) ** 4
 
 
 def _variance_ratio(rate_hz: float) -> float:
@@ -1013,7 +1021,8 @@ def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, f_lp: np.ndarr
     corr = spectral_correction(wts, out.record.updated, slow_resid, fs, dec,
                                lambda f: gauss_markov_psd(f, cfg.ext_acc_rms_m_s2, cfg.ext_acc_tau_s,
                                                           cfg.ext_acc_highpass_tau_s, cfg.ext_acc_highpass_order),
-                               r_var, np.concatenate(jac, axis=1), P[np.ix_(jidx, jidx)])
+                               r_var, np.concatenate(jac, axis=1), P[np.ix_(jidx, jidx)],
+                               prefilter_gain2=(lambda f: _lowpass_gain2(f, fs)) if PREFILTER_REFERENCE else None)
     var = np.diag(P)[sel]
     var_d = var + np.diag(corr.delta)
     factor = np.sqrt(np.maximum(var_d, 1e-4 * var) / var)

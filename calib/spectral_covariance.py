@@ -36,6 +36,19 @@ PSD folded the same way plus R's white level.  S_D replaces S_M only in the octa
 lies outside Welch's own scatter (a model the data do not contradict keeps its smooth spectrum), and not below
 Welch's first bin (1/40 s), where the data cannot resolve the disturbance from the session's slowest terms (a
 temperature coefficient's information lies there).
+
+**What the data can have, known without them.**  The filter propagates a_e at every sample and updates every
+D-th, so its S_M is the continuous PSD folded at the update rate — its power above the updates' Nyquist
+aliased onto every band, 0 Hz included.  The data were low-passed (the zero-phase pre-filter |H(f)|², 4 Hz)
+before they were decimated and have none of it.  The reference the data are tested against, and the spectrum
+kept where they cannot speak (below the first bin, in the bands inside Welch's scatter), is therefore the
+model *as the data can carry it*, S_M' = fold(S_c |H|²) + R, not fold(S_c) + R:
+
+    P_D = P + Σ_i ∫ Re[V_i V_iᴴ] (ρ S_M' − S_M) df,    ρ = the band's S_D/S_M' (1 inside Welch's scatter).
+
+Measured (consumer sensor, accelerometer estimated, steady hand): the aliased floor is ~5× the accelerometer's
+own white level, and 75–80 % of the accelerometer bias's and scale's modelled variance was a_e's — a third of it
+below 0.025 Hz, where the ratio could not act (err/σ RMS of b_a, S_a 0.52–0.78).
 """
 
 from __future__ import annotations
@@ -139,18 +152,21 @@ def gauss_markov_psd(f_hz: np.ndarray, rms_m_s2: float, tau_s: float, highpass_t
 class SpectralCorrection:
     """ΔP = Σ_i ∫ Re[V_i V_iᴴ](S_D − S_M) df (p, p) of the module docstring, with the spectra it compared on
     Welch's bins up to the updates' Nyquist: ``f_hz``, ``data_psd`` (e's, the estimated terms' expected part
-    removed), ``model_psd`` (one-sided, (m/s²)²/Hz, both folded onto the updates' grid) and ``ratio`` the S_D/S_M
-    used (1 where the octave band's ratio lies inside Welch's scatter, and below the first bin)."""
+    removed), ``model_psd`` (the model as the data can carry it, S_M', the ratio's reference; one-sided, (m/s²)²/Hz,
+    all folded onto the updates' grid), ``ratio`` the S_D/S_M' used (1 where the octave band's ratio lies inside
+    Welch's scatter, and below the first bin) and ``filter_psd`` (S_M, what the filter assumed, aliases included)."""
 
     delta: np.ndarray
     f_hz: np.ndarray
     data_psd: np.ndarray
     model_psd: np.ndarray
     ratio: np.ndarray
+    filter_psd: np.ndarray
 
     def to_dict(self) -> dict:
         return {"f_hz": self.f_hz.tolist(), "data_psd_m2_s4_per_hz": self.data_psd.tolist(),
-                "model_psd_m2_s4_per_hz": self.model_psd.tolist(), "ratio_used": self.ratio.tolist()}
+                "model_psd_m2_s4_per_hz": self.model_psd.tolist(), "ratio_used": self.ratio.tolist(),
+                "filter_psd_m2_s4_per_hz": self.filter_psd.tolist()}
 
 
 def _fold(f_fine: np.ndarray, psd_fine: np.ndarray, f_out: np.ndarray, f_rep: float, n_alias: int) -> np.ndarray:
@@ -188,7 +204,7 @@ def _band_ratio(f: np.ndarray, data: np.ndarray, model: np.ndarray, segments: in
 
 def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2: np.ndarray, rate_hz: float,
                         every: int, model_psd, r_var_m2_s4: float, residual_jacobian: np.ndarray | None = None,
-                        jacobian_cov: np.ndarray | None = None) -> SpectralCorrection:
+                        jacobian_cov: np.ndarray | None = None, prefilter_gain2=None) -> SpectralCorrection:
     """ΔP (module docstring) from the update weights ``weights`` (N, p, rows; :func:`update_weights`: nav E, N and,
     with the vertical row, U — every axis with the same spectrum, a_e isotropic as its fit assumes) at the samples ``updated`` (N,), the slow residual ``residual_m_s2`` (N,) (e = |f_lp − K r̂| − g, at
     every sample, ``rate_hz``), the updates' spacing ``every`` samples, the model's continuous one-sided PSD
@@ -197,7 +213,9 @@ def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2:
     covariance ``jacobian_cov`` (q, q): e is computed at their estimates, so their error is in it, and the filter's
     P already carries it — its expected Welch PSD Σ_ij C_ij Re CSD(J_i, J_j) is removed from e's before the test
     (without it a session with no hand read the accelerometer's estimation error, stepping with each attitude, as a
-    disturbance ×1.6–2.4 its white level at 0.03–0.2 Hz)."""
+    disturbance ×1.6–2.4 its white level at 0.03–0.2 Hz).  ``prefilter_gain2(f_hz)``: |H(f)|² of the zero-phase
+    pre-filter the data passed before the updates (periodic in ``rate_hz``; None: no pre-filter) — the reference
+    spectrum is then the model as the data can carry it (module docstring)."""
     fs = float(rate_hz)
     dt_u = every / fs
     f_rep = 1.0 / dt_u
@@ -205,7 +223,7 @@ def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2:
     idx = np.flatnonzero(np.asarray(updated, bool))
     if idx.size < 8:
         p = w.shape[1]
-        return SpectralCorrection(np.zeros((p, p)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
+        return SpectralCorrection(np.zeros((p, p)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
     slot = np.round((idx - idx[0]) / every).astype(np.int64)   # the updates' grid (a skipped update: a zero weight)
     m_u = int(slot[-1]) + 1
     grid = np.zeros((m_u,) + w.shape[1:])
@@ -216,7 +234,12 @@ def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2:
     # the model's: the continuous a_e PSD folded (a Gauss–Markov τ of 0.02 s is white well past the update rate)
     f_fine = np.linspace(0.0, 10 * fs, 200001)
     # (aliases beyond the table's 10 f_s add zero: fold only those inside it)
-    model = _fold(f_fine, model_psd(f_fine), f, f_rep, int(math.ceil(10 * fs / f_rep)) + 1) + 2.0 * r_var_m2_s4 * dt_u
+    n_alias = int(math.ceil(10 * fs / f_rep)) + 1
+    s_fine = model_psd(f_fine)
+    model = _fold(f_fine, s_fine, f, f_rep, n_alias) + 2.0 * r_var_m2_s4 * dt_u            # S_M: what the filter assumed
+    reference = model                                                                        # S_M': what the data can carry
+    if prefilter_gain2 is not None:
+        reference = _fold(f_fine, s_fine * prefilter_gain2(f_fine), f, f_rep, n_alias) + 2.0 * r_var_m2_s4 * dt_u
     # the data's: e's Welch PSD (one-sided, at fs; the record's mean removed once, not each segment's, which
     # would bias the first bins low), folded onto the updates' grid and compared with the model's band by band
     e = np.asarray(residual_m_s2, float)
@@ -231,12 +254,12 @@ def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2:
         pw = np.maximum(pw - known, 0.0)
     data_w = _fold(fw, pw, fw[fw <= 0.5 * f_rep], f_rep, int(math.ceil(0.5 * fs / f_rep)) + 1)
     fw = fw[fw <= 0.5 * f_rep]
-    model_w = np.interp(fw, f, model)
+    model_w = np.interp(fw, f, reference)
     segments = max(1, 1 + 2 * (e.size - nseg) // nseg)          # Welch's 50 %-overlap segments
     ratio = _band_ratio(fw, data_w, model_w, segments)
     # below Welch's first non-zero bin the data cannot tell the disturbance from the session's own slow terms: the
-    # model is kept there (ratio 1), as above the last band
-    data = model * np.where(f < fw[1], 1.0, np.interp(f, fw, ratio))
+    # model as the data can carry it is kept there (ratio 1), as above the last band
+    data = reference * np.where(f < fw[1], 1.0, np.interp(f, fw, ratio))
     ds = data - model
     wt = np.full(f.size, 1.0)
     wt[0] = 0.5
@@ -244,4 +267,5 @@ def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2:
         wt[-1] = 0.5
     df = 1.0 / (length * dt_u)
     delta = np.einsum("f,fai,fbi->ab", wt * ds * df, spec, spec.conj()).real
-    return SpectralCorrection(0.5 * (delta + delta.T), fw, data_w, model_w, np.where(fw < fw[1], 1.0, ratio))
+    return SpectralCorrection(0.5 * (delta + delta.T), fw, data_w, model_w, np.where(fw < fw[1], 1.0, ratio),
+                              np.interp(fw, f, model))
