@@ -117,11 +117,14 @@ def test_montecarlo_with_a_raw_accelerometer_gives_the_joint_hand_bound():
 
 # docs/hand.md's joint campaign (raw sensors, 50 seeds per cell): kf_hand_joint's NEES (6 S, G) against its band
 JOINT_NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer", "steady"): "in",
-                   ("zhou2020_sim_consumer", "typical"): "low", ("zhou2020_sim_consumer", "shaky"): "in",
+                   ("zhou2020_sim_consumer", "typical"): "in", ("zhou2020_sim_consumer", "shaky"): "high",
                    ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
-                   ("mpu9250", "shaky"): "in"}   # consumer 5.55, 5.48, 5.07, 6.69; MPU-9250 5.59, 5.60, 5.67, 5.88 since
-# σ follows the slow residual's own spectrum (calib.spectral_covariance; before: 4.23, 4.65 and 4.93, 4.33); S scored at its stated rate
-# (calib.handkf.scale_reference_rate; typical read 5.60 "in" against the slope at 0 rad/s)
+                   ("mpu9250", "shaky"): "in"}   # consumer 5.55, 5.52, 5.32, 7.45; MPU-9250 5.59, 5.63, 5.73, 6.13 since
+# the spectral correction's reference is the a_e model as the low-passed data carry it (calib.spectral_covariance,
+# prefilter_gain2; before: consumer 5.48, 5.07 "low", 6.69 and MPU-9250 5.60, 5.67, 5.88 — the consumer shaky cell's
+# G_x, G_y were ×1.35 optimistic then too, hidden by the aliased floor's caution: docs/hand.md); σ follows the slow
+# residual's own spectrum (calib.spectral_covariance; before it: 4.23, 4.65 and 4.93, 4.33); S scored at its stated
+# rate (calib.handkf.scale_reference_rate; typical read 5.60 "in" against the slope at 0 rad/s)
 
 
 @pytest.mark.slow
@@ -130,8 +133,7 @@ def test_kf_hand_joint_campaign_claims(key):
     """The docs/hand.md joint table (50 seeds, raw sensor): no seed diverged; NEES inside its 95 % band
     χ²(300)/50 where the docs say "in" (a correct σ fails this 5 % of the time); where "low", never
     optimistic and at most ×1.5 pessimistic in σ (NEES above the band's bottom / 1.5²); where "high", at most ×1.25
-    optimistic in σ (NEES below the band's top × 1.25²; none since the MPU-9250's accelerometer bias temperature
-    drift is modelled).  Every cell: at most 2 of 50 "ok" seeds whose NEES(6) exceeds χ²₆'s 99.9 % quantile (an
+    optimistic in σ (NEES below the band's top × 1.25²; the consumer's shaky hand, measured 7.45).  Every cell: at most 2 of 50 "ok" seeds whose NEES(6) exceeds χ²₆'s 99.9 % quantile (an
     honest σ gives 0.05 expected; measured 0 and 1)."""
     from calib.montecarlo import monte_carlo
 
