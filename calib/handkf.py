@@ -360,14 +360,19 @@ def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.
     return skew(dw) + sw @ sw
 
 
+def _lowpass_design(rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """The tremor low-pass's Butterworth (b, a): ``ORDER`` poles at ``CUTOFF_HZ`` (capped at 0.9 of Nyquist)."""
+    return sp_signal.butter(ORDER, min(CUTOFF_HZ / (rate_hz / 2), 0.9))
+
+
 def _lowpass(x: np.ndarray, rate_hz: float) -> np.ndarray:
-    b, a = sp_signal.butter(ORDER, min(CUTOFF_HZ / (rate_hz / 2), 0.9))
+    b, a = _lowpass_design(rate_hz)
     return sp_signal.filtfilt(b, a, x, axis=0)
 
 
 def _lowpass_gain2(f_hz: np.ndarray, rate_hz: float) -> np.ndarray:
     """|H(f)|² of :func:`_lowpass` (zero-phase: the Butterworth's |H_b|², squared), at any f (periodic in ``rate_hz``)."""
-    b, a = sp_signal.butter(ORDER, min(CUTOFF_HZ / (rate_hz / 2), 0.9))
+    b, a = _lowpass_design(rate_hz)
     return np.abs(sp_signal.freqz(b, a, worN=np.asarray(f_hz, float), fs=rate_hz)[1]) ** 4
 
 

@@ -133,8 +133,9 @@ def test_kf_hand_joint_campaign_claims(key):
     """The docs/hand.md joint table (50 seeds, raw sensor): no seed diverged; NEES inside its 95 % band
     χ²(300)/50 where the docs say "in" (a correct σ fails this 5 % of the time); where "low", never
     optimistic and at most ×1.5 pessimistic in σ (NEES above the band's bottom / 1.5²); where "high", at most ×1.25
-    optimistic in σ (NEES below the band's top × 1.25²; the consumer's shaky hand, measured 7.45).  Every cell: at most 2 of 50 "ok" seeds whose NEES(6) exceeds χ²₆'s 99.9 % quantile (an
-    honest σ gives 0.05 expected; measured 0 and 1)."""
+    optimistic in σ (NEES below the band's top × 1.25²; the consumer's shaky hand, measured 7.45).  Every cell: at
+    most 2 of 50 "ok" seeds whose NEES(6) exceeds χ²₆'s 99.9 % quantile (an honest σ gives 0.05 expected; measured 0
+    and 1)."""
     from calib.montecarlo import monte_carlo
 
     sensor, hand = key
