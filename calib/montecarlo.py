@@ -51,7 +51,7 @@ from scipy import stats
 from gyrosim.calibration import truth_calibration
 from gyrosim.errors import GyrosimError, RecordingError
 from gyrosim.estimator import as_user_file, estimated_triads, load_estimator
-from gyrosim.hand import load_hand
+from gyrosim.hand import Hand, load_hand
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.schedule import load_schedule
 from gyrosim.sensor_model import load_sensor
@@ -540,7 +540,7 @@ def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.nd
 
 def monte_carlo(
     schedule: str = "zhou2020",
-    hand: str = "ideal",
+    hand: str | Hand = "ideal",
     sensor: str = "zhou2020_sim",
     seeds: int = 50,
     rate_hz: float = 100.0,
@@ -557,7 +557,8 @@ def monte_carlo(
     if methods is None:
         methods = ("kf_session" if accelerometer == "estimate" else "kf", "iterated_session")
     # ``sensor``: a preset name or path, or a SensorModel (an ablation: benchmarks/mpu9250_ablation.py)
-    sched, hnd = load_schedule(schedule), load_hand(hand)
+    # ``hand``: a preset name or TOML path, or a Hand (a variant: Hand.without, benchmarks/hand_variants.py)
+    sched, hnd = load_schedule(schedule), (hand if isinstance(hand, Hand) else load_hand(hand))
     model = load_sensor(sensor) if isinstance(sensor, (str, bytes)) or hasattr(sensor, "__fspath__") else sensor
     if calibrated_accelerometer:
         model = replace(model, name=f"{model.name} (accelerometer calibrated)",
@@ -771,5 +772,5 @@ def monte_carlo(
                 sqrt_hand_m[m] = sd_plain_joint
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
                         sqrt_hand_m.get(m, sqrt_hand), refused=len(refused[m])) for m in methods}
-    return MonteCarloResult(schedule, hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
+    return MonteCarloResult(schedule, hnd.name if isinstance(hand, Hand) else hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
                             accelerometer, names, sqrt_hand, hand_psd, sqrt_hand_m)

@@ -35,7 +35,7 @@ child streams (``rng.spawn``), so switching one off does not change the others.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +59,7 @@ __all__ = [
     "Hand",
     "HandMotion",
     "HandNoise",
+    "IMPERFECTIONS",
     "band_limited_noise",
     "hand_preset_names",
     "load_hand",
@@ -205,6 +206,20 @@ class Hand:
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
+    def without(self, *parts: str) -> "Hand":
+        """This hand with the named imperfections switched off (:data:`IMPERFECTIONS`: ``tremor``,
+        ``tremor_rotation``, ``sway``, ``pivot``, ``wobble``), the others unchanged — for a robustness test of an
+        estimator against each imperfection alone.  The child random streams are independent (module
+        docstring), so a variant simulated with the same seed keeps the other imperfections' draws exactly.
+        The name records what was removed (``shaky-without-wobble``)."""
+        unknown = [p for p in parts if p not in IMPERFECTIONS]
+        if unknown or not parts:
+            raise PresetError(f"hand {self.name!r}: cannot switch off {unknown or 'nothing'}; name one or more of "
+                              f"{sorted(IMPERFECTIONS)}")
+        zero = {key: (0.0, 0.0, 0.0) if key == "pivot_offset_m" else 0.0 for p in parts for key in IMPERFECTIONS[p]}
+        return replace(self, name=f"{self.name}-without-{'-'.join(parts)}", **zero,
+                       description=f"{self.description} (switched off: {', '.join(parts)})".strip())
+
     # ------------------------------------------------------------------ motion
     def draw_noise(self, n: int, dt_s: float, rng: np.random.Generator) -> HandNoise:
         """Draw this hand's random imperfections for ``n`` physics steps of ``dt_s`` (s).
@@ -327,6 +342,15 @@ def hand_preset_names() -> list[str]:
     """Names of the hand presets shipped in ``gyrosim/presets/hands/*.toml``."""
     return builtin_names("presets", "hands")
 
+
+# each imperfection of the module docstring and the fields that carry its size (switching it off zeroes them)
+IMPERFECTIONS: dict[str, tuple[str, ...]] = {
+    "tremor": ("tremor_acc_rms_m_s2",),
+    "tremor_rotation": ("tremor_rate_rms_rad_s",),
+    "sway": ("sway_acc_rms_m_s2",),
+    "pivot": ("pivot_offset_m",),
+    "wobble": ("axis_wobble_rms_deg",),
+}
 
 _HAND_KEYS = {f for f in Hand.__dataclass_fields__}
 

@@ -1,0 +1,97 @@
+"""Hands we did not tune for (benchmarks/hand_variants.py, docs/hand.md "Hands we did not tune for"): a preset with
+one imperfection switched off (:meth:`gyrosim.hand.Hand.without`), and the estimators' σ there."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from gyrosim.errors import PresetError
+from gyrosim.hand import IMPERFECTIONS, load_hand
+
+
+def test_without_zeroes_only_the_named_imperfection():
+    shaky = load_hand("shaky")
+    for part, keys in IMPERFECTIONS.items():
+        v = shaky.without(part)
+        assert v.name == f"shaky-without-{part}"
+        for f in dataclasses.fields(shaky):
+            if f.name in ("name", "description"):
+                continue
+            if f.name in keys:
+                assert not np.any(getattr(v, f.name)), (part, f.name)
+            else:
+                assert getattr(v, f.name) == getattr(shaky, f.name), (part, f.name)
+    assert shaky.without(*IMPERFECTIONS).is_ideal
+
+
+def test_without_keeps_the_other_imperfections_draws_seed_for_seed():
+    """The four random imperfections draw from independent child streams: switching the wobble off leaves the
+    tremor and the sway bit-identical for the same seed (so a variant's cell differs from the preset's by that
+    imperfection only), and the wobble itself is zero."""
+    shaky = load_hand("shaky")
+    a = shaky.draw_noise(3000, 0.001, np.random.default_rng(7))
+    b = shaky.without("wobble").draw_noise(3000, 0.001, np.random.default_rng(7))
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if not isinstance(x, np.ndarray):
+            continue
+        if f.name.startswith("beta"):
+            assert np.abs(x).max() > 0 and not np.any(y), f.name
+        else:
+            assert np.array_equal(x, y), f.name
+
+
+@pytest.mark.parametrize("parts", [(), ("wobbel",)])
+def test_without_refuses_nothing_or_an_unknown_name(parts):
+    with pytest.raises(PresetError, match="name one or more of"):
+        load_hand("typical").without(*parts)
+
+
+def test_monte_carlo_takes_a_hand_variant():
+    """calib.montecarlo.monte_carlo accepts a Hand (not only a preset name) and reports it by its name; one seed of
+    the deterministic pivot-only hand, kf_hand with the accelerometer calibrated: a finite NEES, no divergence."""
+    from calib.montecarlo import monte_carlo
+
+    hand = load_hand("typical").without("tremor", "tremor_rotation", "sway", "wobble")
+    r = monte_carlo("zhou2020", hand, "zhou2020_sim_consumer", seeds=1, methods=("kf_hand",),
+                    calibrated_accelerometer=True)
+    assert r.hand == "typical-without-tremor-tremor_rotation-sway-wobble"
+    st = r.methods["kf_hand"]
+    assert "diverged" not in st.statuses and np.isfinite(st.nees_mean)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("part", ["sway", "wobble"])
+def test_kf_hand_sigma_holds_with_one_imperfection_switched_off(part):
+    """kf_hand (accelerometer calibrated) on the shaky hand with its sway or its wobble switched off, consumer
+    sensor, 50 seeds: NEES(6) inside χ²(300)/50's 99 % interval [4.81, 7.34] (measured 5.60 and 5.62; an honest σ
+    fails this 1 % of the time), no seed diverged."""
+    from calib.montecarlo import monte_carlo
+    from scipy import stats
+
+    r = monte_carlo("zhou2020", load_hand("shaky").without(part), "zhou2020_sim_consumer", seeds=50,
+                    methods=("kf_hand",), calibrated_accelerometer=True)
+    st = r.methods["kf_hand"]
+    lo, hi = stats.chi2.ppf([0.005, 0.995], 300) / 50
+    assert "diverged" not in st.statuses, st.statuses
+    assert lo < st.nees_mean < hi, st.nees_mean
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="known limit (docs/hand.md, 'Hands we did not tune for'): the consumer joint's "
+                   "σ of S_y is ~2.4× optimistic when the hand turns without axis wobble — NEES(6) 11.3, 49 of 50 ok")
+def test_kf_hand_joint_sigma_without_wobble():
+    """kf_hand_joint (raw consumer sensor) on the shaky hand without its wobble, 50 seeds: NEES(6) at most the 99 %
+    interval's top 7.34.  Measured 11.3 (S_y's err/σ RMS 2.37) with 49 of 50 seeds `ok`: σ optimistic and not
+    flagged.  A fix turns this xfail into a failure, which is what it is for."""
+    from calib.montecarlo import monte_carlo
+    from scipy import stats
+
+    r = monte_carlo("zhou2020", load_hand("shaky").without("wobble"), "zhou2020_sim_consumer", seeds=50,
+                    methods=("kf_hand_joint",), accelerometer="estimate")
+    hi = stats.chi2.ppf(0.995, 300) / 50
+    assert r.methods["kf_hand_joint"].nees_mean < hi
+
