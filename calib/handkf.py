@@ -344,6 +344,17 @@ def _acc_temp_tilt_prior(p0: np.ndarray, layout, q0_nb: np.ndarray, acc_m_inv: n
     p0[oc:oc + 3, 0:3] = (A @ pcc).T
 
 
+# kf_hand_joint's warning whenever a hand was seen (the spectral σ applied): the joint's σ of S, G has no per-session
+# check that catches this, so its measured size is stated (benchmarks/hand_variants.py; docs/hand.md, "Hands we did
+# not tune for"; tests/test_hand_variants.py's strict xfail)
+JOINT_HAND_LIMIT = (
+    "raw accelerometer with a hand: σ of S, G may be understated — measured on simulated hands with a consumer gyro "
+    "(5 % scale, 2.5 % axis errors): ×1.4 on G_x, G_y with the shaky preset, ×2.4 on S_y when that hand turns "
+    "without wobble and ×2.2 on G_x without sway (NEES(6) 7.5, 11.3, 9.8 against ≤ 7.0; 48, 49 and 39 of 50 "
+    "sessions `ok`); with the "
+    "accelerometer calibrated, kf_hand held its σ on the same sessions — where σ matters, calibrate the accelerometer "
+    "first (a six-position test) and use kf_hand (docs/hand.md, \"Hands we did not tune for\")")
+
 # kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
 # linearisation point, the filter's vertical row the information (the same data would otherwise count twice,
 # and the fit's white-residual covariance is optimistic with a hand's sway: its err/σ RMS 2–5 on the
@@ -932,6 +943,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                  "tremor_band_rms_m_s2": tremor_rms, "tremor_band_resolution_m_s2": tremor_resolution,
                                  "tremor_band_resolved": tremor_resolved, "lowpass_hz": CUTOFF_HZ,
                                  "update_every_samples": dec, **_band_report(band)}}
+    if spectral is not None and estimate:   # a raw accelerometer with a hand: the measured limit (JOINT_HAND_LIMIT)
+        notes.append(JOINT_HAND_LIMIT)
     if spectral is not None:
         fsg = [v for k, v in spectral["sigma_factor"].items() if k.startswith(("gyro_scale", "gyro_nonorth"))]
         notes.append(f"σ of S, G follows the slow residual's own spectrum, not the fitted a_e model's: ×{min(fsg):.2f}–"
