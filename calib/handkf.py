@@ -349,7 +349,8 @@ def _acc_temp_tilt_prior(p0: np.ndarray, layout, q0_nb: np.ndarray, acc_m_inv: n
 # not tune for"; tests/test_hand_variants.py's strict xfail)
 JOINT_HAND_LIMIT = (
     "raw accelerometer with a hand: σ of S, G may be understated — measured on simulated hands with a consumer gyro "
-    "(5 % scale, 2.5 % axis errors): ×1.4 on G_x, G_y with the shaky preset, ×2.4 on S_y when that hand turns "
+    "(5 % scale, 2.5 % axis errors) and the shaky preset's size of hand (a 9.7-cm pivot, 0.24 m/s² tremor; with the "
+    "typical preset's size it held): ×1.4 on G_x, G_y with the shaky preset, ×2.4 on S_y when that hand turns "
     "without wobble and ×2.2 on G_x without sway (NEES(6) 7.5, 11.3, 9.8 against ≤ 7.0; 48, 49 and 39 of 50 "
     "sessions `ok`); with the "
     "accelerometer calibrated, kf_hand held its σ on the same sessions — where σ matters, calibrate the accelerometer "
