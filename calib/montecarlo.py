@@ -772,5 +772,6 @@ def monte_carlo(
                 sqrt_hand_m[m] = sd_plain_joint
     result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
                         sqrt_hand_m.get(m, sqrt_hand), refused=len(refused[m])) for m in methods}
-    return MonteCarloResult(schedule, hnd.name if isinstance(hand, Hand) else hand, model.name, seeds, truths_arr.mean(axis=0), sqrt_crlb, result,
-                            accelerometer, names, sqrt_hand, hand_psd, sqrt_hand_m)
+    return MonteCarloResult(schedule, hnd.name if isinstance(hand, Hand) else hand, model.name, seeds,
+                            truths_arr.mean(axis=0), sqrt_crlb, result, accelerometer, names, sqrt_hand, hand_psd,
+                            sqrt_hand_m)
