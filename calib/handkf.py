@@ -354,9 +354,9 @@ JOINT_HAND_LIMIT = (
     "without wobble and ×2.2 on G_x without sway (NEES(6) 7.5, 11.3, 9.8 against ≤ 7.0; 48, 49 and 39 of 50 "
     "sessions `ok`); with the accelerometer calibrated, kf_hand held its σ on the same sessions — where σ matters, "
     "calibrate the accelerometer first (a six-position test) and use kf_hand, or record at 200 Hz or more: the hand "
-    "tremor's 8–12 Hz rotation "
-    "integrated from 100-Hz samples leaves ~3e-5 rad of attitude error that the joint's accelerometer states absorb, "
-    "and at 200 Hz the same hands gave NEES(6) 5.6 and 6.6 (docs/hand.md, \"Hands we did not tune for\")")
+    "tremor's 8–12 Hz rotation integrated from 100-Hz samples leaves ~3e-5 rad of attitude error that the joint's "
+    "accelerometer states absorb, and at 200 Hz the same hands gave NEES(6) 5.6 and 6.6 (docs/hand.md, \"Hands we "
+    "did not tune for\")")
 
 # kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
 # linearisation point, the filter's vertical row the information (the same data would otherwise count twice,

@@ -8,8 +8,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+import independent_generator as ig
 from gyrosim.errors import PresetError
 from gyrosim.hand import IMPERFECTIONS, load_hand
+from test_hand import HAND_KW, NOISE, _rec, kin  # noqa: F401  (kin: the independent generator's kinematics, a fixture)
+from test_hand_joint import ACC_KW
 
 
 def test_without_zeroes_only_the_named_imperfection():
@@ -96,22 +99,13 @@ def test_kf_hand_joint_sigma_without_wobble():
     assert r.methods["kf_hand_joint"].nees_mean < hi
 
 
-def test_the_joint_states_its_measured_limit_when_it_sees_a_hand():
+def test_the_joint_states_its_measured_limit_when_it_sees_a_hand(kin):
     """kf_hand_joint's σ of S, G has no per-session check for the optimism measured above, so every joint session
-    with a hand says so (calib.handkf.JOINT_HAND_LIMIT); kf_hand with the accelerometer calibrated, on the same
-    session, does not (it held its σ there)."""
-    from dataclasses import replace
-
+    with a hand says so (calib.handkf.JOINT_HAND_LIMIT) — here on the independent generator's hand session with a
+    raw accelerometer; kf_hand on the same session with its accelerometer calibrated does not (it held its σ)."""
     import calib.handkf as hk
-    from gyrosim.estimator import as_user_file
-    from gyrosim.schedule import load_schedule
-    from gyrosim.sensor_model import load_sensor
-    from gyrosim.simulate import apply_sensor, simulate_truth
 
-    truth = simulate_truth(load_schedule("zhou2020"), load_hand("typical"), 100.0, seed=3)
-    model = load_sensor("zhou2020_sim_consumer")
-    raw = apply_sensor(truth, model, np.random.default_rng(3))
-    assert hk.JOINT_HAND_LIMIT in hk.kf_hand(as_user_file(raw), accelerometer="estimate").warnings
-    calibrated = replace(model, accelerometer=tuple(e for e in model.accelerometer if e.is_white_noise))
-    rec = apply_sensor(truth, calibrated, np.random.default_rng(3))
-    assert hk.JOINT_HAND_LIMIT not in hk.kf_hand(as_user_file(rec)).warnings
+    raw = _rec(ig.generate_arrays(seed=0, kin=kin, **NOISE, **HAND_KW, **ACC_KW))
+    assert hk.JOINT_HAND_LIMIT in hk.kf_hand(raw, accelerometer="estimate").warnings
+    calibrated = _rec(ig.generate_arrays(seed=0, kin=kin, **NOISE, **HAND_KW))
+    assert hk.JOINT_HAND_LIMIT not in hk.kf_hand(calibrated).warnings
