@@ -353,10 +353,10 @@ JOINT_HAND_LIMIT = (
     "typical preset's size it held): ×1.4 on G_x, G_y with the shaky preset, ×2.4 on S_y when that hand turns "
     "without wobble and ×2.2 on G_x without sway (NEES(6) 7.5, 11.3, 9.8 against ≤ 7.0; 48, 49 and 39 of 50 "
     "sessions `ok`); with the accelerometer calibrated, kf_hand held its σ on the same sessions — where σ matters, "
-    "calibrate the accelerometer first (a six-position test) and use kf_hand, or record at 200 Hz or more: the hand "
-    "tremor's 8–12 Hz rotation integrated from 100-Hz samples leaves ~3e-5 rad of attitude error that the joint's "
-    "accelerometer states absorb, and at 200 Hz the same hands gave NEES(6) 5.6 and 6.6 (docs/hand.md, \"Hands we "
-    "did not tune for\")")
+    "calibrate the accelerometer first (a six-position test) and use kf_hand, or record at 200 Hz or more: at 200 Hz "
+    "the same hands gave NEES(6) 5.6 and 6.6 — at 100 Hz the hand tremor's rotation doubles the joint's S_y error "
+    "without showing in its innovations, and the joint weights each accelerometer update too heavily (docs/hand.md, "
+    "\"Hands we did not tune for\")")
 
 # kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
 # linearisation point, the filter's vertical row the information (the same data would otherwise count twice,
