@@ -345,23 +345,22 @@ def _acc_temp_tilt_prior(p0: np.ndarray, layout, q0_nb: np.ndarray, acc_m_inv: n
 
 
 # kf_hand_joint's warning whenever a hand was seen (the spectral σ applied): the joint's σ of S, G has no per-session
-# check that catches this, so its measured size is stated (benchmarks/hand_variants.py; docs/hand.md, "Hands we did
-# not tune for"; tests/test_hand_variants.py's strict xfail)
+# check that catches this, so its measured size is stated (tests/test_hand_variants.py, the independent generator's
+# shaky-sized hand; docs/hand.md, "Hands we did not tune for")
 JOINT_HAND_LIMIT = (
-    "raw accelerometer with a hand: σ of S, G may be understated — measured on simulated hands with a consumer gyro "
-    "(5 % scale, 2.5 % axis errors) and the shaky preset's size of hand (a 9.7-cm pivot, 0.24 m/s² tremor; with the "
-    "typical preset's size it held): ×1.4 on G_x, G_y with the shaky preset, ×2.4 on S_y when that hand turns "
-    "without wobble and ×2.2 on G_x without sway (NEES(6) 7.5, 11.3, 9.8 against ≤ 7.0; 48, 49 and 39 of 50 "
-    "sessions `ok`); with the accelerometer calibrated, kf_hand held its σ on the same sessions — where σ matters, "
-    "calibrate the accelerometer first (a six-position test) and use kf_hand, or record at 200 Hz or more: at 200 Hz "
-    "the same hands gave NEES(6) 5.6 and 6.6 — at 100 Hz the hand tremor's rotation doubles the joint's S_y error "
-    "without showing in its innovations, and the joint weights each accelerometer update too heavily (docs/hand.md, "
-    "\"Hands we did not tune for\")")
+    "raw accelerometer with a hand: σ of S, G may be understated with a large hand — on an independent simulator's "
+    "sessions with a 9.7-cm pivot and 0.24 m/s² of tremor (a consumer gyro: 5 % scale, 2.5 % axis errors) NEES(6) "
+    "8.6 against ≤ 7.6 (σ ~1.2× small), 20 of 20 sessions `ok`; gyrosim's hand presets and their variants are in "
+    "band or cautious — where σ matters, calibrate the accelerometer first (a six-position test) and use kf_hand, which held "
+    "its σ on the same sessions (NEES(6) 5.1) (docs/hand.md, \"Hands we did not tune for\")")
 
 # kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
 # linearisation point, the filter's vertical row the information (the same data would otherwise count twice,
 # and the fit's white-residual covariance is optimistic with a hand's sway: its err/σ RMS 2–5 on the
-# independent generator).  A vague prior (the consumer ±1 m/s², ±5 %) diverged on the MPU-9250 (4 of 8 seeds)
+# independent generator).  A vague prior (the consumer ±1 m/s², ±5 %) diverged on the MPU-9250 (4 of 8 seeds).
+# From pass 2 the covariance is the fit's block sandwich (_gravity_fit_lever_free), which does not shrink with the
+# sample rate: the white-residual one did (σ²/N), and with a shaky hand at 100 Hz that left σ of S, G 1.4–2.4×
+# optimistic while the same hands at 200 Hz were honest (docs/hand.md, "Hands we did not tune for")
 FIT_PRIOR_INFLATION = 100.0
 
 
@@ -1284,8 +1283,9 @@ def _gravity_fit_lever_free(rec: Recording, prep, start: int, kreg: np.ndarray, 
     bias (measured: b_y off by 0.05 m/s², 27 of its σ, with the typical hand's 6 cm).  The lever arm's
     acceleration in raw units is M_a K r̂ ≈ K r̂ (the difference is second order: S_a · K r̂).  The hand's
     sway and tremor stay in the residuals, correlated over seconds: the covariance is the fit's block-sum
-    sandwich over ``INFLATION_BLOCK_S`` blocks (the white-residual one was ~2× optimistic in σ for the
-    accelerometer on the independent generator's hand)."""
+    sandwich over ``INFLATION_BLOCK_S`` blocks (Newey & West 1987's batch means; :func:`calib.gravityfit.fit_gravity`,
+    ``block_samples``), not the white-residual (Jᵀ W J)⁻¹, which was ~2× optimistic in σ for the accelerometer on
+    the independent generator's hand and, scaling as 1/N, made the joint's prior depend on the sample rate."""
     ra, _ = prep.rest_range
     cfg = prep.config
     fs = rec.rate_hz
@@ -1295,7 +1295,7 @@ def _gravity_fit_lever_free(rec: Recording, prep, start: int, kreg: np.ndarray, 
     prior = np.concatenate([cfg.prior_sigma("acc_bias"), cfg.prior_sigma("acc_scale"), cfg.prior_sigma("acc_nonorth")])
     sigma_f2 = cfg.vrw_m_s2_sqrt_hz**2 * fs
     return fit_gravity(f, f_reg, sigma_f2 + cfg.external_acc_allowance_m_s2**2, sigma_f2, cfg.gravity_m_s2, prior,
-                       theta_a)
+                       theta_a, block_samples=max(1, int(round(INFLATION_BLOCK_S * fs))))
 
 
 def _confounding(P: np.ndarray, ol: int, layout: StateLayout = HAND_BIAS) -> None:
