@@ -351,8 +351,8 @@ JOINT_HAND_LIMIT = (
     "raw accelerometer with a hand: σ of S, G may be understated with a large hand — on an independent simulator's "
     "sessions with a 9.7-cm pivot and 0.24 m/s² of tremor (a consumer gyro: 5 % scale, 2.5 % axis errors) NEES(6) "
     "8.6 against ≤ 7.6 (σ ~1.2× small), 20 of 20 sessions `ok`; gyrosim's hand presets and their variants are in "
-    "band or cautious — where σ matters, calibrate the accelerometer first (a six-position test) and use kf_hand, which held "
-    "its σ on the same sessions (NEES(6) 5.1) (docs/hand.md, \"Hands we did not tune for\")")
+    "band or cautious — where σ matters, calibrate the accelerometer first (a six-position test) and use kf_hand, "
+    "which held its σ on the same sessions (NEES(6) 5.1) (docs/hand.md, \"Hands we did not tune for\")")
 
 # kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
 # linearisation point, the filter's vertical row the information (the same data would otherwise count twice,
