@@ -335,15 +335,24 @@ def check_estimate(values: dict[str, np.ndarray], covariance: np.ndarray, gravit
 
 
 def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
-            accelerometer: str = "estimate", hand_aware: bool = False) -> tuple[str, list[str]]:
+            accelerometer: str = "estimate", hand_aware: bool = False, noise_free: bool = False) -> tuple[str, list[str]]:
     """``status`` and the warnings that explain it (each says what to try).  ``hand_aware``: the filter models
     the hand (``kf_hand``): its innovation warnings name what is left outside that model
-    (``HAND_AWARE_CAUSES``) instead of the hand-blind filters' remedies (--external-acc, iterated_session)."""
+    (``HAND_AWARE_CAUSES``) instead of the hand-blind filters' remedies (--external-acc, iterated_session).
+    ``noise_free``: the noise levels sit at their numerical floors, so the innovations' scale is that floor's and
+    their excess measures the motion's discretisation error, not a lost gravity reference: an excess the
+    divergence test would name is "inconsistent" (the estimate's own sanity checks still say "diverged")."""
     if sanity:
         return "diverged", [f"diverged: {'; '.join(sanity)}. Check the units (--gyro-unit, --acc-unit), that the "
                             "recording starts at rest, and try --method iterated_session"]
     mean = c.nis_mean if c.nis_mean is not None else float("nan")
-    if c.windows and (c.fraction_above > DIVERGED_FRACTION or mean > DIVERGED_MEAN_FACTOR * c.rows):
+    beyond_divergence = c.windows and (c.fraction_above > DIVERGED_FRACTION or mean > DIVERGED_MEAN_FACTOR * c.rows)
+    if beyond_divergence and noise_free:
+        return "inconsistent", [
+            f"inconsistent: the innovations exceed their 99.9 % χ² bound in {100 * c.fraction_above:.0f} % of 1 s "
+            f"windows (mean NIS {mean:.1f}, expected {c.rows}) against noise levels at their numerical floor: the "
+            "motion's discretisation error, which no noise model of this input can cover, so σ is understated"]
+    if beyond_divergence:
         return "diverged", [
             f"diverged: the innovations exceed their 99.9 % χ² bound in {100 * c.fraction_above:.0f} % of 1 s windows "
             f"(mean NIS {mean:.1f}, expected {c.rows}): the filter lost the gravity reference. " + (

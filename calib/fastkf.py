@@ -32,7 +32,11 @@ from gyrosim.rotations import quat_to_matrix
 
 from .kalman import EXT_ACC_BLOCKS, PAPER, SENSOR_EXTRA_BLOCKS, FilterConfig, StateLayout, initial_covariance, leave_out_means, theta_slice
 
-__all__ = ["BatchResult", "FilterRun", "run_batch", "run_filter", "crlb", "crlb_joint", "regressor_half_window"]
+# the update's H, its non-zero columns at most: φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27 + the lever
+# arm term's gyro columns (S, G, b, c_b, s_T, k) 18
+H_COLS = 65
+
+__all__ = ["BatchResult", "FilterRun", "LeverJacobian", "run_batch", "run_filter", "crlb", "crlb_joint", "regressor_half_window"]
 
 
 def regressor_half_window(rate_hz: float) -> int:
@@ -130,10 +134,61 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
             out[r, i] = s
 
 
+@njit(cache=True)
+def _nb_hph(hc, hcols, nh, pht, m, r_var, out):  # pragma: no cover - compiled
+    """out (m × m) = H (P Hᵀ) + R I for H stored by its non-zero columns (``_nb_times_ht``) and ``pht`` = P Hᵀ."""
+    for i in range(m):
+        for l in range(m):
+            s = 0.0
+            for e in range(nh):
+                s += hc[i, e] * pht[hcols[e], l]
+            out[i, l] = s
+        out[i, i] += r_var
+
+
+@njit(cache=True)
+def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
+    """Si = S⁻¹ for m = 2 or 3 (adjugate over determinant)."""
+    if m == 2:
+        d = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+        Si[0, 0], Si[0, 1] = S[1, 1] / d, -S[0, 1] / d
+        Si[1, 0], Si[1, 1] = -S[1, 0] / d, S[0, 0] / d
+    else:
+        c00 = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
+        c01 = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]
+        c02 = S[0, 1] * S[1, 2] - S[0, 2] * S[1, 1]
+        c11 = S[0, 0] * S[2, 2] - S[0, 2] * S[2, 0]
+        c12 = S[0, 2] * S[1, 0] - S[0, 0] * S[1, 2]
+        c22 = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+        d = S[0, 0] * c00 + S[1, 0] * c01 + S[2, 0] * c02
+        Si[0, 0], Si[0, 1], Si[0, 2] = c00 / d, c01 / d, c02 / d
+        Si[1, 0], Si[1, 1], Si[1, 2] = c01 / d, c11 / d, c12 / d
+        Si[2, 0], Si[2, 1], Si[2, 2] = c02 / d, c12 / d, c22 / d
+
+
+@njit(cache=True)
+def _nb_lever_jac(ws, ld, ldd, r, out):  # pragma: no cover - compiled
+    """out (3 × 9) = ∂(K(ω, ω̇) r)/∂(S, G, b) at ω = ``ws`` (the low-passed compensated rate), for the rate's
+    low-passed sensitivities ``ld`` = L ∂ω/∂θ (3 × 9) and ``ldd`` = d/dt of it: with a = ω̇ × r + ω × (ω × r),
+    δa = δω̇ × r + δω × (ω × r) + ω × (δω × r) (:func:`calib.handkf.lever_jacobian`)."""
+    u0 = ws[1] * r[2] - ws[2] * r[1]                           # u = ω × r
+    u1 = ws[2] * r[0] - ws[0] * r[2]
+    u2 = ws[0] * r[1] - ws[1] * r[0]
+    for c in range(9):
+        v0, v1, v2 = ld[0, c], ld[1, c], ld[2, c]
+        d0, d1, d2 = ldd[0, c], ldd[1, c], ldd[2, c]
+        p0 = v1 * r[2] - v2 * r[1]                             # p = δω × r
+        p1 = v2 * r[0] - v0 * r[2]
+        p2 = v0 * r[1] - v1 * r[0]
+        out[0, c] = (d1 * r[2] - d2 * r[1]) + (v1 * u2 - v2 * u1) + (ws[1] * p2 - ws[2] * p1)
+        out[1, c] = (d2 * r[0] - d0 * r[2]) + (v2 * u0 - v0 * u2) + (ws[2] * p0 - ws[0] * p2)
+        out[2, c] = (d0 * r[1] - d1 * r[0]) + (v0 * u1 - v1 * u0) + (ws[0] * p1 - ws[1] * p0)
+
+
 @njit(cache=True, fastmath=False)
 def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
             kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg, offs_x, sens0,
-            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q, dreg,
+            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q, dreg, jw, jd, jdd,
             rec_on, rK, rH, rHc, rNh, rE, rEc, rNe, rAB, rU):  # pragma: no cover
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
@@ -162,8 +217,10 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     ecols = np.zeros(18, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, 47))                                     # φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27
-    hcols = np.zeros(47, dtype=np.int64)
+    Hc = np.zeros((3, H_COLS))                                 # φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27
+    hcols = np.zeros(H_COLS, dtype=np.int64)                   #   + the lever arm term's gyro columns S, G, b, c_b, s_T, k 18
+    jac_on = o_lv >= 0 and jw.shape[1] > 1                     # K(ω̂) r̂'s dependence on the gyro's errors (lever_jacobian)
+    J = np.zeros((3, 9))
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -348,6 +405,24 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     kr = kreg[b, k] @ hd[0:3]
                     for i in range(3):
                         fh[i] -= kr[i]
+                if jac_on:                                     # K was built at the pass's θ₀; the nominal has moved since:
+                    _nb_lever_jac(jw[b, k], jd[b, k], jdd[b, k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
+                    dlt = np.empty(9)                          # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), θ̂'s S, b at this sample
+                    for j in range(3):
+                        dlt[j] = th[j] - theta0[b, j]
+                        dlt[3 + j] = th[3 + j] - theta0[b, 3 + j]
+                        dlt[6 + j] = th[6 + j] - theta0[b, 6 + j]
+                        if o_ts >= 0:
+                            dlt[j] += sx[3 + j] * dtemp[b, k]
+                        if o_tb >= 0:
+                            dlt[6 + j] += sx[j] * dtemp[b, k]
+                        if o_gs >= 0:
+                            dlt[6 + j] += sx[6 + j] * freg[b, k, j]
+                    for i in range(3):
+                        s = 0.0
+                        for c in range(9):
+                            s += J[i, c] * dlt[c]
+                        fh[i] -= s
                 for i in range(3):
                     z[i] = C[i, 0] * fh[0] + C[i, 1] * fh[1] + C[i, 2] * fh[2]
                 z[2] -= gz
@@ -364,7 +439,7 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                             z[i] -= lti_c[l] * hd[3 + 3 * l + i]
                 m = m_rows
                 for i in range(3):
-                    for e in range(47):
+                    for e in range(H_COLS):
                         Hc[i, e] = 0.0
                 Hc[1, 0] = gz                                  # [g_up×] on φ_x
                 hcols[0] = 0
@@ -392,30 +467,22 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     for l in range(lti_d):
                         if lti_c[l] != 0.0:
                             nh = _nb_put(Hc, hcols, nh, lti_c[l] * np.eye(3), offs_ae[l])   # C_l I (nav)
+                if jac_on:                                     # Ĉ J: the lever arm term through the rate's errors
+                    CJ = C @ J
+                    nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3], o_sg)      # Ĉ ∂(K r̂)/∂S
+                    nh = _nb_put(Hc, hcols, nh, CJ[:, 3:6], o_gg)      # Ĉ ∂(K r̂)/∂G
+                    if o_bg >= 0:
+                        nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9], o_bg)  # Ĉ ∂(K r̂)/∂b
+                    if o_ts >= 0:
+                        nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3] * dtemp[b, k], o_ts)   # s_T: S's column × (T − T₀)
+                    if o_tb >= 0:
+                        nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * dtemp[b, k], o_tb)   # c_b: b's column × (T − T₀)
+                    if o_gs >= 0:
+                        nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * freg[b, k], o_gs)    # k: b's column j × f_j
                 r_var = r_vars[b, k]
                 _nb_times_ht(Pb, Hc, hcols, nh, m, PHt)        # P Hᵀ
-                for i in range(m):                             # S = H P Hᵀ + R
-                    for l in range(m):
-                        s = 0.0
-                        for e in range(nh):
-                            s += Hc[i, e] * PHt[hcols[e], l]
-                        S[i, l] = s
-                    S[i, i] += r_var
-                if m == 2:
-                    d = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
-                    Si[0, 0], Si[0, 1] = S[1, 1] / d, -S[0, 1] / d
-                    Si[1, 0], Si[1, 1] = -S[1, 0] / d, S[0, 0] / d
-                else:
-                    c00 = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
-                    c01 = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]
-                    c02 = S[0, 1] * S[1, 2] - S[0, 2] * S[1, 1]
-                    c11 = S[0, 0] * S[2, 2] - S[0, 2] * S[2, 0]
-                    c12 = S[0, 2] * S[1, 0] - S[0, 0] * S[1, 2]
-                    c22 = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
-                    d = S[0, 0] * c00 + S[1, 0] * c01 + S[2, 0] * c02
-                    Si[0, 0], Si[0, 1], Si[0, 2] = c00 / d, c01 / d, c02 / d
-                    Si[1, 0], Si[1, 1], Si[1, 2] = c01 / d, c11 / d, c12 / d
-                    Si[2, 0], Si[2, 1], Si[2, 2] = c02 / d, c12 / d, c22 / d
+                _nb_hph(Hc, hcols, nh, PHt, m, r_var, S)       # S = H P Hᵀ + R
+                _nb_inv_small(S, m, Si)
                 for i in range(m):                             # innovation z − H x
                     s = 0.0
                     for e in range(nh):
@@ -512,6 +579,19 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     hth[b, k - 1, i] = th[i]
         qout[b] = q
     return theta, P, qout, nis_out, inn_out, hsd, hth, hand, wht_out, sens
+
+
+@dataclass(frozen=True)
+class LeverJacobian:
+    """How the lever arm term K(ω, ω̇) r moves with the gyro's errors, per sample (body frame): ``rate_rad_s``
+    (N, 3) the low-passed compensated rate ω the regressor K was built from, ``d_rate`` (N, 3, 9) its low-passed
+    sensitivity L ∂ω/∂(S, G, b) and ``d_rate_dot`` (N, 3, 9) that sensitivity's time derivative (1/s)
+    (:func:`calib.handkf.lever_jacobian`).  With a = ω̇ × r + ω × (ω × r):
+    ∂a/∂θ = ∂ω̇/∂θ × r + ∂ω/∂θ × (ω × r) + ω × (∂ω/∂θ × r), column by column (``_nb_lever_jac``)."""
+
+    rate_rad_s: np.ndarray
+    d_rate: np.ndarray
+    d_rate_dot: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -628,7 +708,7 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
                lever_regressor: np.ndarray | None = None, hand0: np.ndarray | None = None,
                temperature_rel_c: np.ndarray | None = None, specific_force_m_s2: np.ndarray | None = None,
                sensor0: np.ndarray | None = None, acc_rate_m_s3: np.ndarray | None = None,
-               record: bool = False) -> FilterRun:
+               lever_jacobian: "LeverJacobian | None" = None, record: bool = False) -> FilterRun:
     """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
 
     ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even
@@ -657,6 +737,12 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     ``acc_rate_m_s3`` (N, 3) or (B, N, 3): ḟ̃, the time derivative of the (compensated) specific force (body, m/s³),
     needed by a layout with ``acc_delay``: the accelerometer samples f̃_i(t) = f_i(t − δ_i), so the update uses
     f̃ + diag(δ̂) ḟ̃ and H's δ block is −Ĉ diag(ḟ̃) (first order in δ; :data:`calib.kalman.ACC_DELAY_BLOCKS`).
+    ``lever_jacobian`` (:class:`LeverJacobian`, (N, …) or (B, N, …)): how ``lever_regressor``'s K r̂ moves with the
+    gyro's S, G, b — K was computed from the rate compensated at ``theta0``, so the update subtracts
+    K r̂ + J (θ̂ − θ₀) and H gets Ĉ J on those states (and on c_b, s_T, k through them).  Without it K r̂ is taken as
+    exact: right when S, G are already well determined, but a session that pins S, G only weakly leaves K's error
+    in the innovations, correlated with the motion, and σ of S, G optimistic (docs/hand.md, "The lever arm term's
+    Jacobian").
     """
     if rows not in (2, 3):
         raise ValueError(f"rows must be 2 or 3, got {rows}")
@@ -723,7 +809,13 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         dtemp = np.zeros((B, N))
     # ``record``: the first run's linear error model, step by step (FilterRecord; calib.spectral_covariance)
     nr = N if record else 1
-    rec_arrays = (np.zeros((nr, layout.n, 3)), np.zeros((nr, 3, 47)), np.zeros((nr, 47), np.int64),
+    if lever_jacobian is not None and layout.has("lever_arm"):
+        jw = arr(np.broadcast_to(np.asarray(lever_jacobian.rate_rad_s, float), (B, N, 3)))
+        jd = arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate, float), (B, N, 3, 9)))
+        jdd = arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate_dot, float), (B, N, 3, 9)))
+    else:
+        jw, jd, jdd = np.zeros((B, 1, 3)), np.zeros((B, 1, 3, 9)), np.zeros((B, 1, 3, 9))
+    rec_arrays = (np.zeros((nr, layout.n, 3)), np.zeros((nr, 3, H_COLS)), np.zeros((nr, H_COLS), np.int64),
                   np.zeros(nr, np.int64), np.zeros((nr, 3, 18)), np.zeros((nr, 18), np.int64), np.zeros(nr, np.int64),
                   np.zeros((nr, 2)), np.zeros(nr, np.bool_))
     theta, p, q, nis, inn, hsd, hth, hand, wht, sens = _kernel(
@@ -731,7 +823,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
         float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
         float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
-        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti, dreg, bool(record), *rec_arrays)
+        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti, dreg, jw, jd, jdd, bool(record),
+        *rec_arrays)
     return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
                      hand if layout.models_hand else None, wht,
                      sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None,

@@ -128,7 +128,7 @@ from .noiselevels import (WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_
                           white_variance_relative_sd)
 from .consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
                           verdict)
-from .fastkf import _j_g, regressor_half_window, run_filter
+from .fastkf import LeverJacobian, _j_g, regressor_half_window, run_filter
 from .gravityfit import GravityFit, compensate_acc, fit_gravity
 from .kalman import (ACC_DELAY_BLOCKS, BLOCK_LABELS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, FilterHistory, StateLayout, initial_covariance, leave_out_means, m_matrix,
                      theta_slice)
@@ -136,7 +136,7 @@ from .handchecks import check_hand_assumptions
 from .handbias import rest_bias
 from .spectral_covariance import gauss_markov_psd, spectral_correction, update_weights
 
-__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "white_density", "BiasDrift",
+__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "lever_jacobian", "white_density", "BiasDrift",
            "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature", "scale_reference_rate", "joint_layout",
            "acc_bias_at_temperature"]
 
@@ -344,16 +344,6 @@ def _acc_temp_tilt_prior(p0: np.ndarray, layout, q0_nb: np.ndarray, acc_m_inv: n
     p0[oc:oc + 3, 0:3] = (A @ pcc).T
 
 
-# kf_hand_joint's warning whenever a hand was seen (the spectral σ applied): the joint's σ of S, G has no per-session
-# check that catches this, so its measured size is stated (tests/test_hand_variants.py, the independent generator's
-# shaky-sized hand; docs/hand.md, "Hands we did not tune for")
-JOINT_HAND_LIMIT = (
-    "raw accelerometer with a hand: σ of S, G may be understated with a large hand — on an independent simulator's "
-    "sessions with a 9.7-cm pivot and 0.24 m/s² of tremor (a consumer gyro: 5 % scale, 2.5 % axis errors) NEES(6) "
-    "8.6 against ≤ 7.6 (σ ~1.2× small), 20 of 20 sessions `ok`; gyrosim's hand presets and their variants are in "
-    "band or cautious — where σ matters, calibrate the accelerometer first (a six-position test) and use kf_hand, "
-    "which held its σ on the same sessions (NEES(6) 5.1) (docs/hand.md, \"Hands we did not tune for\")")
-
 # kf_hand_joint: the |f| = g fit's covariance × this is the accelerometer's prior (σ × 10): the fit is the
 # linearisation point, the filter's vertical row the information (the same data would otherwise count twice,
 # and the fit's white-residual covariance is optimistic with a hand's sway: its err/σ RMS 2–5 on the
@@ -371,6 +361,23 @@ def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float) -> np.
     dw = np.gradient(ws, t_s, axis=0)
     sw = skew(ws)
     return skew(dw) + sw @ sw
+
+
+def lever_jacobian(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float, m: np.ndarray) -> LeverJacobian:
+    """How :func:`lever_regressor`'s K r moves with the gyro's errors, for the rate ``w_rad_s`` (N, 3, body)
+    compensated with M = ``m`` (3, 3): ω = M⁻¹ (ω̃ − b) gives ∂ω/∂S = −M⁻¹ diag(ω), ∂ω/∂G = −M⁻¹ J_G(ω),
+    ∂ω/∂b = −M⁻¹ (the first-order error model of Zhou 2020 eq. 9, as the attitude's propagation uses it); the
+    regressor low-passes ω and differentiates it, and so are these sensitivities (the low-pass and the central
+    difference are linear).  Returns :class:`calib.fastkf.LeverJacobian`; the kernel forms ∂(K r̂)/∂θ for the
+    current r̂ from it at each update."""
+    n = w_rad_s.shape[0]
+    mi = np.linalg.inv(m)
+    d = np.empty((n, 3, 9))
+    d[:, :, 0:3] = -mi[None, :, :] * w_rad_s[:, None, :]                         # −M⁻¹ diag(ω)
+    d[:, :, 3:6] = -np.einsum("ij,njk->nik", mi, _j_g(w_rad_s))                   # −M⁻¹ J_G(ω): N(G) ω = J_G(ω) G
+    d[:, :, 6:9] = -mi[None]                                                      # −M⁻¹
+    ld = _lowpass(d.reshape(n, 27), rate_hz).reshape(n, 3, 9)
+    return LeverJacobian(_lowpass(w_rad_s, rate_hz), ld, np.gradient(ld, t_s, axis=0))
 
 
 def _lowpass_design(rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -737,6 +744,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         f_nav = quat_rotate(q, acc)
         f_lp = quat_rotate(quat_conjugate(q), _lowpass(f_nav, fs))       # whitening pre-filter (nav low-pass)
         kreg = lever_regressor(w, t, fs)
+        ljac = lever_jacobian(w, t, fs, m)
         if p > 0:   # Gauss–Markov σ_s, τ from the previous pass's lever arm (module docstring, step 2)
             e = np.linalg.norm(f_lp - np.einsum("nij,j->ni", kreg, hand0[:3]), axis=1) - cfg0.gravity_m_s2
             if layout.has(EXT_ACC_EXTRA_BLOCKS[0]):   # the band-limited sway (_band_from_residual)
@@ -770,7 +778,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         def _run(cfg_, keep: bool, record: bool = False):
             return run_filter(rec.gyro_rad_s[None, a:], f_kernel[None], t, q0[None], theta[None], p0,
                               layout, cfg_, fs, r_var_per_sample=np.full(n, r_var), update_mask=upd, rest_mask=still,
-                              x0=x0[None], lever_regressor=kreg, hand0=h0, rows=rows,
+                              x0=x0[None], lever_regressor=kreg, lever_jacobian=ljac, hand0=h0, rows=rows,
                               temperature_rel_c=None if not layout.models_temperature else thermal[0],
                               specific_force_m_s2=f_lp if layout.models_g_sensitivity else None, sensor0=sens0,
                               acc_rate_m_s3=np.gradient(f_lp, t, axis=0) if layout.models_acc_delay else None,
@@ -862,7 +870,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         f_hat = compensate_acc(acc_all, _acc_theta(theta))
         checks.append(rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg0.gravity_m_s2,
                                    math.sqrt(prep.config.r_var(fs))))
-    status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer, hand_aware=True)
+    status, notes = verdict(checks[0], checks[1], checks[2] if estimate else None, accelerometer, hand_aware=True,
+                            noise_free=prep.noise.noise_free)
     if thermal is not None:
         notes = notes + [temperature["note"]]
     status = apply_inflation(status, notes, infl_test, can_fail=not prep.noise.noise_free, hand_aware=True)
@@ -945,8 +954,6 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                                  "tremor_band_rms_m_s2": tremor_rms, "tremor_band_resolution_m_s2": tremor_resolution,
                                  "tremor_band_resolved": tremor_resolved, "lowpass_hz": CUTOFF_HZ,
                                  "update_every_samples": dec, **_band_report(band)}}
-    if spectral is not None and estimate:   # a raw accelerometer with a hand: the measured limit (JOINT_HAND_LIMIT)
-        notes.append(JOINT_HAND_LIMIT)
     if spectral is not None:
         fsg = [v for k, v in spectral["sigma_factor"].items() if k.startswith(("gyro_scale", "gyro_nonorth"))]
         notes.append(f"σ of S, G follows the slow residual's own spectrum, not the fitted a_e model's: ×{min(fsg):.2f}–"

@@ -221,7 +221,7 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     result either way (S at T₀).  ``delay``: the accelerometer's delay behind the gyro is one more nuisance state
     (as in ``kf_hand``: one δ for the triad, prior σ 10 ms; regressor ḟ of the true specific force).  The layout is
     :func:`hand_crlb_layout`'s."""
-    from .handkf import _common_delay_prior, _g_sensitivity_prior, _variance_ratio, lever_regressor
+    from .handkf import _common_delay_prior, _g_sensitivity_prior, _variance_ratio, lever_jacobian, lever_regressor
 
     th = np.asarray(theta_true, float)
     m = np.eye(3) + np.diag(th[0:3]) + np.array([[0, th[5], th[4]], [th[5], 0, th[3]], [th[4], th[3], 0]])
@@ -262,6 +262,7 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     run = run_filter(gyro[None], acc[None], t_s, np.asarray(quat_true_nb[0], float)[None],
                      th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
                      lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz),
+                     lever_jacobian=lever_jacobian(np.asarray(omega_true_rad_s), t_s, rate_hz, m),
                      rows=3 if estimate_accelerometer else 2,
                      temperature_rel_c=temperature_rel_c if layout.models_temperature else None,
                      specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if layout.has("gyro_g_sens") else None,
