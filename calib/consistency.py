@@ -335,7 +335,8 @@ def check_estimate(values: dict[str, np.ndarray], covariance: np.ndarray, gravit
 
 
 def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
-            accelerometer: str = "estimate", hand_aware: bool = False, noise_free: bool = False) -> tuple[str, list[str]]:
+            accelerometer: str = "estimate", hand_aware: bool = False,
+            noise_free: bool = False) -> tuple[str, list[str]]:
     """``status`` and the warnings that explain it (each says what to try).  ``hand_aware``: the filter models
     the hand (``kf_hand``): its innovation warnings name what is left outside that model
     (``HAND_AWARE_CAUSES``) instead of the hand-blind filters' remedies (--external-acc, iterated_session).

@@ -36,7 +36,8 @@ from .kalman import EXT_ACC_BLOCKS, PAPER, SENSOR_EXTRA_BLOCKS, FilterConfig, St
 # arm term's gyro columns (S, G, b, c_b, s_T, k) 18
 H_COLS = 65
 
-__all__ = ["BatchResult", "FilterRun", "LeverJacobian", "run_batch", "run_filter", "crlb", "crlb_joint", "regressor_half_window"]
+__all__ = ["BatchResult", "FilterRun", "LeverJacobian", "run_batch", "run_filter", "crlb", "crlb_joint",
+           "regressor_half_window"]
 
 
 def regressor_half_window(rate_hz: float) -> int:
@@ -217,10 +218,11 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     ecols = np.zeros(18, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, H_COLS))                                 # φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27
-    hcols = np.zeros(H_COLS, dtype=np.int64)                   #   + the lever arm term's gyro columns S, G, b, c_b, s_T, k 18
-    jac_on = o_lv >= 0 and jw.shape[1] > 1                     # K(ω̂) r̂'s dependence on the gyro's errors (lever_jacobian)
+    Hc = np.zeros((3, H_COLS))                                 # H's non-zero columns (H_COLS)
+    hcols = np.zeros(H_COLS, dtype=np.int64)
+    jac_on = o_lv >= 0 and jw.shape[1] > 1                     # K r̂'s dependence on the gyro's errors (LeverJacobian)
     J = np.zeros((3, 9))
+    dlt = np.zeros(9)
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -405,9 +407,9 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     kr = kreg[b, k] @ hd[0:3]
                     for i in range(3):
                         fh[i] -= kr[i]
-                if jac_on:                                     # K was built at the pass's θ₀; the nominal has moved since:
+                if jac_on:                                     # K was built at the pass's θ₀, the nominal moved since:
                     _nb_lever_jac(jw[b, k], jd[b, k], jdd[b, k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
-                    dlt = np.empty(9)                          # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), θ̂'s S, b at this sample
+                    # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
                     for j in range(3):
                         dlt[j] = th[j] - theta0[b, j]
                         dlt[3 + j] = th[3 + j] - theta0[b, 3 + j]

@@ -136,8 +136,8 @@ from .handchecks import check_hand_assumptions
 from .handbias import rest_bias
 from .spectral_covariance import gauss_markov_psd, spectral_correction, update_weights
 
-__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "lever_jacobian", "white_density", "BiasDrift",
-           "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature", "scale_reference_rate", "joint_layout",
+__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "lever_jacobian", "white_density",
+           "BiasDrift", "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature", "scale_reference_rate", "joint_layout",
            "acc_bias_at_temperature"]
 
 CUTOFF_HZ = 4.0            # below the tremor band (8–12 Hz), above the schedule's rotations (< 1 Hz)
