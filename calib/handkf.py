@@ -8,7 +8,9 @@ nav ENU; f the specific force, g_b gravity in the body):
 * r — the lever arm from the rotation centre (wrist, elbow) to the accelerometer, body frame, m: a
   constant (the accelerometer–gyro site offset is part of it).  f − g_b = ω̇ × r + ω × (ω × r) is
   deterministic and correlated with the rotation, so the paper's filter turns it into S and G errors
-  (0.3 % with a 6 cm wrist): it is estimated, three states;
+  (0.3 % with a 6 cm wrist): it is estimated, three states.  K is built from the rate compensated with the
+  pass's S, G, b (:func:`lever_regressor`), so K r̂ depends on them too: the update carries that dependence,
+  ∂(K r̂)/∂(S, G, b) (:func:`lever_jacobian`) — without it a session that pins S, G weakly left σ ~1.4× optimistic;
 * a_e — the hand's own translation, in nav: tremor (8–12 Hz) and sway (0.2–1 Hz), coloured.  The
   calibration's information lives below ~1 Hz (the rotations), so the tremor band is removed rather
   than modelled: the specific force is rotated to nav with the gyro's own attitude, low-passed there
