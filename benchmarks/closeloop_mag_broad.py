@@ -14,7 +14,7 @@ import sys
 import time
 
 from calib.closeloop import run_closeloop
-from calib.closeloop.mag_loop import run_mag_loop
+from calib.closeloop.mag.loop import run_mag_loop
 from gyrosim.loaders import data_root, load_broad
 from gyrosim.recording import Recording, Truth
 

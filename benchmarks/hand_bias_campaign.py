@@ -1,4 +1,4 @@
-"""kf_hand's gyro bias, before and after calib.handbias, on the same sessions (docs/hand.md, "Gyro bias").
+"""kf_hand's gyro bias, before and after calib.session.rest_bias, on the same sessions (docs/hand.md, "Gyro bias").
 
 Per seed: ``kf_hand`` (accelerometer calibrated) or ``kf_hand_joint`` (``--accelerometer estimate``, raw
 accelerometer).  The reported value is the first rest's mean either way; what changed is its σ and what it is
@@ -7,8 +7,8 @@ scored against:
 * before: σ = the rest's 10-batch-means standard error (``prepare(...).bias_batch_std_rad_s``, as kf_hand reported it),
   scored against the oracle
   (:func:`gyrosim.calibration.truth_calibration`: the bias at the preset's T_ref with zero specific force);
-* after: σ from :mod:`calib.handbias` (white noise ⊕ the hand's rotation during the rest), scored against the
-  device's bias during that rest (:func:`calib.montecarlo.truth_bias_at_reference`: temperature, g-sensitivity
+* after: σ from :mod:`calib.session.rest_bias` (white noise ⊕ the hand's rotation during the rest), scored against the
+  device's bias during that rest (:func:`calib.scoring.montecarlo.truth_bias_at_reference`: temperature, g-sensitivity
   at the rest's specific force, the slow stochastic bias's mean over the rest).
 
 Prints per cell the bias RMSE (rad/s, per axis) against both truths and err/σ RMS before/after, with the
@@ -18,7 +18,7 @@ cell's pooled RMS leaves it.
     nice -n 10 python benchmarks/hand_bias_campaign.py --sensors zhou2020_sim_consumer,mpu9250 \
         --hands ideal,steady,typical,shaky --seeds 50 --out docs/hand_bias.json
 
-Seeds and sessions as :func:`calib.montecarlo.monte_carlo` (truth seed k, sensor draw 10 000 + k, 100 Hz,
+Seeds and sessions as :func:`calib.scoring.montecarlo.monte_carlo` (truth seed k, sensor draw 10 000 + k, 100 Hz,
 accelerometer calibrated unless ``--accelerometer estimate``).
 """
 from __future__ import annotations
@@ -31,10 +31,10 @@ import numpy as np
 from scipy import stats
 from tqdm import tqdm
 
-import calib.montecarlo as mc
-from calib.calibrate import prepare
-from calib.handkf import kf_hand
-from calib.outputs import write_json_atomic
+import calib.scoring.montecarlo as mc
+from calib.session.paper import prepare
+from calib.session.hand.filter import kf_hand
+from calib.app.outputs import write_json_atomic
 from gyrosim.calibration import truth_calibration
 from gyrosim.hand import load_hand
 from gyrosim.schedule import load_schedule

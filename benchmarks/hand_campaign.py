@@ -11,7 +11,7 @@
 (cells already in --out are kept: a campaign can be run hand by hand; ``--methods kf_hand`` runs the
 hand-aware method's cells alone — each cell's bounds cost one Riccati recursion, ~1 s, beside its seeds)
 
-Every cell is :func:`calib.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz, the sensor with its
+Every cell is :func:`calib.scoring.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz, the sensor with its
 accelerometer calibrated — only its white noise kept — and ``accelerometer="calibrated"``).
 """
 
@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from calib.montecarlo import monte_carlo
-from calib.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
+from calib.app.outputs import write_json_atomic
 
 HANDS = ("ideal", "steady", "typical", "shaky")
 
@@ -60,7 +60,7 @@ def table(paths: list[str]) -> str:
     # (same sensor and hand), else its column would be the hand-free bound
     # (kf_hand's with the accelerometer calibrated, kf_hand_joint's with it estimated: the key has the mode)
     # — for S on a warming sensor, the bound of S at the oracle's reference temperature, where a method that states
-    # no temperature (kf) is scored (calib.montecarlo: sqrt_crlb_hand_sg_at_oracle_reference); a file that predates
+    # no temperature (kf) is scored (calib.scoring.montecarlo: sqrt_crlb_hand_sg_at_oracle_reference); a file that predates
     # it lends kf_hand's bound of S at its T_r, marked † (the wrong quantity for kf)
     bounds, stale = {}, set()
     for p in paths:

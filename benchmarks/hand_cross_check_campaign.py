@@ -6,7 +6,7 @@ raw file, δ judged by the hand-blind σ: χ²₆ 99.9 % or a 3σ component), on
     python benchmarks/hand_cross_check_campaign.py --sensor zhou2020_sim_consumer --hand shaky --seeds 50 \
         --out docs/hand_cross_check_zhou2020_sim_consumer.json
 
-Seeds and sessions as :func:`calib.montecarlo.monte_carlo` (truth seed k, sensor draw 10 000 + k, 100 Hz).
+Seeds and sessions as :func:`calib.scoring.montecarlo.monte_carlo` (truth seed k, sensor draw 10 000 + k, 100 Hz).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ import json
 import numpy as np
 from scipy import stats
 
-from calib.calibrate import calibrate
-from calib.gravityfit import compensate_acc
-from calib.handkf import hand_cross_check, kf_hand
+from calib.session.paper import calibrate
+from calib.session.gravityfit import compensate_acc
+from calib.session.hand.filter import hand_cross_check, kf_hand
 from gyrosim.calibration import truth_calibration
 from gyrosim.estimator import as_user_file
 from gyrosim.hand import load_hand

@@ -31,9 +31,9 @@ import numpy as np
 from scipy import stats
 
 from calib import calibrate, load_recording
-from calib.gravityfit import compensate_acc
-from calib.handkf import kf_hand
-from calib.validation import windowed_rotation_error_deg
+from calib.session.gravityfit import compensate_acc
+from calib.session.hand.filter import kf_hand
+from calib.session.validation import windowed_rotation_error_deg
 from gyrosim.errors import GyrosimError
 from gyrosim.loaders import available_datasets
 
@@ -43,7 +43,7 @@ CHI2_6 = float(stats.chi2.ppf(0.999, 6))
 
 
 def optical_attitude_error_deg(rec, gyro, window_s=5.0, step_s=0.5):
-    """tests/test_hand_measured.py's score: :func:`calib.validation.windowed_rotation_error_deg` vs ``opt_quat``."""
+    """tests/session/test_hand_measured.py's score: :func:`calib.session.validation.windowed_rotation_error_deg` vs ``opt_quat``."""
     return windowed_rotation_error_deg(rec.t_s, gyro, rec.truth.quat_nb, rec.rate_hz, window_s, step_s)
 
 

@@ -10,7 +10,7 @@ repository was tuned on them.  A user's hand is not a preset: one holds the devi
 preset (shaky by default) with one imperfection switched off (:meth:`gyrosim.hand.Hand.without`; the others keep
 their exact random draws, seed for seed), or all but the pivot ("pivot only": a deterministic lever arm).
 
-Each cell is :func:`calib.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz): ``kf_hand`` with the accelerometer
+Each cell is :func:`calib.scoring.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz): ``kf_hand`` with the accelerometer
 calibrated (the sensor's white noise only), ``kf_hand_joint`` with the raw sensor (its accelerometer estimated).
 The table gives NEES(6) over the gyro's S and G against χ²₆'s 95 % band for the seed count, the RMS of err/σ of
 each of the six (an honest σ gives 1; its 95 % band for 50 seeds is about [0.81, 1.19]), and the statuses — the
@@ -26,8 +26,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from calib.montecarlo import monte_carlo
-from calib.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
+from calib.app.outputs import write_json_atomic
 from gyrosim.hand import IMPERFECTIONS, load_hand
 
 # (sensor, method): kf_hand scores the accelerometer-calibrated sensor, the joint the raw one

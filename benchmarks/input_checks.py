@@ -9,7 +9,7 @@ measured, when ../shared/data is there), each repeat times, interleaved:
 * boundary — ``calib.inputs.prepare_recording`` (time base, degenerate data, spikes, gaps, units,
   motion, rate: everything ``calib run`` checks before the filter);
 * re-check — ``calib.inputs.check_recording`` as ``prepare()`` runs it inside ``calibrate``;
-* calibrate — ``calib.calibrate.calibrate(rec, "kf_session")`` (the filter; includes the re-check), as
+* calibrate — ``calib.session.paper.calibrate(rec, "kf_session")`` (the filter; includes the re-check), as
   ``calib run`` runs it (accelerometer estimated; BROAD with ``--accelerometer calibrated``, as its
   motion cannot separate the accelerometer).
 
@@ -41,7 +41,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    from calib.calibrate import calibrate
+    from calib.session.paper import calibrate
     from calib.inputs import KF, check_recording, prepare_recording, read_recording
     from gyrosim.loaders import available_datasets
     from gyrosim.recording import save_hdf5

@@ -9,7 +9,7 @@ The ideal hand (its MuJoCo truth is simulated once), the preset with its acceler
 only), zhou2020 schedule, 100 Hz, kf_hand on the user's view of each file; one row per variant, each removing one
 effect.  An effect is *neutralised in place* (zero coefficients and spreads, an infinite bandwidth, a 1e-12 LSB,
 no self-heating) rather than dropped, so that every other draw of a seed (device and noise streams are spawned
-per effect, by position) stays the same: the rows are paired.  Each row is :func:`calib.montecarlo.monte_carlo`
+per effect, by position) stays the same: the rows are paired.  Each row is :func:`calib.scoring.montecarlo.monte_carlo`
 (its bound included, with that variant's own median q_b).
 """
 
@@ -21,8 +21,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from calib.montecarlo import monte_carlo
-from calib.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
+from calib.app.outputs import write_json_atomic
 from gyrosim.sensor_model import load_sensor
 
 ALL = ("g_sensitivity", "temperature_bias", "temperature_scale", "scale_nonlinearity", "bias_instability",
@@ -73,7 +73,7 @@ def main() -> None:
                     help="effects removed from every row too, e.g. 'warmup,g_sensitivity': the warmed-up MPU-9250 of "
                          "docs/hand.md (a board powered long before the session, without its g-sensitivity)")
     ap.add_argument("--out", required=True)
-    ap.add_argument("--method", default="calib.handkf:kf_hand_g_sensitivity",
+    ap.add_argument("--method", default="calib.session.hand.filter:kf_hand_g_sensitivity",
                     help="the estimator (docs/hand.md's table: kf_hand with the g-sensitivity block on)")
     a = ap.parse_args()
     rows = {}

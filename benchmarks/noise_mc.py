@@ -123,7 +123,7 @@ def selection(seeds: int, first: int, rate: float = 100.0, dur: float = 3600.0) 
 
         out["models"][name] = {
             "true_model": model_name(kinds), "parameters": [f"{k}.{f}" for k, f in
-                                                            __import__("calib.noise.gmwm", fromlist=["_Model"])._Model(kinds, np.ones(1), 1.0).names],
+                                                            __import__("calib.noise.gmwm", fromlist=["WaveletModel"]).WaveletModel(kinds, np.ones(1), 1.0).names],
             "true_values": np.exp(logp_true).tolist(), "chosen": chosen,
             "correct_fraction": chosen.get(model_name(kinds), 0) / (3 * seeds),
             "coverage95": np.mean(np.abs(z) <= 1.959964, axis=0).tolist(),

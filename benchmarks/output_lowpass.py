@@ -6,7 +6,7 @@
 
 gyrosim's MPU-9250 preset, its accelerometer calibrated (white noise only) unless the method estimates it, with both
 triads' ``bandwidth`` effect at each cut-off (the preset's own effects, both set to the same
-cut-off), the ideal hand (one MuJoCo truth), zhou2020 schedule, 100 Hz: :func:`calib.montecarlo.monte_carlo` per
+cut-off), the ideal hand (one MuJoCo truth), zhou2020 schedule, 100 Hz: :func:`calib.scoring.montecarlo.monte_carlo` per
 cut-off.  Prints the rest bias's err/σ RMS per axis, NEES of S, G against its band and the statuses.
 """
 
@@ -18,8 +18,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from calib.montecarlo import monte_carlo
-from calib.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
+from calib.app.outputs import write_json_atomic
 from gyrosim.sensor_model import load_sensor
 
 

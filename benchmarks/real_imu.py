@@ -28,8 +28,8 @@ sys.path.insert(0, str(ROOT / "tests"))  # the independent generator lives with 
 
 import independent_generator as ig  # noqa: E402
 
-from calib.calibrate import calibrate  # noqa: E402
-from calib.residuals import compensated, gravity_direction_errors, integrated_turns, pose_gravity_residuals  # noqa: E402
+from calib.session.paper import calibrate  # noqa: E402
+from calib.session.residuals import compensated, gravity_direction_errors, integrated_turns, pose_gravity_residuals  # noqa: E402
 from gyrosim.errors import GyrosimError  # noqa: E402
 from gyrosim.loaders import available_datasets, load_dataset  # noqa: E402
 from gyrosim.recording import Recording  # noqa: E402
@@ -91,7 +91,7 @@ def mc_independent(seeds: int) -> tuple[str, dict]:
 
 
 def mc_gyrosim(seeds: int) -> str:
-    from calib.montecarlo import monte_carlo
+    from calib.scoring.montecarlo import monte_carlo
 
     blocks = []
     for schedule in ("zhou2020", "zhou2020_multipose"):
@@ -130,7 +130,7 @@ def hands(seeds: int = 5) -> str:
 
 
 def bench() -> str:
-    from calib.bench import run_bench
+    from calib.scoring.speed import run_bench
 
     buf = io.StringIO()
     with redirect_stdout(buf):

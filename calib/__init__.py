@@ -15,8 +15,11 @@ lacks), :func:`calibrate_magnetometer`, :func:`find_north`, :func:`tilt_test`,
 :func:`allan_deviation` / :func:`fit_noise_terms`.  Names are imported when first used
 (:mod:`gyrosim.exports`).
 
-Note: ``calib.calibrate`` is the function; the module of the same name stays importable by its
-path (``from calib.calibrate import prepare``).
+Where things live: one folder per job — ``inputs/`` (the boundary every command reads through),
+``session/`` (the hand-held calibration: model, filters, checks), ``noise/``, ``temperature/``,
+``instruments/``, ``orientation/``, ``mag/``, ``closeloop/``, ``scoring/`` and ``app/`` (the command
+line).  Old module paths (``calib.handkf``, ``calib.estimators``…) still import, with a warning
+(:mod:`calib.compat`).
 
 Frames: body Right-Forward-Up, navigation East-North-Up; quaternions (w, x, y, z) body→navigation.
 """
@@ -24,17 +27,20 @@ Frames: body Right-Forward-Up, navigation East-North-Up; quaternions (w, x, y, z
 from gyrosim.calibration import Calibration
 from gyrosim.exports import lazy_exports
 
+from calib.compat import install as install_moved_modules
+
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "calibrate": "calib.calibrate", "METHODS": "calib.calibrate",
+    "calibrate": "calib.session.paper", "METHODS": "calib.session.paper",
     "load_recording": "calib.inputs", "open_recording": "calib.inputs", "check_recording": "calib.inputs",
     "InputError": "calib.inputs",
     "run_closeloop": "calib.closeloop", "CloseloopResult": "calib.closeloop",
     "calibrate_magnetometer": "calib.mag", "MagCalibration": "calib.mag",
-    "find_north": "calib.northfind",
-    "tilt_test": "calib.tilt",
-    "allan_deviation": "calib.allan", "fit_noise_terms": "calib.allan",
+    "find_north": "calib.instruments.northfind",
+    "tilt_test": "calib.instruments.tilt",
+    "allan_deviation": "calib.noise.allan", "fit_noise_terms": "calib.noise.allan",
 }
 __all__ = ["__version__", "Calibration", *_EXPORTS]
 lazy_exports(__name__, _EXPORTS)
+install_moved_modules()

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from calib import Calibration
-from calib.calibrate import calibrate
+from calib.session.paper import calibrate
 from calib.inputs import load_recording
 from gyrosim.calibration import truth_calibration
 from gyrosim.simulate import simulate

@@ -30,7 +30,7 @@ from gyrosim.recording import Recording
 
 def lowpassed_acc_kf(rec: Recording) -> Calibration:
     """Zhou's filter on an accelerometer low-passed at 2 Hz (zero-phase), R from the session."""
-    from calib.estimators import kf_session_r
+    from calib.session.registry import kf_session_r
 
     b, a = signal.butter(2, 2.0 / (rec.rate_hz / 2))
     smooth = signal.filtfilt(b, a, np.asarray(rec.acc_m_s2), axis=0)

@@ -1,7 +1,7 @@
 """Single-pass, in-place kernels (numba) behind the hot effects' ``add_delta`` / ``transform``.
 
 Each kernel is the fast form of an equation whose reference is the effect's numpy ``delta`` (see
-:mod:`gyrosim.effects`); ``tests/test_effects.py`` holds the two equal.  One loop over the samples
+:mod:`gyrosim.effects`); ``tests/gyrosim/test_effects.py`` holds the two equal.  One loop over the samples
 with no temporaries replaces several whole-array numpy passes, which is what made the full
 MPU-9250 model 4× slower than a bare bias+scale+noise baseline (the data do not fit in cache).
 """

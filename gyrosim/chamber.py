@@ -9,7 +9,7 @@ optionally repeated (``repeat``) — the way a chamber programme is written:
     hold_s = 3600            # soak
     [[step]]
     ramp_to_c = 85.0
-    rate_c_per_h = 18.0      # heating at 18 °C/h (Zhang et al., seed 003, §3.1)
+    rate_c_per_h = 18.0      # heating at 18 °C/h ("Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros", §3.1)
     [[step]]
     hold_s = 3600
     [[step]]
@@ -17,8 +17,8 @@ optionally repeated (``repeat``) — the way a chamber programme is written:
     rate_c_per_h = 18.0      # cooling
 
 The ambient is piecewise linear between the corners.  Built-ins (``gyrosim/presets/chambers``):
-``tde_cycles_003`` (seed 003's −40→85 °C cycles at 18 °C/h, five times) and ``points_001``
-(seed 001's calibration points −10, 5, 20, 30, 40 °C, each soaked); a user's profile is a TOML
+``tde_cycles_003`` (the MTEA paper's −40→85 °C cycles at 18 °C/h, five times) and ``points_001``
+(the FOG IMU calibration note's points −10, 5, 20, 30, 40 °C, each soaked); a user's profile is a TOML
 path in the same format.  The sensor's own temperature follows the ambient through the sensor
 model's :class:`~gyrosim.thermal.ThermalModel` (first-order case lag, self-heating).
 """

@@ -422,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     nf.set_defaults(func=cmd_northfind)
 
     tt = sub.add_parser("tilttable", help="tilt-sensor static test: tilt steps about each axis on a dividing head, held still")
-    tt.add_argument("--sensor", default="tilt_001", help="sensor preset or TOML path (default tilt_001, seed 001's chip)")
+    tt.add_argument("--sensor", default="tilt_001", help="sensor preset or TOML path (default tilt_001, the chip of 'Static Capacitance Test of MEMS Tilt Sensor')")
     tt.add_argument("--angles", default=None, help="FROM:TO:STEP in ° (default -15:15:2.5, the seed's ±15° range)")
     tt.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=30.0, help="hold per step, s, > 0")
     tt.add_argument("--zero-hold", type=number(0, 1e7, unit="s"), default=3600.0,

@@ -28,8 +28,8 @@ class _ExportingPackage(types.ModuleType):
 
     def __setattr__(self, name: str, value: object) -> None:
         exports = self.__dict__.get("_EXPORTS", {})
-        if name in exports and isinstance(value, types.ModuleType) and value.__name__ == f"{self.__name__}.{name}":
-            return  # the import system announcing the submodule: the exported object keeps the name
+        if name in exports and isinstance(value, types.ModuleType):
+            return  # the import system announcing a submodule (or an old path to one): the export keeps the name
         super().__setattr__(name, value)
 
 

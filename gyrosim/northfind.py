@@ -76,7 +76,7 @@ def with_latitude(model: SensorModel, latitude_deg: float) -> SensorModel:
 
 def shielded(model: SensorModel, factor: float) -> SensorModel:
     """The sensor model with its gyro's magnetic sensitivity divided by ``factor`` (a µ-metal
-    shield: seed 001 gives 1e4 °/(h·T) for an unshielded FOG coil, 1–10 for a shielded POS-grade
+    shield: "Magnetic Sensitivity of FOG IMU" gives 1e4 °/(h·T) for an unshielded FOG coil, 1–10 for a shielded POS-grade
     one, i.e. factors 1e3–1e4)."""
     if not factor >= 1:
         raise GyrosimError(f"magnetic shielding factor must be ≥ 1, got {factor}")

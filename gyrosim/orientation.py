@@ -12,7 +12,7 @@ callable ``estimator(rec: Recording) -> Attitude`` (or an (N, 4) array of quater
   starts where the filter starts it); scoring removes that offset (:mod:`gyrosim.attitude_errors`).
 
 Registered names (entry-point group ``gyrosim.orientation_estimators``, :mod:`gyrosim.plugins`; calib
-registers these from :mod:`calib.orientation`, the optional extra ``orientation``): ``vqf`` (Laidig & Seel
+registers these from :mod:`calib.orientation.estimators`, the optional extra ``orientation``): ``vqf`` (Laidig & Seel
 2023, package ``vqf``), ``madgwick`` and ``mahony`` (compiled, equal to the ``ahrs`` package's to
 rounding; ``madgwick_ahrs``/``mahony_ahrs`` run ``ahrs`` itself), ``fusion`` (x-io's Fusion,
 package ``imufusion``).  Each exists 6-axis (``vqf``) and 9-axis (``vqf_9d``).  A user's own is

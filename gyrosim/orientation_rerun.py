@@ -1,6 +1,6 @@
 """A rerun view of one session for the orientation estimators: ``gyrosim orientation-view``.
 
-Self-contained (its own blueprint; the calibration views are :mod:`calib.viz_rerun`).  Timeline
+Self-contained (its own blueprint; the calibration views are :mod:`calib.app.rerun`).  Timeline
 ``sensor_time`` (s).  Entities:
 
 * ``world/truth``: the board's true attitude (body → ENU, ``/truth/quat``), a green board with

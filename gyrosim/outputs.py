@@ -1,7 +1,7 @@
 """The output boundary: every path a command writes is checked before the work starts, and every
 file is written atomically, so nothing the user gave is overwritten and nothing is left half-written.
 
-Used by both command lines (``gyrosim`` and ``calib``; calib re-exports it as :mod:`calib.outputs`).
+Used by both command lines (``gyrosim`` and ``calib``; calib re-exports it as :mod:`calib.app.outputs`).
 A stable, generic API (any command, any dict):
 
 * :func:`check_output_paths` — before any computation: each output's folder exists and is

@@ -3,7 +3,7 @@
 A package offers an object under a name by declaring it in its ``pyproject.toml``::
 
     [project.entry-points."gyrosim.estimators"]
-    kf = "calib.estimators:kf"
+    kf = "calib.session.registry:kf"
     my_filter = "my_package.filters:MyFilter"
 
 and gyrosim finds it by that name (:func:`load`): calib registers its calibration estimators this

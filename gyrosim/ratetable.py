@@ -1,4 +1,4 @@
-"""Virtual rate table in a thermal chamber: seed 001's tri-axis ±rate / one-position scheme.
+"""Virtual rate table in a thermal chamber: the tri-axis ±rate / one-position scheme of "Measurement Error and Calibration of FOG IMU".
 
 ``models/ratetable.xml`` is a single-axis table (velocity servo on a hinge about world z) carrying
 a cube with six IMU sites, one per face (each IMU axis up and down).  At every calibration
@@ -45,7 +45,7 @@ def ratetable_model_path() -> Path:
 
 @dataclass(frozen=True)
 class RateTableSequence:
-    """The per-face sequence (seed 001): rate Ω (°/s), full turns per direction, dwell times (s)."""
+    """The per-face sequence: rate Ω (°/s), full turns per direction, dwell times (s)."""
 
     rate_deg_s: float = 30.0
     turns: float = 2.0
@@ -58,7 +58,7 @@ class RateTableSequence:
         if not (0 < self.rate_deg_s <= 500):
             raise GyrosimError("rate table: rate_deg_s must be in (0, 500] °/s")
         if self.turns < 1:
-            raise GyrosimError("rate table: at least one full turn per direction (seed 001: ≥ 360°)")
+            raise GyrosimError("rate table: at least one full turn per direction (≥ 360°)")
 
     @property
     def turn_s(self) -> float:

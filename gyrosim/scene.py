@@ -107,7 +107,7 @@ class HandScene:
         self.model.opt.timestep = timestep_s
         # One free body and one weld: a single constraint island, so MuJoCo's per-step island
         # discovery only costs time (~15 % of a step); the solver then sees the same system and
-        # the sensor data are bit-identical (tests/test_simulation_speed.py).
+        # the sensor data are bit-identical (tests/gyrosim/test_simulation_speed.py).
         self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
         self.data = mujoco.MjData(self.model)
         m = self.model

@@ -1,4 +1,4 @@
-"""Static test of a tilt sensor on a dividing head (seed 001, "Static Capacitance Test of MEMS
+"""Static test of a tilt sensor on a dividing head ("Static Capacitance Test of MEMS
 Tilt Sensor", after JJF 1427-2013): the board tilted in steps and held still, one sweep per
 sensitive axis, the 0°/180° two-point positions, and a long level hold for the zero stability.
 
@@ -47,7 +47,7 @@ class TiltSequence:
     move_s: float = 4.0
     flip: bool = True
     flip_move_s: float = 10.0
-    zero_hold_s: float = 3600.0     # seed 001: the zero stability over 1 h
+    zero_hold_s: float = 3600.0     # the tilt-sensor test: the zero stability over 1 h
 
     def __post_init__(self) -> None:
         if len(self.angles_deg) < 3 or any(not -90 <= a <= 90 for a in self.angles_deg):

@@ -1,12 +1,20 @@
-"""Shared fixtures: simulated sessions are expensive (~1.5 s), so each is made once per run."""
+"""Shared fixtures: simulated sessions are expensive (~1.5 s), so each is made once per run.
+
+The tests mirror calib's folders (``tests/session/`` for ``calib/session/``…); the independent generators
+and the bad-input catalogue they share stay here, at the top, importable by name from every folder.
+"""
 
 from __future__ import annotations
 
 import functools
+import sys
+from pathlib import Path
 
 import pytest
 
 from gyrosim.simulate import simulate_truth
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # independent_generator, bad_inputs, … by name
 
 
 @functools.lru_cache(maxsize=None)

@@ -14,7 +14,8 @@ unit, whether it is a candidate at all (``Effect.candidate``; a non-candidate sa
 reference, what it claims to depend on (its *driver*) and through which channel that driver
 reaches the regressor, its largest plausible size (for the identifiability gate), how to finalise
 what was fitted, and what recording would separate it from an effect of another driver.  Families
-register themselves with :func:`register_family`; the loop asks :func:`family_for` and never tests
+register themselves with :func:`register_family`; the loop asks
+:func:`calib.closeloop.catalogue.family_for` and never tests
 an effect's name.  A candidate effect class without a registered family is still proposed, through
 :class:`GenericFamily` (its own ``candidate_regressor`` and display unit): adding an effect is one
 class in one file.
@@ -42,10 +43,10 @@ import numpy as np
 from gyrosim.effects import EFFECTS, Effect, SignalContext
 
 if TYPE_CHECKING:  # annotations only
-    from .reference import Reference
+    from calib.closeloop.reference import Reference
 
 __all__ = ["Channel", "Candidate", "Untestable", "FittedTerm", "ReportedTerm", "BuildOptions", "CandidateFamily", "GenericFamily",
-           "register_family", "unregister_family", "family_for", "candidate_kinds", "build_candidate"]
+           "register_family", "unregister_family", "registered_families"]
 
 
 class Channel(enum.IntEnum):
@@ -298,43 +299,6 @@ def unregister_family(kind: str) -> None:
     _FAMILIES.pop(kind, None)
 
 
-def family_for(kind: str) -> CandidateFamily | Untestable:
-    """The family proposing ``kind``, or why the vocabulary entry is no candidate."""
-    from . import families  # noqa: F401 - registers the vocabulary's families
-
-    if kind in _FAMILIES:
-        return _FAMILIES[kind]
-    if kind not in EFFECTS:
-        return Untestable(kind, f"not in the effect vocabulary (known: {', '.join(EFFECTS)})")
-    cls = EFFECTS[kind]
-    if "gyro" not in cls.triads:
-        return Untestable(kind, "not an effect of the gyro triad")
-    if not cls.candidate:
-        return Untestable(kind, cls.closeloop_reason or "a random process or output transform with no family to "
-                                                          "linearise it")
-    return GenericFamily(cls)
-
-
-def candidate_kinds() -> list[str]:
-    """Every gyro-triad kind of the vocabulary, in vocabulary order (then families' own kinds)."""
-    from . import families  # noqa: F401
-
-    kinds = [k for k, cls in EFFECTS.items() if "gyro" in cls.triads]
-    return kinds + [k for k, f in _FAMILIES.items() if k not in kinds and f.triad == "gyro"]
-
-
-def build_candidate(kind: str, ctx: SignalContext, ref: "Reference", options: BuildOptions | None = None
-                    ) -> Candidate:
-    """The candidate for ``kind`` on this reference (design rows computed for a linear one).
-
-    Raises :class:`Untestable` (its ``reason``) when ``kind`` is no candidate or cannot be built here."""
-    fam = family_for(kind)
-    if isinstance(fam, Untestable):
-        raise fam
-    cand = fam.build(kind, ctx, ref, options or BuildOptions())
-    if isinstance(cand, Untestable):
-        raise cand
-    if cand.rows is not None or not ref.linear:
-        return cand
-    return Candidate(cand.family, cand.kind, cand.param_names, cand.to_effect, cand.follows, cand.follows_series,
-                     cand.regressors, ref.jacobian(cand.sample_regressors()), cand.lazy, cand.apply, cand._cache)
+def registered_families() -> dict[str, CandidateFamily]:
+    """The registered families by kind (a copy; :mod:`calib.closeloop.catalogue` adds the vocabulary's own)."""
+    return dict(_FAMILIES)

@@ -40,10 +40,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .candidates import Candidate
-from .fit import HeldOutScore, UnionDesign, held_out_score
-from .jsonview import JsonView
-from .state import LoopSetup, ModelState
+from calib.closeloop.candidates import Candidate
+from calib.closeloop.fit import HeldOutScore, UnionDesign, held_out_score
+from calib.closeloop.jsonview import JsonView
+from calib.closeloop.state import LoopSetup, ModelState
 
 __all__ = ["MemberEvidence", "ConfoundedGroup", "find_confounded", "RULE", "MIN_OVERLAP", "overlap_summary", "overlap",
            "contribution_correlation"]

@@ -1,5 +1,5 @@
 """The loop's skeleton, shared by the gyro loop (:mod:`calib.closeloop.loop`) and the magnetometer
-loop (:mod:`calib.closeloop.mag_loop`): rounds of *score → select → add* over typed values.
+loop (:mod:`calib.closeloop.mag.loop`): rounds of *score → select → add* over typed values.
 
 Each sensor supplies its own steps (:class:`SensorSteps`): how a candidate is gated and scored,
 how a confounded group is formed, how a model grows by one term, and what its held-out metrics are.
@@ -30,9 +30,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Generic, Literal, Mapping, Protocol, TypeVar
 
-from .confounding import ConfoundedGroup
-from .identify import Excitation
-from .metrics import MetricChange, MetricSums, compare_metrics, explain_disagreement
+from calib.closeloop.confounding import ConfoundedGroup
+from calib.closeloop.identify import Excitation
+from calib.closeloop.metrics import MetricChange, MetricSums, compare_metrics, explain_disagreement
 
 __all__ = ["NotTaken", "Scoring", "Pick", "Selection", "Round", "LoopTrace", "SensorSteps", "select", "run_rounds",
            "accept_on_every_metric", "CandidateScore", "Rejection"]

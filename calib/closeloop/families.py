@@ -38,11 +38,11 @@ from gyrosim.effects import (EARTH_RATE_RAD_S, Bias, EarthRate, Effect, GSensiti
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.units import G0, RAD2DEG
 
-from ..timeblocks import block_means, time_block_index
+from calib.temperature.timeblocks import block_means, time_block_index
 
-from .candidates import Candidate, CandidateFamily, Channel, ReportedTerm, Untestable, register_family
-from .drift import random_walk_mle
-from .reference import Reference, motion_field, motion_specific_force
+from calib.closeloop.candidates import Candidate, CandidateFamily, Channel, ReportedTerm, Untestable, register_family
+from calib.closeloop.drift import random_walk_mle
+from calib.closeloop.reference import Reference, motion_field, motion_specific_force
 
 __all__ = ["earth_rate_summary"]
 

@@ -32,8 +32,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .candidates import Candidate
-from .reference import Reference
+from calib.closeloop.candidates import Candidate
+from calib.closeloop.reference import Reference
 
 __all__ = ["FitResult", "fit_model", "integrated_time", "HeldOutScore", "held_out_score", "held_out_split", "noise_tau", "UnionDesign", "cluster_robust",
            "reduce_rows", "design_rows", "stack_bounds"]

@@ -49,9 +49,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .candidates import Candidate
-from .fit import FitResult, design_rows, reduce_rows
-from .reference import GravityReference, Reference
+from calib.closeloop.candidates import Candidate
+from calib.closeloop.fit import FitResult, design_rows, reduce_rows
+from calib.closeloop.reference import GravityReference, Reference
 
 __all__ = ["Excitation", "excitation", "precheck", "Z_DETECT", "MIN_DRIVER_SHARE"]
 

@@ -2,7 +2,7 @@
 repeat — naming causes, not proxies (docs/closeloop.md).
 
 Small named steps over typed, frozen values; the rounds are the driver's
-(:mod:`calib.closeloop.driver`, shared with the magnetometer loop :mod:`calib.closeloop.mag_loop`),
+(:mod:`calib.closeloop.driver`, shared with the magnetometer loop :mod:`calib.closeloop.mag.loop`),
 the round's gyro steps are :class:`calib.closeloop.select.GyroSteps`:
 
 1. **reference** (:func:`~calib.closeloop.reference.build_reference`): truth rate > optical
@@ -43,21 +43,22 @@ from gyrosim.rotations import quat_angle_between
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0, RAD2DEG
 
-from ..inputs import CLOSELOOP, check_recording
-from .candidates import BuildOptions, Candidate, FittedTerm, Untestable, build_candidate, candidate_kinds, family_for
-from .confounding import overlap_summary
-from .driver import LoopTrace, NotTaken, Round, run_rounds
-from .fit import FitResult, cluster_robust, design_rows, fit_model
-from .identify import Excitation
-from .jsonview import JsonView
-from .mag_loop import MagLoopResult, reference_frame_note, run_mag_loop
-from .mag_terms import is_mag_kind
-from .metrics import MetricChange, compare_metrics, explain_disagreement
-from .reference import GravityReference, NoReferenceError, RateReference, Reference, build_reference
-from .result import Finding, LoopReport, trace_of
-from .select import GyroSteps
-from .state import LoopSetup, ModelState, refit
-from .structure import ChannelCorrelation, JitterGrowth, SpectralLine, channel_correlations, spectral_lines, \
+from calib.inputs import CLOSELOOP, check_recording
+from calib.closeloop.candidates import BuildOptions, Candidate, FittedTerm, Untestable
+from calib.closeloop.catalogue import build_candidate, candidate_kinds, family_for
+from calib.closeloop.confounding import overlap_summary
+from calib.closeloop.driver import LoopTrace, NotTaken, Round, run_rounds
+from calib.closeloop.fit import FitResult, cluster_robust, design_rows, fit_model
+from calib.closeloop.identify import Excitation
+from calib.closeloop.jsonview import JsonView
+from calib.closeloop.mag.loop import MagLoopResult, reference_frame_note, run_mag_loop
+from calib.closeloop.mag.terms import is_mag_kind
+from calib.closeloop.metrics import MetricChange, compare_metrics, explain_disagreement
+from calib.closeloop.reference import GravityReference, NoReferenceError, RateReference, Reference, build_reference
+from calib.closeloop.result import Finding, LoopReport, trace_of
+from calib.closeloop.select import GyroSteps
+from calib.closeloop.state import LoopSetup, ModelState, refit
+from calib.closeloop.structure import ChannelCorrelation, JitterGrowth, SpectralLine, channel_correlations, spectral_lines, \
     variance_growth, whiteness
 
 __all__ = ["Finding", "RateEvidence", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED",
@@ -238,7 +239,7 @@ def run_closeloop(
     progress: Callable[[str], None] | None = None,
 ) -> CloseloopResult:
     """Run the loop on a recording (the input is not modified); see the module docstring.  Declared
-    and candidate kinds of the magnetometer go to its own loop (:func:`calib.closeloop.mag_loop.run_mag_loop`),
+    and candidate kinds of the magnetometer go to its own loop (:func:`calib.closeloop.mag.loop.run_mag_loop`),
     run when the recording has a magnetometer channel.
 
     BLAS runs single-threaded inside (the project's rule for many small factorizations, as in

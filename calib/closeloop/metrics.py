@@ -43,8 +43,8 @@ from gyrosim.rotations import quat_angle_between, quat_conjugate, quat_multiply
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import RAD2DEG
 
-from .fit import held_out_split
-from .reference import GravityReference, RateReference, Reference
+from calib.closeloop.fit import held_out_split
+from calib.closeloop.reference import GravityReference, RateReference, Reference
 
 __all__ = ["MetricSums", "MetricChange", "MetricContext", "held_out_metrics", "compare_metrics", "z_worse",
            "explain_disagreement"]

@@ -370,7 +370,7 @@ def calibrate_accelerometer_at_rest(means_m_s2: np.ndarray):
 
 
 def gravity_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> GravityReference:
-    from calib.rest import detect_rest  # local: calib.rest imports nothing from here
+    from calib.session.rest import detect_rest  # local: calib.session.rest imports nothing from here
 
     rest = detect_rest(rec)
     rests = [r for r in rest.index_ranges if r[1] - r[0] >= 2 and not exclude[r[0] : r[1]].any()]

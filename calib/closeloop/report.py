@@ -10,7 +10,7 @@ metric, declared → after the loop, with its noise z), ``rejected`` (additions 
 acceptance, with their metrics), ``disagreements``, ``tested`` (candidates that passed the
 identifiability gate), ``identifiability`` (the gate's verdict per candidate and round) and
 ``recording``; with a magnetometer channel also ``magnetometer`` (the same keys for the
-magnetometer's own loop, :mod:`calib.closeloop.mag_loop`; ``unexplained.disturbances`` lists local
+magnetometer's own loop, :mod:`calib.closeloop.mag.loop`; ``unexplained.disturbances`` lists local
 anomalies).
 """
 
@@ -25,8 +25,8 @@ import numpy as np
 from gyrosim.recording import Recording
 from gyrosim.units import RAD2DEG
 
-from .loop import CloseloopResult
-from .mag_loop import MagLoopResult
+from calib.closeloop.loop import CloseloopResult
+from calib.closeloop.mag.loop import MagLoopResult
 
 __all__ = ["write_closeloop_report"]
 
@@ -110,7 +110,7 @@ def _plot_vs_regressor(res: CloseloopResult, rows_of, effect: str, series: np.nd
 
 def _write_rrd(res: CloseloopResult, path: Path) -> Path:
     """closeloop.rrd with its designed blueprint (:mod:`calib.closeloop.rrd`)."""
-    from .rrd import write_closeloop_rrd
+    from calib.closeloop.rrd import write_closeloop_rrd
 
     return write_closeloop_rrd(res, path)
 
@@ -142,7 +142,7 @@ def write_closeloop_report(out: str | Path, rec: Recording, res: CloseloopResult
 
 
 def mag_markdown(m: MagLoopResult) -> list[str]:
-    """The magnetometer section of report.md (:class:`calib.closeloop.mag_loop.MagLoopResult`)."""
+    """The magnetometer section of report.md (:class:`calib.closeloop.mag.loop.MagLoopResult`)."""
     lines = ["", "## Magnetometer", "", f"Reference: **{m.reference}** — {m.reference_description}.",
              f"Declared magnetometer model: {', '.join(m.declared) or 'none (the output taken as calibrated)'}.", ""]
     lines += [f"{i + 1}. {f.trace}" for i, f in enumerate(m.found)] or [

@@ -1,5 +1,5 @@
 """The report both loops fill in (gyro: :class:`calib.closeloop.loop.CloseloopResult`, magnetometer:
-:class:`calib.closeloop.mag_loop.MagLoopResult`): what was declared, found, not tested, not
+:class:`calib.closeloop.mag.loop.MagLoopResult`): what was declared, found, not tested, not
 distinguished and refused, and the held-out errors before and after.  ``report.json``'s keys are
 promises: each result's ``to_json`` writes them in the order they always had."""
 
@@ -8,10 +8,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Mapping
 
-from .confounding import ConfoundedGroup
-from .driver import Rejection, Round
-from .jsonview import JsonView
-from .metrics import MetricChange
+from calib.closeloop.confounding import ConfoundedGroup
+from calib.closeloop.driver import Rejection, Round
+from calib.closeloop.jsonview import JsonView
+from calib.closeloop.metrics import MetricChange
 
 __all__ = ["Finding", "LoopReport", "trace_of"]
 

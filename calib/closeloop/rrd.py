@@ -34,7 +34,7 @@ from gyrosim.units import RAD2DEG
 from gyrosim.viewer import (MARK_COLOURS, Span, log_bars, log_marks, log_story, scalar_style, send_series, series_view,
                             shared_range, story_blueprint)
 
-from .loop import CloseloopResult
+from calib.closeloop.loop import CloseloopResult
 
 __all__ = ["closeloop_blueprint", "closeloop_story", "write_closeloop_rrd"]
 

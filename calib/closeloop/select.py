@@ -25,13 +25,13 @@ from typing import Mapping
 
 import numpy as np
 
-from .candidates import Candidate
-from .confounding import ConfoundedGroup, find_confounded
-from .driver import CandidateScore, NotTaken, Rejection, Scoring, accept_on_every_metric
-from .fit import HeldOutScore, UnionDesign, held_out_score, noise_tau
-from .identify import Excitation, excitation, precheck
-from .metrics import MetricChange
-from .state import LoopSetup, ModelState, error_stage_rate, rebuild, refit
+from calib.closeloop.candidates import Candidate
+from calib.closeloop.confounding import ConfoundedGroup, find_confounded
+from calib.closeloop.driver import CandidateScore, NotTaken, Rejection, Scoring, accept_on_every_metric
+from calib.closeloop.fit import HeldOutScore, UnionDesign, held_out_score, noise_tau
+from calib.closeloop.identify import Excitation, excitation, precheck
+from calib.closeloop.metrics import MetricChange
+from calib.closeloop.state import LoopSetup, ModelState, error_stage_rate, rebuild, refit
 
 __all__ = ["CandidateScore", "Rejection", "GyroSteps", "GyroWork"]
 

@@ -18,10 +18,11 @@ import numpy as np
 
 from gyrosim.recording import Recording
 
-from .candidates import BuildOptions, Candidate, build_candidate
-from .fit import FitResult, fit_model, held_out_split
-from .metrics import MetricContext, MetricSums, held_out_metrics
-from .reference import Reference
+from calib.closeloop.candidates import BuildOptions, Candidate
+from calib.closeloop.catalogue import build_candidate
+from calib.closeloop.fit import FitResult, fit_model, held_out_split
+from calib.closeloop.metrics import MetricContext, MetricSums, held_out_metrics
+from calib.closeloop.reference import Reference
 
 __all__ = ["LoopSetup", "ModelState", "refit", "error_stage_rate", "rebuild"]
 

@@ -23,7 +23,7 @@ import numpy as np
 from scipy import ndimage, stats
 from scipy import signal as sp_signal
 
-from .fit import integrated_time
+from calib.closeloop.fit import integrated_time
 
 __all__ = ["SpectralLine", "ChannelCorrelation", "JitterGrowth", "spectral_lines", "channel_correlations", "whiteness",
            "variance_growth"]

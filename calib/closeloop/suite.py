@@ -65,9 +65,10 @@ from gyrosim.sensor_model import SensorModel, load_sensor
 from gyrosim.thermal import ThermalModel
 from gyrosim.units import G0
 
-from .candidates import Untestable, family_for
-from .loop import DEFAULT_DECLARED, CloseloopResult, run_closeloop
-from .mag_terms import MAG_TERMS, mag_term
+from calib.closeloop.candidates import Untestable
+from calib.closeloop.catalogue import family_for
+from calib.closeloop.loop import DEFAULT_DECLARED, CloseloopResult, run_closeloop
+from calib.closeloop.mag.terms import MAG_TERMS, mag_term
 
 __all__ = ["SUITE", "HARD_SUITE", "MAG_SUITE", "BASE_SENSOR", "WARM_UP", "SuiteCase", "CaseResult", "SuiteRow", "sensor_with",
            "run_case", "run_suite", "suite_truth", "format_suite"]
@@ -312,7 +313,7 @@ def _mag_case(name: str, case: SuiteCase, rec: Recording, res: CloseloopResult) 
     """A magnetometer case: named = the magnetometer loop's first (every) addition is the injected
     kind; the room anomaly is named when a disturbance is reported and no magnetometer term added;
     errors are the magnetometer's held-out field residual (µT)."""
-    from .mag_loop import run_mag_loop
+    from calib.closeloop.mag.loop import run_mag_loop
 
     mag = res.magnetometer
     mfound = mag.found_kinds

@@ -32,22 +32,22 @@ from gyrosim.errors import GyrosimError, RecordingError
 from gyrosim.recording import Recording
 from gyrosim.units import to_si
 
-from .csvfile import read_csv_text
-from .decimate import decimate as _decimate
-from .decimate import decimation_factor
-from .degenerate import degenerate_problems
-from .errors import (DegenerateError, FormatError, GapError, InputError, MotionError, RateError, SpikeError,
+from calib.inputs.csvfile import read_csv_text
+from calib.inputs.decimate import decimate as _decimate
+from calib.inputs.decimate import decimation_factor
+from calib.inputs.degenerate import degenerate_problems
+from calib.inputs.errors import (DegenerateError, FormatError, GapError, InputError, MotionError, RateError, SpikeError,
                      TimeBaseError, TooShortError, UnitError)
-from .gaps import Gaps, bridge_gaps, find_gaps, gaps_warning
-from .hdf5file import read_hdf5
-from .motion import rotation_consistency, summarise_motion
-from .plausibility import acc_unit_problem, gyro_unit_problem
-from .report import InputCheck, InputReport, Loaded
-from .requirements import GENERIC, Requirements
-from .saturation import saturated_samples
-from .sniff import SEPARATOR_NAMES, sniff
-from .spikes import find_spikes, repair_spikes
-from .timebase import AmbiguousTimeUnit, TimeBase, detect_time_unit, normalise_time_unit, time_base, to_seconds
+from calib.inputs.gaps import Gaps, bridge_gaps, find_gaps, gaps_warning
+from calib.inputs.hdf5file import read_hdf5
+from calib.inputs.motion import rotation_consistency, summarise_motion
+from calib.inputs.plausibility import acc_unit_problem, gyro_unit_problem
+from calib.inputs.report import InputCheck, InputReport, Loaded
+from calib.inputs.requirements import GENERIC, Requirements
+from calib.inputs.saturation import saturated_samples
+from calib.inputs.sniff import SEPARATOR_NAMES, sniff
+from calib.inputs.spikes import find_spikes, repair_spikes
+from calib.inputs.timebase import AmbiguousTimeUnit, TimeBase, detect_time_unit, normalise_time_unit, time_base, to_seconds
 
 __all__ = ["read_recording", "prepare_recording", "open_recording", "load_recording", "check_recording",
            "ReadInfo", "repaired_mask", "MAX_INSERTED_FRACTION"]

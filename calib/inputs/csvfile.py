@@ -24,8 +24,8 @@ import numpy as np
 from gyrosim.recording import Recording
 from gyrosim.units import to_si
 
-from .errors import FieldError, FormatError, TimeBaseError, TooShortError
-from .sniff import SEPARATOR_NAMES, detect_separator
+from calib.inputs.errors import FieldError, FormatError, TimeBaseError, TooShortError
+from calib.inputs.sniff import SEPARATOR_NAMES, detect_separator
 
 __all__ = ["CSV_COLUMNS", "KNOWN_COLUMNS", "CsvRead", "read_csv_text", "resample_temperature"]
 

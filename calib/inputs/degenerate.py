@@ -15,7 +15,7 @@ import numpy as np
 from gyrosim.recording import Recording
 from gyrosim.units import to_si
 
-from .errors import DegenerateError
+from calib.inputs.errors import DegenerateError
 
 __all__ = ["degenerate_problems", "check_degenerate"]
 

@@ -15,7 +15,7 @@ import h5py
 
 from gyrosim.recording import Recording, load_hdf5
 
-from .errors import FormatError, TooShortError
+from calib.inputs.errors import FormatError, TooShortError
 
 __all__ = ["read_hdf5"]
 

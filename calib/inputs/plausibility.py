@@ -28,7 +28,7 @@ import numpy as np
 
 from gyrosim.recording import Recording
 
-from .motion import FACTORS, Consistency, MotionSummary
+from calib.inputs.motion import FACTORS, Consistency, MotionSummary
 
 __all__ = ["MAX_PLAUSIBLE_RATE_RAD_S", "MAX_REST_LEVEL_RAD_S", "acc_unit_problem", "gyro_unit_problem"]
 

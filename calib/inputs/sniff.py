@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import FormatError
+from calib.inputs.errors import FormatError
 
 __all__ = ["Sniffed", "sniff", "detect_separator", "HDF5_SIGNATURE", "SEPARATOR_NAMES"]
 

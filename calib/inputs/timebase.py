@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import TimeBaseError
-from .requirements import Requirements
+from calib.inputs.errors import TimeBaseError
+from calib.inputs.requirements import Requirements
 
 __all__ = ["TIME_UNITS", "TimeBase", "AmbiguousTimeUnit", "detect_time_unit", "to_seconds", "time_base"]
 

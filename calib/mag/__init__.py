@@ -7,8 +7,8 @@ compensation (KF, Sage–Husa adaptive KF, particle filter) lives in :mod:`calib
 their comparison in :mod:`calib.mag.compare`.
 """
 
-from .calibrate import calibrate_magnetometer, true_magnetometer
-from .methods import METHODS
-from .result import Disturbance, MagCalibration
+from calib.mag.calibrate import calibrate_magnetometer, true_magnetometer
+from calib.mag.methods import METHODS
+from calib.mag.result import Disturbance, MagCalibration
 
 __all__ = ["calibrate_magnetometer", "true_magnetometer", "METHODS", "MagCalibration", "Disturbance"]

@@ -37,8 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ellipsoid import PRIOR_REL, noise_bias, white_noise_variance
-from .lsq import levenberg_marquardt, sandwich_covariance, with_prior
+from calib.mag.ellipsoid import PRIOR_REL, noise_bias, white_noise_variance
+from calib.mag.lsq import levenberg_marquardt, sandwich_covariance, with_prior
 
 __all__ = ["AidedFit", "fit_aided"]
 

@@ -32,14 +32,14 @@ from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.sensor_model import stored_sensor_model
 
-from .checks import MagInput, check_unit, prepare_magnetometer, rotations_to_add, unit_from_median
-from .disturbance import find_disturbances
-from .ellipsoid import white_noise_variance
-from .gravity import GravityReference, direction_coverage, gravity_reference
-from .hardiron import circle_hard_iron, sphere_hard_iron
-from .lsq import block_index, cluster_jackknife
-from .methods import METHODS, CoreFit, MagMethod, MisalignmentUnobservable, polar_rotation_deg, propagate
-from .result import Disturbance, MagCalibration
+from calib.mag.checks import MagInput, check_unit, prepare_magnetometer, rotations_to_add, unit_from_median
+from calib.mag.disturbance import find_disturbances
+from calib.mag.ellipsoid import white_noise_variance
+from calib.mag.gravity import GravityReference, direction_coverage, gravity_reference
+from calib.mag.hardiron import circle_hard_iron, sphere_hard_iron
+from calib.mag.lsq import block_index, cluster_jackknife
+from calib.mag.methods import METHODS, CoreFit, MagMethod, MisalignmentUnobservable, polar_rotation_deg, propagate
+from calib.mag.result import Disturbance, MagCalibration
 
 __all__ = ["calibrate_magnetometer", "true_magnetometer", "SOFT_IRON_NAMES", "MIN_COVERAGE"]
 

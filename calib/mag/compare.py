@@ -22,11 +22,11 @@ import numpy as np
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_from_rotvec, quat_multiply
 
-from ..allan import allan_deviation
-from .filters import HEADING_FILTERS, FilterSettings
-from .gravity import GravityReference, gravity_reference
-from .heading import compass_quaternion, twist_heading_rad, wrap_pi
-from .result import MagCalibration
+from calib.noise.allan import allan_deviation
+from calib.mag.filters import HEADING_FILTERS, FilterSettings
+from calib.mag.gravity import GravityReference, gravity_reference
+from calib.mag.heading import compass_quaternion, twist_heading_rad, wrap_pi
+from calib.mag.result import MagCalibration
 
 __all__ = ["compass_heading", "gyro_heading_increments", "CompensationRow", "compare_compensation",
            "plot_heading_allan", "comparison_table", "simulated_comparison", "SimulatedComparison"]
@@ -137,7 +137,7 @@ def comparison_table(rows: list[CompensationRow]) -> str:
 
 
 def plot_heading_allan(rows: list[CompensationRow], path: str | Path, title: str = "") -> Path:
-    """Allan deviation of the heading error of each row (seed 001 Figs 14–15 as one plot)."""
+    """Allan deviation of the heading error of each row ("Soft Magnetic Error Compensation Method of Electronic Compass", Figs 14–15, as one plot)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -181,8 +181,8 @@ def simulated_comparison(sensor: str = "phone", *, seed: int = 7, hand: str = "t
     from gyrosim.sensor_model import load_sensor
     from gyrosim.simulate import EARTH_FIELD_ENU_UT, apply_sensor, simulate_truth
 
-    from .calibrate import calibrate_magnetometer
-    from .heading import heading_noise_floor_rad, magnetic_reference, up_from_quat
+    from calib.mag.calibrate import calibrate_magnetometer
+    from calib.mag.heading import heading_noise_floor_rad, magnetic_reference, up_from_quat
 
     r_dev, r_cal, r_use, n_cal, n_use = np.random.default_rng(seed).spawn(5)
     dev = load_sensor(sensor).realize(r_dev)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .result import Disturbance
+from calib.mag.result import Disturbance
 
 __all__ = ["find_disturbances"]
 

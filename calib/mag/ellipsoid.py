@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import levenberg_marquardt, sandwich_covariance, with_prior
+from calib.mag.lsq import levenberg_marquardt, sandwich_covariance, with_prior
 
 __all__ = ["EllipsoidFit", "algebraic_ellipsoid", "fit_ellipsoid", "fit_sphere", "sym", "SYM_IDX", "sqrtm_psd",
            "white_noise_variance", "noise_bias"]

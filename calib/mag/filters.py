@@ -1,5 +1,5 @@
 """Seed 001's in-motion compensation of the compass heading: Kalman filter, Sage–Husa adaptive
-Kalman filter and particle filter (seed 001 §2.1–2.3), each one class, discovered through
+Kalman filter and particle filter ("Soft Magnetic Error Compensation Method of Electronic Compass", §2.1–2.3), each one class, discovered through
 :data:`HEADING_FILTERS`.
 
 Seed 001 treats the soft-iron error as random noise on the compass output and smooths it.  Two
@@ -39,7 +39,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .heading import wrap_pi
+from calib.mag.heading import wrap_pi
 
 __all__ = ["HeadingFilter", "KalmanHeading", "SageHusaHeading", "ParticleHeading", "HEADING_FILTERS",
            "FilterSettings"]
@@ -84,7 +84,7 @@ def _model(s: FilterSettings, dt: float) -> tuple[np.ndarray, np.ndarray]:
 
 class KalmanHeading(HeadingFilter):
     name = "kf"
-    description = "Kalman filter (seed 001 §2.1)"
+    description = "Kalman filter (§2.1 of the electronic-compass note)"
     adaptive: ClassVar[bool] = False
 
     def run(self, z, dpsi, dt, s, rng=None):
@@ -123,13 +123,13 @@ class KalmanHeading(HeadingFilter):
 
 class SageHusaHeading(KalmanHeading):
     name = "akf"
-    description = "adaptive Kalman filter, Sage–Husa with forgetting factor (seed 001 §2.2)"
+    description = "adaptive Kalman filter, Sage–Husa with forgetting factor (§2.2 of the electronic-compass note)"
     adaptive = True
 
 
 class ParticleHeading(HeadingFilter):
     name = "pf"
-    description = "bootstrap particle filter with systematic resampling (seed 001 §2.3)"
+    description = "bootstrap particle filter with systematic resampling (§2.3 of the electronic-compass note)"
 
     def run(self, z, dpsi, dt, s, rng=None):
         if rng is None:

@@ -11,7 +11,7 @@ reference the attitude-aided fit (and the tilt-compensated heading) measures the
 2. **Quasi-static samples.**  In the stabilised frame a window's variance is sensor noise unless
    something else accelerates the board; a sample is quasi-static when its window variance is at
    most the session's quiet level (10th percentile) times χ²₀.₉₉₉(ν)/ν with ν = 4 (the hand's
-   narrow-band tremor: :mod:`calib.rest`), and its |f̄| is within ``static_tol_m_s2`` of gravity.
+   narrow-band tremor: :mod:`calib.session.rest`), and its |f̄| is within ``static_tol_m_s2`` of gravity.
 3. **Accelerometer calibration and the hand's lever arm** (when the quasi-static directions
    cover the sphere): the hand turns the board about a pivot ρ metres away (wrist, elbow), so the
    accelerometer also reads a = α × ρ + ω × (ω × ρ) = K(ω, α) ρ with ω from the gyro and
@@ -40,7 +40,7 @@ from gyrosim.rotations import quat_conjugate, quat_rotate, quat_to_matrix
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0
 
-from .lsq import block_index
+from calib.mag.lsq import block_index
 
 __all__ = ["GravityReference", "gravity_reference", "direction_coverage"]
 
@@ -88,8 +88,8 @@ def _skew(v: np.ndarray) -> np.ndarray:
 
 def _acc_lever_fit(f: np.ndarray, k: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """|L (f − b) − K ρ| = g over (L symmetric, b m/s², ρ m): returns (L, b, ρ, covariance (12×12))."""
-    from .ellipsoid import SYM_IDX, sym
-    from .lsq import levenberg_marquardt, sandwich_covariance
+    from calib.mag.ellipsoid import SYM_IDX, sym
+    from calib.mag.lsq import levenberg_marquardt, sandwich_covariance
 
     def fun(theta):
         lm, b, rho = sym(theta[:6]), theta[6:9], theta[9:12]
@@ -111,7 +111,7 @@ def _acc_lever_fit(f: np.ndarray, k: np.ndarray, blocks: np.ndarray) -> tuple[np
 
 
 def _gyro_bias(rec: Recording) -> tuple[np.ndarray, str | None]:
-    from ..rest import detect_rest, static_bias
+    from calib.session.rest import detect_rest, static_bias
 
     try:
         b = static_bias(rec, detect_rest(rec), min_rest_s=1.0)

@@ -17,9 +17,9 @@ import math
 
 import numpy as np
 
-from .ellipsoid import fit_sphere
-from .gravity import GravityReference
-from .lsq import levenberg_marquardt, sandwich_covariance
+from calib.mag.ellipsoid import fit_sphere
+from calib.mag.gravity import GravityReference
+from calib.mag.lsq import levenberg_marquardt, sandwich_covariance
 
 __all__ = ["sphere_hard_iron", "circle_hard_iron"]
 

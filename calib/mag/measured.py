@@ -20,9 +20,9 @@ from gyrosim.errors import GyrosimError
 from gyrosim.loaders import available_datasets, load_dataset
 from gyrosim.recording import Recording
 
-from .calibrate import calibrate_magnetometer
-from .heading import compass_quaternion, heading_error_rad, up_from_quat, wrap_pi
-from .result import MagCalibration
+from calib.mag.calibrate import calibrate_magnetometer
+from calib.mag.heading import compass_quaternion, heading_error_rad, up_from_quat, wrap_pi
+from calib.mag.result import MagCalibration
 
 __all__ = ["MeasuredRow", "measured_rows", "measured_table", "optical_heading_errors"]
 

@@ -18,9 +18,9 @@ import numpy as np
 
 from gyrosim.errors import RecordingError
 
-from .aided import fit_aided
-from .ellipsoid import SYM_IDX, fit_ellipsoid, sym
-from .gravity import GravityReference
+from calib.mag.aided import fit_aided
+from calib.mag.ellipsoid import SYM_IDX, fit_ellipsoid, sym
+from calib.mag.gravity import GravityReference
 
 __all__ = ["CoreFit", "MagMethod", "EllipsoidMethod", "AidedMethod", "METHODS", "derived", "propagate",
            "polar_rotation_deg", "DERIVED_NAMES", "MisalignmentUnobservable"]

@@ -65,8 +65,8 @@ def _arr(v: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> Path:
     """JSON (NaN → null, the reason in ``warnings``) written atomically: a failed write leaves nothing
-    half-written and an existing file untouched (:func:`calib.outputs.write_json_atomic`)."""
-    from ..outputs import write_json_atomic as write
+    half-written and an existing file untouched (:func:`calib.app.outputs.write_json_atomic`)."""
+    from calib.app.outputs import write_json_atomic as write
 
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")

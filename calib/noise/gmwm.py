@@ -9,7 +9,7 @@ its Haar wavelet variance is the sum of theirs, ν(θ) = Σ_i ν_i(θ_i) (each e
     θ̂ = argmin (ν̂ − ν(θ))ᵀ Ω (ν̂ − ν(θ)),  Ω = diag(Σ)⁻¹                    (Guerrier et al. 2013, eq. 3)
 
 with Σ the covariance of ν̂ (:func:`calib.noise.wavelet.wv_covariance`) evaluated at a fitted
-model (iterated: observed-value weights first, then model-based, as in :mod:`calib.allan`).  Each
+model (iterated: observed-value weights first, then model-based, as in :mod:`calib.noise.allan`).  Each
 term's ν is linear in its variance parameter, so for fixed Gauss–Markov τ's the fit is a
 non-negative least-squares problem (:func:`fit_model`); intervals are on log θ.
 
@@ -37,9 +37,9 @@ import numpy as np
 
 from gyrosim.effects import EFFECTS, Effect
 
-from .wavelet import WaveletVariance, wv_covariance
+from calib.noise.wavelet import WaveletVariance, wv_covariance
 
-__all__ = ["NOISE_TERMS", "ModelFit", "candidate_models", "fit_model", "identify_axis", "AxisSelection",
+__all__ = ["NOISE_TERMS", "canonical_order", "WaveletModel", "sandwich_covariance", "ModelFit", "candidate_models", "fit_model", "identify_axis", "AxisSelection",
            "model_name", "parse_model"]
 
 # the vocabulary's noise terms, discovered (each effect says which of its fields a fit estimates)
@@ -65,10 +65,11 @@ def parse_model(text: str) -> tuple[str, ...]:
         if kind not in NOISE_TERMS:
             raise ValueError(f"unknown noise term {part!r}; use {', '.join(SHORT.values())} (e.g. white+flicker+rw, white+2gm)")
         out += [kind] * count
-    return _canonical(tuple(out))
+    return canonical_order(tuple(out))
 
 
-def _canonical(kinds: tuple[str, ...]) -> tuple[str, ...]:
+def canonical_order(kinds: tuple[str, ...]) -> tuple[str, ...]:
+    """The noise terms' kinds in the vocabulary's order (white first, the rate ramp last)."""
     order = list(SHORT)
     return tuple(sorted(kinds, key=order.index))
 
@@ -81,12 +82,12 @@ def candidate_models() -> list[tuple[str, ...]]:
                                                         ("gauss_markov", "gauss_markov")), (0, 1), (0, 1)):
         kinds = ("white_noise",) + (("quantization_noise",) if qn else ()) + slow + (("random_walk",) if rw else ()) \
             + (("rate_ramp",) if dr else ())
-        out.append(_canonical(kinds))
+        out.append(canonical_order(kinds))
     return out
 
 
 # ------------------------------------------------------------------ the model's wavelet variance
-class _Model:
+class WaveletModel:
     """ν(θ) and ∂ν/∂log θ for a composite model at fixed scales (one axis).  Terms whose ν is
     quadratic in their single parameter (all but Gauss–Markov) use a basis computed once."""
 
@@ -171,7 +172,7 @@ class ModelFit:
         return model_name(self.kinds)
 
 
-def _columns(model: _Model, taus: dict[int, float]) -> np.ndarray:
+def _columns(model: WaveletModel, taus: dict[int, float]) -> np.ndarray:
     """(J, q) basis: ν of each term at unit variance parameter (a Gauss–Markov term at its τ)."""
     cols = []
     for j, k in enumerate(model.kinds):
@@ -182,7 +183,7 @@ def _columns(model: _Model, taus: dict[int, float]) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-def _gm_table(model: _Model, tau_grid: np.ndarray) -> np.ndarray:
+def _gm_table(model: WaveletModel, tau_grid: np.ndarray) -> np.ndarray:
     """(T, J) Gauss–Markov wavelet variance at unit σ for each τ of the grid."""
     cls = NOISE_TERMS["gauss_markov"]
     out = []
@@ -201,7 +202,7 @@ def fit_model(kinds: tuple[str, ...], wv: WaveletVariance, sd: np.ndarray) -> Mo
     profile.  A term fitted to exactly 0 makes the candidate the smaller model (``degenerate``)."""
     from scipy.optimize import minimize, nnls
 
-    model = _Model(kinds, wv.m, wv.dt_s)
+    model = WaveletModel(kinds, wv.m, wv.dt_s)
     gm = [j for j, k in enumerate(kinds) if "tau_s" in NOISE_TERMS[k].noise_parameters]  # terms with a correlation time
     w = 1.0 / sd
 
@@ -245,9 +246,9 @@ def fit_model(kinds: tuple[str, ...], wv: WaveletVariance, sd: np.ndarray) -> Mo
                     nu2_model=None if degenerate else model.nu(logp), degenerate=degenerate)
 
 
-def _sandwich(kinds: tuple[str, ...], wv: WaveletVariance, logp: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, float]:
+def sandwich_covariance(kinds: tuple[str, ...], wv: WaveletVariance, logp: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, float]:
     """(Cov(log θ̂), optimism) for Ω = diag(Σ)⁻¹; see the module docstring."""
-    model = _Model(kinds, wv.m, wv.dt_s)
+    model = WaveletModel(kinds, wv.m, wv.dt_s)
     d = model.jac(logp)
     omega = 1.0 / np.diag(sigma)
     b = d.T @ (d * omega[:, None])
@@ -298,11 +299,11 @@ def identify_axis(x: np.ndarray, dt_s: float, models: list[tuple[str, ...]] | No
     best of them (objective + 2p) → every candidate refitted with that Σ, WIC → select → Σ at the
     chosen model → its final fit and sandwich covariance.  ``models``: the candidates (default all
     32); those with more parameters than the scales allow (p > J − 2) are left out."""
-    from .wavelet import wavelet_variance
+    from calib.noise.wavelet import wavelet_variance
 
     wv = wv if wv is not None else wavelet_variance(x, dt_s)
     models = models or candidate_models()
-    models = [k for k in models if _Model(k, wv.m, wv.dt_s).p <= wv.m.size - 2]
+    models = [k for k in models if WaveletModel(k, wv.m, wv.dt_s).p <= wv.m.size - 2]
     if not models:
         raise ValueError("too few scales for any candidate model")
     eta = np.maximum(wv.coefficients / (2 * wv.m), 1.0)          # P&W 2000 EDOF (approximation 3)
@@ -310,21 +311,21 @@ def identify_axis(x: np.ndarray, dt_s: float, models: list[tuple[str, ...]] | No
     scout = [k for k in models if k in _SCOUTS] or models[:1]
     first = [f for f in (fit_model(k, wv, sd0) for k in scout) if not f.degenerate]
     ref = min(first, key=lambda f: f.objective + 2 * f.p)
-    sigma = wv_covariance(_Model(ref.kinds, wv.m, wv.dt_s).psd(ref.log_params), wv.m, wv.coefficients)
+    sigma = wv_covariance(WaveletModel(ref.kinds, wv.m, wv.dt_s).psd(ref.log_params), wv.m, wv.coefficients)
     sd1 = np.sqrt(np.diag(sigma))
     fits = []
     for k in models:
         f = fit_model(k, wv, sd1)
         if f.degenerate:
             continue
-        _, opt = _sandwich(k, wv, f.log_params, sigma)
+        _, opt = sandwich_covariance(k, wv, f.log_params, sigma)
         fits.append(ModelFit(f.kinds, f.names, f.log_params, f.objective, opt, nu2_model=f.nu2_model))
     chosen = select(fits, sigma)
     sigma2 = sigma if chosen.kinds == ref.kinds else \
-        wv_covariance(_Model(chosen.kinds, wv.m, wv.dt_s).psd(chosen.log_params), wv.m, wv.coefficients)
+        wv_covariance(WaveletModel(chosen.kinds, wv.m, wv.dt_s).psd(chosen.log_params), wv.m, wv.coefficients)
     f = fit_model(chosen.kinds, wv, np.sqrt(np.diag(sigma2)))
     if f.degenerate:
         f = chosen
-    cov, opt = _sandwich(chosen.kinds, wv, f.log_params, sigma2)
+    cov, opt = sandwich_covariance(chosen.kinds, wv, f.log_params, sigma2)
     final = ModelFit(f.kinds, f.names, f.log_params, f.objective, opt, cov, f.nu2_model)
     return AxisSelection(wv, tuple(fits), final, sigma2)

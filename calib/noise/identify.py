@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .gmwm import AxisSelection, identify_axis
-from .units import CONVENTION, representations, si_unit
+from calib.noise.gmwm import AxisSelection, identify_axis
+from calib.noise.units import CONVENTION, representations, si_unit
 
 __all__ = ["NoiseParameter", "AxisNoise", "NoiseIdentification", "identify_noise", "minimum_samples", "TRIADS"]
 
@@ -90,7 +90,7 @@ class NoiseIdentification:
                     keys.append((p.kind, p.index))
         effects = []
         for kind, idx in keys:
-            from .gmwm import NOISE_TERMS
+            from calib.noise.gmwm import NOISE_TERMS
 
             cls = NOISE_TERMS[kind]
             d: dict = {"effect": kind}
@@ -158,7 +158,7 @@ def identify_noise(x: np.ndarray | list[np.ndarray], rate_hz: float, triad: str 
                    models: list[tuple[str, ...]] | None = None, warnings: tuple[str, ...] = ()) -> NoiseIdentification:
     """Identify the stochastic model of each axis of ``x`` (N, 3) sampled at ``rate_hz`` (static),
     or of a list of separate still segments (K_i, 3) of one record (wavelet variances pooled)."""
-    from .wavelet import pooled_wavelet_variance
+    from calib.noise.wavelet import pooled_wavelet_variance
 
     segments = [np.asarray(s, float) for s in x] if isinstance(x, list) else None
     x = np.concatenate(segments) if segments is not None else np.asarray(x, float)
@@ -173,7 +173,7 @@ def identify_noise(x: np.ndarray | list[np.ndarray], rate_hz: float, triad: str 
                                                             si_unit(p.kind, p.field, tri)) for p in res.parameters),
                         res.consistent, res.objective_p_value)
         axes.append(res)
-    from .inflation import inflation_table
+    from calib.noise.inflation import inflation_table
 
     infl = inflation_table(axes, rate_hz)
     return NoiseIdentification(triad, float(rate_hz), x.shape[0] / rate_hz, tuple(axes), tuple(warnings), infl)

@@ -6,7 +6,7 @@
   is where that curve crosses it (log–log interpolation on a √2-spaced grid of T).  The 95 %
   interval's relative half-width is ≈ 1.96 σ(log θ̂).
 * Deterministic calibration parameters (S, G of the gyro): the Cramér–Rao bound of one pass of
-  the schedule (:func:`calib.fastkf.crlb`, ideal hand, the preset's ARW and VRW); R independent
+  the schedule (:func:`calib.session.kernel.crlb`, ideal hand, the preset's ARW and VRW); R independent
   repetitions carry R times the information, so R = ⌈(σ₁/σ_target)²⌉.
 """
 
@@ -19,8 +19,8 @@ import numpy as np
 
 from gyrosim.effects import Effect
 
-from .gmwm import NOISE_TERMS, _canonical, _Model, _sandwich
-from .wavelet import WaveletVariance, scales_for, wv_covariance
+from calib.noise.gmwm import NOISE_TERMS, canonical_order, WaveletModel, sandwich_covariance
+from calib.noise.wavelet import WaveletVariance, scales_for, wv_covariance
 
 __all__ = ["noise_terms_of", "predicted_relative_sigma", "record_length", "schedule_repetitions", "PlanRow"]
 
@@ -35,7 +35,7 @@ def noise_terms_of(effects: tuple[Effect, ...], axis: int = 0) -> tuple[tuple[st
             vals = [float(np.asarray(getattr(e, f))[axis]) for f in NOISE_TERMS[e.kind].noise_parameters]
             if all(v > 0 for v in vals):
                 terms.append((e.kind, vals))
-    order = _canonical(tuple(k for k, _ in terms))
+    order = canonical_order(tuple(k for k, _ in terms))
     terms.sort(key=lambda kv: (order.index(kv[0]), kv[1][-1]))
     return tuple(k for k, _ in terms), np.log(np.concatenate([v for _, v in terms]))
 
@@ -47,9 +47,9 @@ def predicted_relative_sigma(kinds: tuple[str, ...], log_params: np.ndarray, rat
     n = int(round(duration_s * rate_hz))
     m = scales_for(n)
     wv = WaveletVariance(m.astype(float), np.zeros(m.size), n - 2.0 * m + 1, n, dt)
-    model = _Model(kinds, wv.m, dt)
+    model = WaveletModel(kinds, wv.m, dt)
     sigma = wv_covariance(model.psd(log_params), wv.m, wv.coefficients)
-    cov, _ = _sandwich(kinds, wv, log_params, sigma)
+    cov, _ = sandwich_covariance(kinds, wv, log_params, sigma)
     return np.sqrt(np.clip(np.diag(cov), 0, None))
 
 
@@ -76,7 +76,7 @@ def record_length(effects: tuple[Effect, ...], triad: str, rate_hz: float, targe
     kinds, logp = noise_terms_of(effects)
     if not kinds:
         return []
-    names = _Model(kinds, np.ones(1), 1.0 / rate_hz).names
+    names = WaveletModel(kinds, np.ones(1), 1.0 / rate_hz).names
     ts = np.geomspace(*t_range_s, int(round(2 * math.log2(t_range_s[1] / t_range_s[0]))) + 1)
     ts = ts[ts * rate_hz >= 64]
     curve = []
@@ -111,8 +111,8 @@ def schedule_repetitions(sensor, schedule: str, rate_hz: float, target_s: float,
     from gyrosim.schedule import load_schedule
     from gyrosim.simulate import simulate_truth
 
-    from ..fastkf import crlb
-    from ..kalman import FilterConfig
+    from calib.session.kernel import crlb
+    from calib.session.model import FilterConfig
 
     def density(effects) -> float:
         return float(sum((np.asarray(e.density) for e in effects if e.is_white_noise), np.zeros(3)).max())

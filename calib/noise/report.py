@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .gmwm import NOISE_TERMS
-from .identify import NoiseIdentification
-from .units import datasheet_unit, representations
+from calib.noise.gmwm import NOISE_TERMS
+from calib.noise.identify import NoiseIdentification
+from calib.noise.units import datasheet_unit, representations
 
 __all__ = ["summary_lines", "plot_noise", "temperature_trend_c"]
 

@@ -53,7 +53,7 @@ class EarthRate(Effect):
 
 @dataclass(frozen=True)
 class MagneticSensitivity(Effect):
-    """Gyro bias from the magnetic field (Faraday effect in FOG coils, seed 001): δ = K B_b,
+    """Gyro bias from the magnetic field (Faraday effect in FOG coils, "Magnetic Sensitivity of FOG IMU"): δ = K B_b,
     K 3×3 in (rad/s)/µT; unshielded FOG ~1e4 °/(h·T), POS grade 1–10 °/(h·T).  Gyro only."""
 
     kind: ClassVar[str] = "magnetic_sensitivity"

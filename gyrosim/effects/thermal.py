@@ -158,7 +158,7 @@ def _hats(temp: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class TemperaturePiecewise(Effect):
-    """Bias and scale factor interpolated linearly between calibration temperatures (seed 001 §4,
+    """Bias and scale factor interpolated linearly between calibration temperatures ("Measurement Error and Calibration of FOG IMU", §4,
     piecewise-linear interpolation compensation): δ_i = b_i(T) + s_i(T) x_i, with b_i, s_i the
     values at ``points_c`` (°C, increasing) joined linearly and held beyond the end points.
     ``bias`` (3, K) in rad/s or m/s², ``scale`` (3, K) fraction (SI in presets too)."""
@@ -187,7 +187,7 @@ class TemperaturePiecewise(Effect):
 
     @classmethod
     def candidate_prototype(cls, ctx):
-        """Five points spread evenly over the recording's temperature span (seed 001)."""
+        """Five points spread evenly over the recording's temperature span."""
         _, lo, hi = _span_c(ctx)
         return cls(points_c=np.linspace(lo, hi, 5), bias=np.zeros((3, 5)), scale=np.zeros((3, 5)))
 
@@ -218,7 +218,7 @@ class TemperaturePiecewise(Effect):
 @dataclass(frozen=True)
 class TemperatureRBF(Effect):
     """Bias drift over temperature as a Gaussian radial-basis network with the inputs ΔT and ΔT²
-    (seed 003, §3.2: TDE modelled from ΔT = T − T_ref and ΔT²):
+    ("Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros", §3.2: TDE modelled from ΔT = T − T_ref and ΔT²):
 
         δ_i = Σ_k a_ik exp(−½ [((ΔT − ΔT_k)/w)² + ((ΔT² − ΔT_k²)/(w·s))²]),   s = 2 max_k |ΔT_k|
 
@@ -251,7 +251,7 @@ class TemperatureRBF(Effect):
 
     @classmethod
     def candidate_prototype(cls, ctx):
-        """Six centres spread evenly over the recording's span, one spacing wide, about its mean (seed 003)."""
+        """Six centres spread evenly over the recording's span, one spacing wide, about its mean."""
         t_ref, lo, hi = _span_c(ctx)
         centres = np.linspace(lo, hi, 6)
         return cls(centres_c=centres, width_c=float(centres[1] - centres[0]), t_ref_c=t_ref, weights=np.zeros((3, 6)))

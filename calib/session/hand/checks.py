@@ -1,0 +1,206 @@
+"""Checks of ``kf_hand``'s own assumptions on a recording, for measured data (docs/real_imu.md,
+"kf_hand on the measured recordings").
+
+``kf_hand`` (:mod:`calib.session.hand.filter`) is exact on data that follow its model; on someone else's data three
+assumptions can fail without its innovations saying so (measured on the project's measured recordings):
+
+1. **the accelerometer is calibrated** (Zhou 2020 §3.3.2; ``--accelerometer calibrated``).  An
+   uncalibrated triad (bias b_a, scale S_a, non-orthogonality G_a) reads gravity with a magnitude error
+   and a direction error of the same order ε (for f = (I + S_a + N(G_a)) g + b_a both are O(|S_a| + |G_a|
+   + |b_a|/g)); the filter takes that direction as the truth, so the tilt reference is wrong by ~ε rad
+   between poses and S, G absorb ~ε per radian turned.  The rests show it: at rest |f| = g whatever the
+   pose for a calibrated accelerometer, so the spread of the rests' |f̄_i| across poses measures ε
+   (Ferraris et al. 1995; Tedaldi et al. 2014, the |f| = g cost).  When ε exceeds the median σ of S, G
+   (and its own noise) the S, G are not trustworthy at their σ: ``inconsistent`` with a warning.
+   Measured: imucal's Ferraris session 113 mg (kf_hand's G 6–10 σ from imucal's), imu_tk's Xsens
+   counts 234 mg; BROAD (maker-calibrated) ≤ 0.4 mg, x-io Fusion 0.5 mg.  When every rest has about the
+   same attitude (all gravity directions within ``SAME_POSE_DEG``) the rests cannot test it: a note says so;
+2. **what the 4-Hz pre-filter removes is a hand's tremor**: impacts (BROAD's tapping trial, 4.8 m/s²
+   RMS above 4 Hz) or vibration are bursts whose part below 4 Hz the stationary Gauss–Markov model
+   averages over the session; a hand's physiological tremor is ≤ 0.035 g peak (0.34 m/s²; Wade, Gresty &
+   Findley 1982, the simulator's ``shaky`` preset), the hand-held recordings here show 0.38–0.79 m/s²
+   above 4 Hz (voluntary motion included).  Above ``TREMOR_MAX_M_S2`` (≈ 6× the largest tremor)
+   ``inconsistent``: measured on BROAD 25 (tapping), ``ok`` before this check, its S_y, G_y 4.6 σ and
+   7.8 σ from a maker-calibrated IMU's ≈ 0 and its optical attitude error 5.8× worse after the calibration;
+3. **the lever arm is a hand's**: a rotation centre farther than ``LEVER_ARM_MAX_M`` (30 cm: a
+   forearm; Winter, *Biomechanics and Motor Control of Human Movement*, Table 4.1, forearm 0.146 H) means
+   the session's translation was read as a lever arm (BROAD 16, fast translation: 32 cm):
+   ``inconsistent``;
+4. **the slow external acceleration is a hand's** (:func:`slow_displacement`): ``kf_hand`` fits whatever
+   the specific force does not explain (|f_lp − K r̂| − g, its component along gravity) as the hand's
+   acceleration a_e.  A hand turning a device moves it by centimetres, and at most by a forearm
+   (``DISPLACEMENT_MAX_M`` = 30 cm, the lever-arm check's length: the whole forearm swung about the
+   elbow, vertical excursion ±30 cm, RMS ≤ 30 cm): its acceleration has almost no power at periods of
+   5–20 s, where a displacement x needs only a = (2πf)² x (0.3 m at 0.05 Hz: 0.03 m/s²).  The
+   displacement the residual implies in that band,
+
+       x_rms² = ∫_{0.05 Hz}^{0.2 Hz} S_e(f) / (2πf)⁴ df     (S_e: Welch, 40-s Hann segments, mean removed),
+
+   above that bound is not a hand: the device travelled (carried, walked, swung at arm's length) or the
+   residual is a sensor effect the model lacks (accelerometer calibration, a time offset between the
+   triads, a changing pivot), which ``kf_hand`` counted as the hand's and weighted S, G by:
+   ``inconsistent``.  Measured: x-io Fusion (hand-held, a 5-s burst of 2.3 m/s² mean |f| − g at
+   t ≈ 55 s, rotations to 368 °/s) 3.7 m — ``ok`` before, its fitted a_e 2.85 m/s² RMS, τ 6.3 s; BROAD's
+   slow hand-held rotations 0.06–0.09 m; gyrosim's hands (ideal … shaky, both sensors, 20 seeds each)
+   ≤ 0.011 m and the independent generator's ≤ 0.02 m.  White sensor noise of one-sided PSD W alone
+   gives x_rms = 1.3 √W m (W in m²/s⁴/Hz): 0.02 m for 10 mg per sample at 100 Hz — the bound needs
+   ~0.16 g per sample, far beyond any MEMS accelerometer.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal as sp_signal
+
+__all__ = ["HandAssumptions", "check_hand_assumptions", "slow_displacement", "SlowDisplacement", "TREMOR_MAX_M_S2",
+           "LEVER_ARM_MAX_M", "SAME_POSE_DEG", "MIN_REST_S", "DISPLACEMENT_MAX_M", "SLOW_BAND_HZ"]
+
+TREMOR_MAX_M_S2 = 2.0
+LEVER_ARM_MAX_M = 0.30
+SAME_POSE_DEG = 20.0
+MIN_REST_S = 2.0
+NOISE_Z = 5.0           # the rests' |f| spread must also exceed this many of its own noise σ
+DISPLACEMENT_MAX_M = LEVER_ARM_MAX_M   # a hand's displacement RMS, at most a forearm (check 4)
+SLOW_BAND_HZ = (0.05, 0.2)             # periods 5–20 s: below the simulator's and a hand's sway (0.2–1 Hz)
+SLOW_SEGMENT_S = 40.0                  # Welch segment: 0.025-Hz bins, the band's lowest bin two above 0 Hz
+SLOW_WINDOW_S = 10.0                   # where it happened: the largest RMS of the band-limited residual
+
+
+@dataclass(frozen=True)
+class SlowDisplacement:
+    """:func:`slow_displacement`'s result: the displacement RMS (m) the residual implies in ``SLOW_BAND_HZ``
+    and the centre time (s, the recording's clock) of the window where the residual's slow part was largest."""
+
+    rms_m: float
+    worst_t_s: float
+
+
+def slow_displacement(residual_m_s2: np.ndarray, t_s: np.ndarray, rate_hz: float) -> SlowDisplacement | None:
+    """Check 4 of the module docstring: x_rms = √(Σ_band Ŝ_e(f) / (2πf)⁴ Δf), Ŝ_e the one-sided Welch PSD of
+    the residual with ``SLOW_SEGMENT_S`` Hann segments, each segment's mean removed.  Not a linear detrend:
+    the line fitted to a sway tone is ~A/(πk) of it (k its bin), and that ramp × Hann lands in the lowest bins,
+    where 1/f⁴ magnifies it (a 1-cm sway at 0.3–1 Hz read 3 mm; with the mean removed 0.04 mm).  A slow
+    drift's ramp falls mostly in bins 0–1, which the band leaves out (it starts at bin 2).  None for a recording shorter than two segments' band (< 2/``SLOW_BAND_HZ[0]`` s), where
+    the band has no bin to read.  Source: x(f) = a(f) / (2πf)² (Fourier transform of ẍ = a); Welch 1967."""
+    e = np.asarray(residual_m_s2, float)
+    t = np.asarray(t_s, float)
+    if e.size < 16 or e.size / rate_hz < 2.0 / SLOW_BAND_HZ[0] or not np.all(np.isfinite(e)):
+        return None
+    e = e - e.mean()
+    f, pxx = sp_signal.welch(e, fs=rate_hz, nperseg=int(min(e.size, SLOW_SEGMENT_S * rate_hz)), detrend="constant")
+    band = (f >= SLOW_BAND_HZ[0]) & (f <= SLOW_BAND_HZ[1])
+    x_rms = math.sqrt(float(np.sum(pxx[band] / (2 * math.pi * f[band]) ** 4)) * (f[1] - f[0]))
+    b, a = sp_signal.butter(2, SLOW_BAND_HZ[1] / (rate_hz / 2))
+    slow = sp_signal.filtfilt(b, a, e)
+    w = max(1, int(SLOW_WINDOW_S * rate_hz))
+    ms = np.convolve(slow**2, np.ones(w) / w, mode="same")
+    return SlowDisplacement(x_rms, float(t[int(np.argmax(ms))]))
+
+
+@dataclass(frozen=True)
+class HandAssumptions:
+    """Result of :func:`check_hand_assumptions`: ``trustworthy`` False when an assumption failed (the
+    caller makes the status ``inconsistent``), the warnings, and the numbers behind them."""
+
+    trustworthy: bool
+    warnings: tuple[str, ...]
+    rest_acc_norm_spread_g: float | None          # ε: max |  |f̄_i| − |f̄_0|  | / |f̄_0| over the rests
+    rest_pose_spread_deg: float | None            # largest angle between two rests' gravity directions
+    tremor_band_rms_m_s2: float
+    lever_arm_norm_m: float
+    details: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"trustworthy": self.trustworthy, "rest_acc_norm_spread_g": self.rest_acc_norm_spread_g,
+                "rest_pose_spread_deg": self.rest_pose_spread_deg, "tremor_band_rms_m_s2": self.tremor_band_rms_m_s2,
+                "lever_arm_norm_m": self.lever_arm_norm_m, "tremor_max_m_s2": TREMOR_MAX_M_S2,
+                "lever_arm_max_m": LEVER_ARM_MAX_M, **self.details}
+
+
+def _rest_means(acc_m_s2: np.ndarray, t_s: np.ndarray, rests) -> tuple[np.ndarray, np.ndarray]:
+    means, se = [], []
+    for a, b in rests:
+        if b - a < 10 or t_s[b - 1] - t_s[a] < MIN_REST_S:
+            continue
+        f = acc_m_s2[a:b]
+        means.append(f.mean(axis=0))
+        mag = np.linalg.norm(f, axis=1)
+        # the mean's standard error from 10 sub-block means (robust to the rest's slow drift)
+        blocks = np.array([m.mean() for m in np.array_split(mag, 10)])
+        se.append(float(blocks.std(ddof=1) / math.sqrt(10)))
+    return np.array(means).reshape(-1, 3), np.array(se)
+
+
+def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_sg: np.ndarray,
+                           tremor_band_rms_m_s2: float, lever_arm_m: np.ndarray,
+                           lever_arm_std_m: np.ndarray, check_accelerometer: bool = True,
+                           slow_residual_m_s2: np.ndarray | None = None, slow_residual_t_s: np.ndarray | None = None,
+                           rate_hz: float | None = None) -> HandAssumptions:
+    """The checks of the module docstring.  ``rests``: (start, stop) sample ranges; ``sigma_sg``:
+    σ of the six S, G the estimator reports; the rest from ``kf_hand``'s hand diagnostics.
+    ``check_accelerometer`` False: the accelerometer is estimated with the gyro (``kf_hand_joint``), whose
+    own |f̂| = g test at the rests replaces check 1.  ``slow_residual_m_s2`` (with its times and rate):
+    |f_lp − K r̂| − g over the filtered span, for check 4 (skipped when None)."""
+    notes: list[str] = []
+    ok = True
+    details: dict = {}
+    means, se = _rest_means(np.asarray(acc_m_s2, float), np.asarray(t_s, float), rests)
+    eps = spread = None
+    if check_accelerometer and means.shape[0] >= 2:
+        norms = np.linalg.norm(means, axis=1)
+        dirs = means / norms[:, None]
+        spread = float(np.degrees(np.arccos(np.clip((dirs @ dirs.T).min(), -1.0, 1.0))))
+        dev = norms - norms[0]
+        k = int(np.argmax(np.abs(dev)))
+        eps = float(abs(dev[k]) / norms[0])
+        noise = math.hypot(se[k], se[0]) / norms[0]
+        sig = float(np.median(np.asarray(sigma_sg, float)))
+        details.update({"rest_acc_norm_minus_first_mg": (dev / 9.80665 * 1e3).round(2).tolist(),
+                        "rest_acc_norm_noise_g": float(noise), "median_sigma_sg": sig})
+        if spread < SAME_POSE_DEG:
+            notes.append(f"the calibrated-accelerometer assumption is untested: the {means.shape[0]} rests' gravity "
+                         f"directions lie within {spread:.0f}° of each other, so |f| = g cannot be compared across "
+                         "poses; rests in several attitudes (or a multi-pose accelerometer calibration) would test it")
+        elif eps > sig and eps > NOISE_Z * noise:
+            ok = False
+            notes.append(f"inconsistent: the accelerometer is not calibrated: |f| at rest differs between the "
+                         f"{means.shape[0]} rest poses by up to {eps * 1e3:.1f} mg (noise {noise * 1e3:.2f} mg), "
+                         f"which tilts kf_hand's gravity reference by ~{math.degrees(eps):.2f}° between poses and can "
+                         f"bias S, G by ~{eps:.1e} — more than their σ (median {sig:.1e}). kf_hand assumes a "
+                         "calibrated accelerometer: calibrate it first or use calib run's default "
+                         "(--accelerometer estimate)")
+    if tremor_band_rms_m_s2 > TREMOR_MAX_M_S2:
+        ok = False
+        notes.append(f"inconsistent: {tremor_band_rms_m_s2:.2f} m/s² RMS of acceleration above the 4-Hz pre-filter is "
+                     f"not a hand's tremor (at most 0.35 m/s² peak; this check's limit {TREMOR_MAX_M_S2:.1f} m/s²): impacts, vibration or "
+                     "fast motion, whose bursts the hand model averages over the session — S, G and σ are not "
+                     "trustworthy. Record the rotations by hand without tapping or shaking the device")
+    r = np.asarray(lever_arm_m, float)
+    rn = float(np.linalg.norm(r))
+    if rn > LEVER_ARM_MAX_M:
+        ok = False
+        rsd = float(np.linalg.norm(np.asarray(lever_arm_std_m, float)))
+        notes.append(f"inconsistent: the lever arm found, {rn * 100:.1f} ± {rsd * 100:.1f} cm, is beyond a hand's "
+                     f"({LEVER_ARM_MAX_M * 100:.0f} cm, a forearm): the session's translation was read as a rotation "
+                     "about a far point. Turn the device in the hand (wrist), without moving the arm")
+    slow = None if slow_residual_m_s2 is None else slow_displacement(slow_residual_m_s2, slow_residual_t_s, rate_hz)
+    if slow is not None:
+        details.update({"slow_displacement_rms_m": slow.rms_m, "slow_displacement_max_m": DISPLACEMENT_MAX_M,
+                        "slow_band_hz": list(SLOW_BAND_HZ)})
+        if slow.rms_m > DISPLACEMENT_MAX_M:
+            ok = False
+            notes.append(f"inconsistent: the acceleration kf_hand attributes to the hand has slow content (periods "
+                         f"{1 / SLOW_BAND_HZ[1]:.0f}–{1 / SLOW_BAND_HZ[0]:.0f} s) that would move a hand by "
+                         f"{slow.rms_m:.2f} m RMS, beyond the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device moves at most "
+                         f"(largest around t = {slow.worst_t_s:.0f} s). Either the device travelled (carried, walked, "
+                         "swung at arm's length about a moving pivot) or it is a sensor effect the model lacks — an "
+                         "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "
+                         "accelerometer bias; kf_hand fitted it as the hand's acceleration and weighted S, G by it, so "
+                         "S, G and σ are not trustworthy. Check the accelerometer calibration (calib run's default "
+                         "--accelerometer estimate, or calib run --method hand), the gyro–accelerometer time alignment, "
+                         "trace the residual with calib closeloop, and record again turning the device at the wrist "
+                         "without moving the arm")
+    return HandAssumptions(ok, tuple(notes), eps, spread, float(tremor_band_rms_m_s2), rn, details)
