@@ -48,9 +48,8 @@ def _worker(hand: str, method: str) -> None:
     import functools
     import importlib
 
-    from gyrosim import campaign
+    from gyrosim import campaign, scene
     from gyrosim import estimator as est_mod
-    from gyrosim import scene
 
     sim = importlib.import_module("gyrosim.simulate")
     acc: dict[str, float] = {}
@@ -126,9 +125,13 @@ def dask_worker_table(sessions: int, hand: str, method: str) -> list[dict]:
     tasks = campaign.make_tasks(spec)
     # the campaign's cluster first: a Nanny spawned with the variable set also writes it into this
     # process's environment (Dask's "pre-spawn" poisoning), which a later spawn would inherit
-    configs = {"campaign (unset)": campaign.DASK_CONFIG,
-               "MALLOC_TRIM_THRESHOLD_=32 MiB": {**campaign.DASK_CONFIG,
-                                                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 32 << 20}}
+    configs = {
+        "campaign (unset)": campaign.DASK_CONFIG,
+        "MALLOC_TRIM_THRESHOLD_=32 MiB": {
+            **campaign.DASK_CONFIG,
+            "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 32 << 20,
+        },
+    }
     if "MALLOC_TRIM_THRESHOLD_" in os.environ:
         raise RuntimeError("MALLOC_TRIM_THRESHOLD_ is set in this environment: every worker would inherit it")
     clients = {}
@@ -159,8 +162,14 @@ def dask_worker_table(sessions: int, hand: str, method: str) -> list[dict]:
 def _start(tree: Path, hand: str, method: str) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
            "NUMBA_NUM_THREADS": "1"}
-    p = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker", "--hand", hand, "--method", method],
-                         cwd=str(tree), env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [sys.executable, str(Path(__file__).resolve()), "--worker", "--hand", hand, "--method", method],
+        cwd=str(tree),
+        env=env,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     if json.loads(p.stdout.readline()).get("ready") is not True:
         raise RuntimeError(f"worker for {tree} did not start")
     return p
@@ -173,8 +182,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--method", default="kf_hand", help="estimator of every session")
     ap.add_argument("--baseline", type=Path, help="another checkout (e.g. a git worktree of main) to compare with")
     ap.add_argument("--json", type=Path, help="also write the per-stage means here")
-    ap.add_argument("--dask", action="store_true",
-                    help="instead: CPU and page faults per session in a Dask worker, malloc trim threshold set vs unset")
+    ap.add_argument(
+        "--dask",
+        action="store_true",
+        help="instead: CPU and page faults per session in a Dask worker, malloc trim threshold set vs unset",
+    )
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:

@@ -13,13 +13,24 @@ import json
 import sys
 import time
 
-from calib.closeloop import run_closeloop
-from calib.closeloop.mag.loop import run_mag_loop
 from gyrosim.loaders import data_root, load_broad
 from gyrosim.recording import Recording, Truth
 
-KEYS = ("reference", "found", "unexplained", "not_tested", "not_distinguished", "error_before", "error_after", "metrics",
-        "rejected", "notes")
+from calib.closeloop import run_closeloop
+from calib.closeloop.mag.loop import run_mag_loop
+
+KEYS = (
+    "reference",
+    "found",
+    "unexplained",
+    "not_tested",
+    "not_distinguished",
+    "error_before",
+    "error_after",
+    "metrics",
+    "rejected",
+    "notes",
+)
 
 
 def main() -> int:
@@ -34,9 +45,15 @@ def main() -> int:
         if name.startswith("34"):
             s = (rec.t_s >= 44.0) & (rec.t_s <= 101.0)
             tr = rec.truth
-            cut = Recording(t_s=rec.t_s[s], gyro_rad_s=rec.gyro_rad_s[s], acc_m_s2=rec.acc_m_s2[s], mag_ut=rec.mag_ut[s],
-                            truth=Truth(quat_nb=tr.quat_nb[s], position_nav_m=None if tr.position_nav_m is None
-                                        else tr.position_nav_m[s]))
+            cut = Recording(
+                t_s=rec.t_s[s],
+                gyro_rad_s=rec.gyro_rad_s[s],
+                acc_m_s2=rec.acc_m_s2[s],
+                mag_ut=rec.mag_ut[s],
+                truth=Truth(
+                    quat_nb=tr.quat_nb[s], position_nav_m=None if tr.position_nav_m is None else tr.position_nav_m[s]
+                ),
+            )
             m = run_mag_loop(cut).to_json()
             out[name + " (44-101 s, magnet on)"] = {"magnetometer": {k: m[k] for k in KEYS}}
     json.dump(out, sys.stdout, indent=1, default=float)

@@ -31,14 +31,15 @@ import numpy as np
 from scipy import stats
 from tqdm import tqdm
 
-import calib.scoring.montecarlo as mc
-from calib.session.paper import prepare
-from calib.session.hand.filter import kf_hand
-from calib.app.outputs import write_json_atomic
 from gyrosim.calibration import truth_calibration
 from gyrosim.hand import load_hand
 from gyrosim.schedule import load_schedule
 from gyrosim.sensor_model import load_sensor
+
+import calib.scoring.montecarlo as mc
+from calib.app.outputs import write_json_atomic
+from calib.session.hand.filter import kf_hand
+from calib.session.paper import prepare
 
 
 def z_band(n: int) -> tuple[float, float]:
@@ -117,8 +118,15 @@ def main(argv=None) -> int:
     print(md)
     if a.out:
         import sys
-        write_json_atomic(a.out, {"command": "python benchmarks/hand_bias_campaign.py " + " ".join(sys.argv[1:] if argv is None else argv),
-                                  "cells": rows})
+
+        write_json_atomic(
+            a.out,
+            {
+                "command": "python benchmarks/hand_bias_campaign.py "
+                + " ".join(sys.argv[1:] if argv is None else argv),
+                "cells": rows,
+            },
+        )
         with open(a.out.rsplit(".", 1)[0] + ".md", "w", encoding="utf-8") as fh:
             fh.write(md + "\n")
     return 0 if all(r["after_in_band"] for r in rows) else 1

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from calib.scoring.montecarlo import monte_carlo
 from calib.app.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
 
 HANDS = ("ideal", "steady", "typical", "shaky")
 
@@ -56,12 +56,12 @@ def run(sensor: str, seeds: int, methods: tuple[str, ...], out: str, hands: tupl
 def table(paths: list[str]) -> str:
     rows = ["| sensor | method | hand | S, G RMSE max | ÷ ideal-hand RMSE | eff. vs ideal bound (max S, G) | "
             "eff. vs hand bound (max S, G) | NEES (6) | 95 % band | NEES vs band | statuses |", "|" + "---|" * 11]
-    # the hand-aware bound needs kf_hand's PSD: a file without kf_hand borrows the bound of a file with it
-    # (same sensor and hand), else its column would be the hand-free bound
-    # (kf_hand's with the accelerometer calibrated, kf_hand_joint's with it estimated: the key has the mode)
-    # — for S on a warming sensor, the bound of S at the oracle's reference temperature, where a method that states
-    # no temperature (kf) is scored (calib.scoring.montecarlo: sqrt_crlb_hand_sg_at_oracle_reference); a file that predates
-    # it lends kf_hand's bound of S at its T_r, marked † (the wrong quantity for kf)
+    # the hand-aware bound needs kf_hand's PSD: a file without kf_hand borrows the bound of a file with it (same sensor
+    # and hand), else its column would be the hand-free bound (kf_hand's with the accelerometer calibrated,
+    # kf_hand_joint's with it estimated: the key has the mode) — for S on a warming sensor, the bound of S at the
+    # oracle's reference temperature, where a method that states no temperature (kf) is scored
+    # (calib.scoring.montecarlo: sqrt_crlb_hand_sg_at_oracle_reference); a file that predates it lends kf_hand's bound
+    # of S at its T_r, marked † (the wrong quantity for kf)
     bounds, stale = {}, set()
     for p in paths:
         d = json.load(open(p))
@@ -91,13 +91,18 @@ def table(paths: list[str]) -> str:
                     eh = float(np.max(np.array(st["rmse"][3:9]) / bounds[(d["sensor"], hand, mode)]))
                     mark = " †" if (d["sensor"], hand, mode) in stale else ""
                 sensor = d["sensor"] + (" (raw)" if mode == "estimate" else "")
-                rows.append(f"| {sensor} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
-                            f"{eh:.2f}{mark} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
-                            f"{_where(st['nees_mean'], st['nees_band'])} | "
-                            + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items())) + f" ({c['seeds']} seeds) |")
-    if any(r.split(" | ")[6].endswith(" †") for r in rows[2:] if r.startswith("| ")):   # only when a row is marked
-        rows.append("\n† against kf_hand's bound of S at the temperatures kf_hand stated (its file predates the bound of "
-                    "S at the oracle's reference temperature, where this method is scored): re-run that kf_hand campaign")
+                rows.append(
+                    f"| {sensor} | {m} | {hand} | {rm:.2e} | {rm / base:.1f} | {max(st['efficiency'][3:9]):.2f} | "
+                    f"{eh:.2f}{mark} | {st['nees_mean']:.2f} | {st['nees_band'][0]:.2f}–{st['nees_band'][1]:.2f} | "
+                    f"{_where(st['nees_mean'], st['nees_band'])} | "
+                    + ", ".join(f"{k} {v}" for k, v in sorted(st["statuses"].items()))
+                    + f" ({c['seeds']} seeds) |"
+                )
+    if any(r.split(" | ")[6].endswith(" †") for r in rows[2:] if r.startswith("| ")):  # only when a row is marked
+        rows.append(
+            "\n† against kf_hand's bound of S at the temperatures kf_hand stated (its file predates the bound of "
+            "S at the oracle's reference temperature, where this method is scored): re-run that kf_hand campaign"
+        )
     return "\n".join(rows)
 
 
@@ -106,7 +111,8 @@ def accelerometer_table(paths: list[str]) -> str:
     (rad/s), accelerometer bias (m/s²), scale and non-orthogonality, the accelerometer's err/σ RMS range, the NEES
     of the 15 filter parameters (S, G and the accelerometer's nine) against its band, and the "ok" seeds whose
     S, G error their σ does not cover (``ok_wrong``)."""
-    rows = ["| sensor | hand | method | gyro b | acc b | acc S | acc G | acc err/σ RMS | NEES (15) | 95 % band | vs band | ok but NEES(6) > χ²₆ 99.9 % |",
+    rows = ["| sensor | hand | method | gyro b | acc b | acc S | acc G | acc err/σ RMS | NEES (15) | 95 % band | vs "
+            "band | ok but NEES(6) > χ²₆ 99.9 % |",
             "|" + "---|" * 12]
     for p in paths:
         d = json.load(open(p))
@@ -117,9 +123,12 @@ def accelerometer_table(paths: list[str]) -> str:
                 st = d["cells"][hand]["methods"][m]
                 r, z = st["rmse"], st["z_rms"]
                 nf, bf = st.get("nees_filter_mean", float("nan")), st.get("nees_filter_band", [float("nan")] * 2)
-                rows.append(f"| {d['sensor']} | {hand} | {m} | {max(r[0:3]):.1e} | {max(r[9:12]):.1e} | {max(r[12:15]):.1e} | "
-                            f"{max(r[15:18]):.1e} | {min(z[9:18]):.1f}–{max(z[9:18]):.1f} | {nf:.2f} | {bf[0]:.2f}–{bf[1]:.2f} | "
-                            f"{_where(nf, bf)} | {st.get('ok_wrong', 'n/a')} |")
+                rows.append(
+                    f"| {d['sensor']} | {hand} | {m} | {max(r[0:3]):.1e} | {max(r[9:12]):.1e} | {max(r[12:15]):.1e} | "
+                    f"{max(r[15:18]):.1e} | {min(z[9:18]):.1f}–{max(z[9:18]):.1f} | {nf:.2f} | {bf[0]:.2f}–{bf[1]:.2f} "
+                    "| "
+                    f"{_where(nf, bf)} | {st.get('ok_wrong', 'n/a')} |"
+                )
     return "\n".join(rows)
 
 
@@ -144,7 +153,8 @@ def plot(paths: list[str], out: str) -> None:
     ax.set_yscale("log")
     ax.set_ylabel("RMS error, max over S and G")
     modes = {json.load(open(p)).get("accelerometer", "calibrated") for p in paths}
-    ax.set_title("zhou2020 schedule, accelerometer " + (modes.pop() if len(modes) == 1 else "calibrated / estimated (raw)"))
+    ax.set_title("zhou2020 schedule, accelerometer " + (modes.pop() if len(modes) == 1 else "calibrated / estimated "
+                                                                                            "(raw)"))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -157,9 +167,13 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--methods", default="kf,kf_hand")
     ap.add_argument("--hands", default=",".join(HANDS), help="comma-separated hand presets (default all four)")
-    ap.add_argument("--accelerometer", default="calibrated", choices=("calibrated", "estimate"),
-                    help="calibrated: the sensor's accelerometer errors removed, the methods' calibrated form (default); "
-                         "estimate: the raw sensor and the joint methods (kf_session, kf_hand_joint)")
+    ap.add_argument(
+        "--accelerometer",
+        default="calibrated",
+        choices=("calibrated", "estimate"),
+        help="calibrated: the sensor's accelerometer errors removed, the methods' calibrated form (default); "
+        "estimate: the raw sensor and the joint methods (kf_session, kf_hand_joint)",
+    )
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="*")
     ap.add_argument("--plot", help="with --table: also write this PNG")

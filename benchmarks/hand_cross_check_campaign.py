@@ -1,7 +1,8 @@
-"""The hand cross-check of the hand-blind joint calibration (``kf_session``, accelerometer estimated):
-before (``kf_hand`` on kf_session's own compensated accelerometer) and after (``kf_hand_joint`` on the
-raw file, δ judged by the hand-blind σ: χ²₆ 99.9 % or a 3σ component), on the same sessions.  Per seed: kf_session without its cross-check, then both checks on its
-"ok" answers.  A *wrong ok* is an "ok" whose 6 gyro S, G have NEES > χ²₆ 99.9 % or any |err| > 3σ.
+"""The hand cross-check of the hand-blind joint calibration (``kf_session``, accelerometer estimated): before
+(``kf_hand`` on kf_session's own compensated accelerometer) and after (``kf_hand_joint`` on the raw file, δ judged by
+the hand-blind σ: χ²₆ 99.9 % or a 3σ component), on the same sessions.  Per seed: kf_session without its cross-check,
+then both checks on its "ok" answers.  A *wrong ok* is an "ok" whose 6 gyro S, G have NEES > χ²₆ 99.9 % or any |err| >
+3σ.
 
     python benchmarks/hand_cross_check_campaign.py --sensor zhou2020_sim_consumer --hand shaky --seeds 50 \
         --out docs/hand_cross_check_zhou2020_sim_consumer.json
@@ -17,15 +18,16 @@ import json
 import numpy as np
 from scipy import stats
 
-from calib.session.paper import calibrate
-from calib.session.gravityfit import compensate_acc
-from calib.session.hand.filter import hand_cross_check, kf_hand
 from gyrosim.calibration import truth_calibration
 from gyrosim.estimator import as_user_file
 from gyrosim.hand import load_hand
 from gyrosim.schedule import load_schedule
 from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
+
+from calib.session.gravityfit import compensate_acc
+from calib.session.hand.filter import hand_cross_check, kf_hand
+from calib.session.paper import calibrate
 
 ITEMS = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
 ACC = [("accelerometer", "bias"), ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")]
@@ -58,9 +60,14 @@ def cell(schedule: str, hand: str, sensor: str, seeds: int, rate_hz: float = 100
             th_a = np.concatenate([c.value(t, k) for t, k in ACC])
             w_old, d_old = hand_cross_check(user, sg, cov, compensate_acc(user.acc_m_s2, th_a))
             w_new, d_new = hand_cross_check(user, sg, cov, accelerometer="estimate")
-            row.update(before_flag=bool(w_old), before_chi2=d_old.get("chi2"), after_flag=bool(w_new),
-                       after_chi2=d_new.get("chi2"), after_max_abs_delta_over_sigma=d_new.get("max_abs_delta_over_sigma"),
-                       after_max_error_bound_over_sigma=d_new.get("max_error_bound_over_sigma"))
+            row.update(
+                before_flag=bool(w_old),
+                before_chi2=d_old.get("chi2"),
+                after_flag=bool(w_new),
+                after_chi2=d_new.get("chi2"),
+                after_max_abs_delta_over_sigma=d_new.get("max_abs_delta_over_sigma"),
+                after_max_error_bound_over_sigma=d_new.get("max_error_bound_over_sigma"),
+            )
             # the variants of C_δ, on the same kf_hand_joint answer (for choosing; recorded per row)
             h = kf_hand(user, accelerometer="estimate")
             dd = sg - np.concatenate([h.value(t, k) for t, k in ITEMS])

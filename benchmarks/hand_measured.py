@@ -30,12 +30,13 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from gyrosim.errors import GyrosimError
+from gyrosim.loaders import available_datasets
+
 from calib import calibrate, load_recording
 from calib.session.gravityfit import compensate_acc
 from calib.session.hand.filter import kf_hand
 from calib.session.validation import windowed_rotation_error_deg
-from gyrosim.errors import GyrosimError
-from gyrosim.loaders import available_datasets
 
 # imucal 2.6.0 FerrarisCalibration, symmetric part of its gyro matrix in our frame (docs/real_imu.md)
 IMUCAL_SG = np.array([0.02785, -0.01765, -0.00172, 0.00244, 0.00166, -0.00006])
@@ -43,7 +44,8 @@ CHI2_6 = float(stats.chi2.ppf(0.999, 6))
 
 
 def optical_attitude_error_deg(rec, gyro, window_s=5.0, step_s=0.5):
-    """tests/session/test_hand_measured.py's score: :func:`calib.session.validation.windowed_rotation_error_deg` vs ``opt_quat``."""
+    """tests/session/test_hand_measured.py's score: :func:`calib.session.validation.windowed_rotation_error_deg` vs
+    ``opt_quat``."""
     return windowed_rotation_error_deg(rec.t_s, gyro, rec.truth.quat_nb, rec.rate_hz, window_s, step_s)
 
 
@@ -109,9 +111,18 @@ def _agreement(a, b):
 
 
 def markdown(rows):
-    out = ["| file | method | status (exit) | S ± σ | G ± σ | lever arm r (cm) ± σ | slow a_e RMS (m/s²), τ (s); > 4 Hz RMS | "
-           "agreement with kf_hand (χ²₆, max \\|δ\\|/σ) | attitude vs optical before → after (°) |",
-           "|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        "| file | method | status (exit) | S ± σ | G ± σ | lever arm r (cm) ± σ | slow a_e RMS (m/s²), τ (s); > 4 Hz "
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        "RMS | "
+        "agreement with kf_hand (χ²₆, max \\|δ\\|/σ) | attitude vs optical before → after (°) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     hand = {r["file"]: r for r in rows if r.get("method") == "kf_hand" and "sg" in r}
     for r in rows:
         if "method" not in r:
@@ -137,7 +148,16 @@ def markdown(rows):
             agree += (" — vs imucal (δ/σ): " + ", ".join(f"{v:+.1f}" for v in r["minus_imucal_over_sigma"]))
         if "attitude_after_deg" in r:
             att = f"{r['attitude_before_deg']:.2f} → {r['attitude_after_deg']:.2f}"
-        out.append(f"| {r['file']} | {r['method']} | {r['status']} ({r['exit']}) | {s} | {g} | {lever} | {ae} | {agree} | {att} |")
+        out.append(
+            f"| {r['file']} | {r['method']} | {r['status']} ({r['exit']}) | {s} | {g} | {lever} | {ae} | {agree} "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            f"| {att} |"
+        )
     return "\n".join(out)
 
 

@@ -10,11 +10,11 @@ repository was tuned on them.  A user's hand is not a preset: one holds the devi
 preset (shaky by default) with one imperfection switched off (:meth:`gyrosim.hand.Hand.without`; the others keep
 their exact random draws, seed for seed), or all but the pivot ("pivot only": a deterministic lever arm).
 
-Each cell is :func:`calib.scoring.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz): ``kf_hand`` with the accelerometer
-calibrated (the sensor's white noise only), ``kf_hand_joint`` with the raw sensor (its accelerometer estimated).
-The table gives NEES(6) over the gyro's S and G against χ²₆'s 95 % band for the seed count, the RMS of err/σ of
-each of the six (an honest σ gives 1; its 95 % band for 50 seeds is about [0.81, 1.19]), and the statuses — the
-cells that matter are those where NEES is high and the status still says ``ok``.
+Each cell is :func:`calib.scoring.montecarlo.monte_carlo` (zhou2020 schedule, 100 Hz): ``kf_hand`` with the
+accelerometer calibrated (the sensor's white noise only), ``kf_hand_joint`` with the raw sensor (its accelerometer
+estimated). The table gives NEES(6) over the gyro's S and G against χ²₆'s 95 % band for the seed count, the RMS of err/σ
+of each of the six (an honest σ gives 1; its 95 % band for 50 seeds is about [0.81, 1.19]), and the statuses — the cells
+that matter are those where NEES is high and the status still says ``ok``.
 """
 
 from __future__ import annotations
@@ -26,9 +26,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from calib.scoring.montecarlo import monte_carlo
-from calib.app.outputs import write_json_atomic
 from gyrosim.hand import IMPERFECTIONS, load_hand
+
+from calib.app.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
 
 # (sensor, method): kf_hand scores the accelerometer-calibrated sensor, the joint the raw one
 CELLS = (("zhou2020_sim_consumer", "kf_hand"), ("zhou2020_sim_consumer", "kf_hand_joint"),
@@ -74,9 +75,11 @@ def run(base: str, seeds: int, variants: tuple[str, ...], cells: tuple[tuple[str
 
 def table(data: dict) -> str:
     """docs/hand.md's table: one row per (variant, sensor, method)."""
-    lines = [f"base hand: {data['base']}, {data['seeds']} seeds per row",
-             "| switched off | sensor | method | NEES(6) | 95 % band | side | err/σ RMS S_x S_y S_z G_x G_y G_z | statuses |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"base hand: {data['base']}, {data['seeds']} seeds per row",
+        "| switched off | sensor | method | NEES(6) | 95 % band | side | err/σ RMS S_x S_y S_z G_x G_y G_z | statuses |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in data["rows"].values():
         lo, hi = r["nees_band"]
         side = "in" if lo <= r["nees_mean"] <= hi else ("high" if r["nees_mean"] > hi else "low")

@@ -41,19 +41,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    from calib.session.paper import calibrate
-    from calib.inputs import KF, check_recording, prepare_recording, read_recording
     from gyrosim.loaders import available_datasets
     from gyrosim.recording import save_hdf5
     from gyrosim.simulate import simulate
+
+    from calib.inputs import KF, check_recording, prepare_recording, read_recording
+    from calib.session.paper import calibrate
 
     folder = Path(tempfile.mkdtemp())
     rec = simulate("zhou2020", "typical", "zhou2020_sim_consumer", 100.0, seed=1)
     h5 = save_hdf5(rec, folder / "session.h5")
     csv = folder / "session.csv"
     data = np.column_stack([rec.t_s, rec.gyro_rad_s, rec.acc_m_s2])
-    csv.write_text("t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z\n" + "\n".join(",".join(f"{v:.17g}" for v in r) for r in data) + "\n")
-    cases = [("zhou2020 typical 100 Hz, HDF5", str(h5), "estimate"), ("zhou2020 typical 100 Hz, CSV", str(csv), "estimate")]
+    csv.write_text(
+        "t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z\n" + "\n".join(",".join(f"{v:.17g}" for v in r) for r in data) + "\n"
+    )
+    cases = [
+        ("zhou2020 typical 100 Hz, HDF5", str(h5), "estimate"),
+        ("zhou2020 typical 100 Hz, CSV", str(csv), "estimate"),
+    ]
     if "broad/07_undisturbed_fast_rotation_B" in available_datasets():
         # BROAD's IMU comes calibrated and its motion cannot separate the accelerometer: the paper's filter
         cases.append(("BROAD 07 fast rotation 285.7 Hz", "dataset:broad/07_undisturbed_fast_rotation_B", "calibrated"))

@@ -21,21 +21,30 @@ from dataclasses import replace
 
 import numpy as np
 
-from calib.scoring.montecarlo import monte_carlo
-from calib.app.outputs import write_json_atomic
 from gyrosim.sensor_model import load_sensor
+
+from calib.app.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
 
 ALL = ("g_sensitivity", "temperature_bias", "temperature_scale", "scale_nonlinearity", "bias_instability",
        "random_walk", "bandwidth", "quantization")
-VARIANTS = {"full": (), "-g_sensitivity": ("g_sensitivity",), "-temperature_bias": ("temperature_bias",),
-            "-temperature_scale": ("temperature_scale",), "-warm-up": ("warmup",),
-            "-scale_nonlinearity": ("scale_nonlinearity",), "-bias_instability": ("bias_instability",),
-            "-random_walk": ("random_walk",), "-bandwidth": ("bandwidth",), "-quantization": ("quantization",),
-            "-scale_nonlinearity-bias_instability": ("scale_nonlinearity", "bias_instability"),
-            "-scale_nonlinearity-bias_instability-random_walk": ("scale_nonlinearity", "bias_instability", "random_walk"),
-            "white noise + bandwidth": tuple(e for e in ALL if e != "bandwidth"),
-            "white noise + quantization": tuple(e for e in ALL if e != "quantization"),
-            "white noise only": ALL}
+VARIANTS = {
+    "full": (),
+    "-g_sensitivity": ("g_sensitivity",),
+    "-temperature_bias": ("temperature_bias",),
+    "-temperature_scale": ("temperature_scale",),
+    "-warm-up": ("warmup",),
+    "-scale_nonlinearity": ("scale_nonlinearity",),
+    "-bias_instability": ("bias_instability",),
+    "-random_walk": ("random_walk",),
+    "-bandwidth": ("bandwidth",),
+    "-quantization": ("quantization",),
+    "-scale_nonlinearity-bias_instability": ("scale_nonlinearity", "bias_instability"),
+    "-scale_nonlinearity-bias_instability-random_walk": ("scale_nonlinearity", "bias_instability", "random_walk"),
+    "white noise + bandwidth": tuple(e for e in ALL if e != "bandwidth"),
+    "white noise + quantization": tuple(e for e in ALL if e != "quantization"),
+    "white noise only": ALL,
+}
 
 
 def neutral(e):
@@ -44,7 +53,9 @@ def neutral(e):
     if k in ("g_sensitivity", "scale_nonlinearity"):
         return replace(e, value=np.zeros_like(e.value), value_sigma=np.zeros_like(e.value_sigma))
     if k in ("temperature_bias", "temperature_scale"):
-        return replace(e, coefficients=np.zeros_like(e.coefficients), coefficients_sigma=np.zeros_like(e.coefficients_sigma))
+        return replace(
+            e, coefficients=np.zeros_like(e.coefficients), coefficients_sigma=np.zeros_like(e.coefficients_sigma)
+        )
     if k in ("bias_instability", "random_walk"):
         return replace(e, value=np.zeros(3))
     if k == "bandwidth":
@@ -87,9 +98,17 @@ def main() -> None:
                       "sqrt_crlb_hand": r.sqrt_crlb_hand[3:9].tolist(), "z_rms": st.z_rms[3:9].tolist(),
                       "nees": st.nees_mean, "nees_band": list(st.nees_band), "statuses": st.statuses,
                       "bias_rw_rad_s_sqrt_s": r.hand_psd.get("bias_rw_rad_s_sqrt_s"), "seconds": time.time() - t0}
-        print(f"{name:20s} RMSE " + " ".join(f"{v:.2e}" for v in st.rmse[3:9]) + " | eff. hand "
-              + " ".join(f"{v:.2f}" for v in st.efficiency_hand[3:9]) + f" | NEES {st.nees_mean:.2f} | z RMS " + " ".join(f"{v:.2f}" for v in st.z_rms[3:9]) + " | q_b "
-              f"{r.hand_psd.get('bias_rw_rad_s_sqrt_s', 0):.2e}", flush=True)
+        print(
+            f"{name:20s} RMSE "
+            + " ".join(f"{v:.2e}" for v in st.rmse[3:9])
+            + " | eff. hand "
+            + " ".join(f"{v:.2f}" for v in st.efficiency_hand[3:9])
+            + f" | NEES {st.nees_mean:.2f} | z RMS "
+            + " ".join(f"{v:.2f}" for v in st.z_rms[3:9])
+            + " | q_b "
+            f"{r.hand_psd.get('bias_rw_rad_s_sqrt_s', 0):.2e}",
+            flush=True,
+        )
         write_json_atomic(a.out, {"seeds": a.seeds, "hand": "ideal", "sensor": "mpu9250 (accelerometer calibrated)",
                                   "base_removed": a.base,
                                   "method": a.method, "rows": rows})

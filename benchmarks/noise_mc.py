@@ -66,7 +66,10 @@ def avr(seeds: int, first: int) -> dict:
     for s in tqdm(range(first, first + seeds), desc="avr seeds"):
         rng = np.random.default_rng(s)
         for tri, par in AVR.items():
-            effs = (WhiteNoise(density=np.full(3, par["white_noise"])), RandomWalk(value=np.full(3, par["random_walk"])))
+            effs = (
+                WhiteNoise(density=np.full(3, par["white_noise"])),
+                RandomWalk(value=np.full(3, par["random_walk"])),
+            )
             y = draw(effs, n, rate, rng)
             for ax in range(3):
                 f = identify_axis(y[:, ax], 1 / rate, fixed).chosen
@@ -86,8 +89,11 @@ def avr(seeds: int, first: int) -> dict:
         rel = est / truth
         per_seed = rel.reshape(seeds, 3, 2).mean(axis=1)    # mean of the three axes, as one IMU's figure
         out["triads"][tri] = {
-            "truth": truth.tolist(), "theirs": [AVR_THEIRS[tri]["white_noise"], AVR_THEIRS[tri]["random_walk"]],
-            "theirs_rel_error": (np.array([AVR_THEIRS[tri]["white_noise"], AVR_THEIRS[tri]["random_walk"]]) / truth - 1).tolist(),
+            "truth": truth.tolist(),
+            "theirs": [AVR_THEIRS[tri]["white_noise"], AVR_THEIRS[tri]["random_walk"]],
+            "theirs_rel_error": (
+                np.array([AVR_THEIRS[tri]["white_noise"], AVR_THEIRS[tri]["random_walk"]]) / truth - 1
+            ).tolist(),
             "mean_rel_error": (rel.mean(axis=0) - 1).tolist(),
             "mean_rel_error_se": (rel.std(axis=0, ddof=1) / math.sqrt(rel.shape[0])).tolist(),
             "sd_rel_per_axis": rel.std(axis=0, ddof=1).tolist(),
@@ -122,14 +128,21 @@ def selection(seeds: int, first: int, rate: float = 100.0, dur: float = 3600.0) 
         from calib.noise.gmwm import model_name
 
         out["models"][name] = {
-            "true_model": model_name(kinds), "parameters": [f"{k}.{f}" for k, f in
-                                                            __import__("calib.noise.gmwm", fromlist=["WaveletModel"]).WaveletModel(kinds, np.ones(1), 1.0).names],
-            "true_values": np.exp(logp_true).tolist(), "chosen": chosen,
+            "true_model": model_name(kinds),
+            "parameters": [
+                f"{k}.{f}"
+                for k, f in __import__("calib.noise.gmwm", fromlist=["WaveletModel"])
+                .WaveletModel(kinds, np.ones(1), 1.0)
+                .names
+            ],
+            "true_values": np.exp(logp_true).tolist(),
+            "chosen": chosen,
             "correct_fraction": chosen.get(model_name(kinds), 0) / (3 * seeds),
             "coverage95": np.mean(np.abs(z) <= 1.959964, axis=0).tolist(),
             "coverage68": np.mean(np.abs(z) <= 1.0, axis=0).tolist(),
             "mean_rel_error": (np.exp(est).mean(axis=0) / np.exp(logp_true) - 1).tolist(),
-            "mc_sd_log": est.std(axis=0, ddof=1).tolist(), "plan_predicted_sd_log": pred.tolist(),
+            "mc_sd_log": est.std(axis=0, ddof=1).tolist(),
+            "plan_predicted_sd_log": pred.tolist(),
             "plan_over_mc": (pred / est.std(axis=0, ddof=1)).tolist(),
             "cpu_s_per_axis": (time.process_time() - t0) / (3 * seeds),
         }

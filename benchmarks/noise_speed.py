@@ -27,8 +27,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gyrosim.effects import SignalContext  # noqa: E402
 from gyrosim.sensor_model import load_sensor  # noqa: E402
 
-from calib.noise.allan import allan_deviation, fit_noise_terms  # noqa: E402
 from calib.noise import identify_noise  # noqa: E402
+from calib.noise.allan import allan_deviation, fit_noise_terms  # noqa: E402
 
 
 def main() -> None:

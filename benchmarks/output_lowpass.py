@@ -18,14 +18,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from calib.scoring.montecarlo import monte_carlo
-from calib.app.outputs import write_json_atomic
 from gyrosim.sensor_model import load_sensor
+
+from calib.app.outputs import write_json_atomic
+from calib.scoring.montecarlo import monte_carlo
 
 
 def with_output_lowpass(cutoff_hz: float, estimate_accelerometer: bool):
     """The MPU-9250 preset with both triads' output low-pass at ``cutoff_hz`` (Hz)."""
-    m = load_sensor("mpu9250")   # its accelerometer has a bandwidth effect: kept (calibrated: with the white noise only)
+    # its accelerometer has a bandwidth effect: kept (calibrated: with the white noise only)
+    m = load_sensor("mpu9250")
     acc = tuple(replace(e, cutoff_hz=cutoff_hz) if e.kind == "bandwidth" else e for e in m.accelerometer
                 if estimate_accelerometer or e.is_white_noise or e.kind == "bandwidth")
     gyro = tuple(replace(e, cutoff_hz=cutoff_hz) if e.kind == "bandwidth" else e for e in m.gyro)

@@ -28,11 +28,12 @@ sys.path.insert(0, str(ROOT / "tests"))  # the independent generator lives with 
 
 import independent_generator as ig  # noqa: E402
 
-from calib.session.paper import calibrate  # noqa: E402
-from calib.session.residuals import compensated, gravity_direction_errors, integrated_turns, pose_gravity_residuals  # noqa: E402
 from gyrosim.errors import GyrosimError  # noqa: E402
 from gyrosim.loaders import available_datasets, load_dataset  # noqa: E402
 from gyrosim.recording import Recording  # noqa: E402
+
+from calib.session.paper import calibrate  # noqa: E402
+from calib.session.residuals import compensated, gravity_direction_errors, integrated_turns, pose_gravity_residuals  # noqa: E402
 
 G0 = 9.80665
 RAW = {"acc_bias_g": (0.060, -0.055, 0.070), "acc_scale": (0.02, -0.025, 0.03), "acc_nonortho": (0.01, -0.012, 0.015)}
@@ -57,15 +58,27 @@ def noise_free() -> str:
         d = ig.generate_arrays(steps=getattr(ig, name), gyro_noise_deg_s=0.0, acc_noise_g=0.0, **RAW)
         c = calibrate(_rec(d))
         e = np.abs(c.parameters() - _truth(d))
-        rows.append(f"| {name} | {e[3:9].max():.1e} | {e[0:3].max():.1e} | {e[12:18].max():.1e} | {e[9:12].max():.1e} | "
-                    f"{c.status} |")
+        rows.append(
+            f"| {name} | {e[3:9].max():.1e} | {e[0:3].max():.1e} | {e[12:18].max():.1e} | {e[9:12].max():.1e} | "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            f"{c.status} |"
+        )
     return "\n".join(rows)
 
 
 def mc_independent(seeds: int) -> tuple[str, dict]:
     out = {}
-    rows = ["| schedule | seeds | NEES (18 parameters) [95 % band] | err/σ RMS: gyro b, S, G | err/σ RMS: accelerometer "
-            "b, S, G | gyro S, G RMS error: raw-estimate / calibrated-accelerometer case |", "|---|---|---|---|---|---|"]
+    rows = [
+        "| schedule | seeds | NEES (18 parameters) [95 % band] | err/σ RMS: gyro b, S, G | err/σ RMS: accelerometer "
+        "b, S, G | gyro S, G RMS error: raw-estimate / calibrated-accelerometer case |",
+        "|---|---|---|---|---|---|",
+    ]
     for name in ("STEPS", "MULTIPOSE_STEPS"):
         kin = ig.kinematics(100.0, getattr(ig, name))
         errs, zs, nees, ref = [], [], [], []
@@ -101,7 +114,8 @@ def mc_gyrosim(seeds: int) -> str:
                         calibrated_accelerometer=True)
         blocks.append("```\n" + r.table() + "\n```")
         ratio = r.methods["kf_session"].rmse[3:9] / c.methods["kf_session"].rmse[3:9]
-        blocks.append(f"gyro S, G RMS error, raw accelerometer estimated / calibrated accelerometer (calib run's filter, 9 states) on "
+        blocks.append("gyro S, G RMS error, raw accelerometer estimated / calibrated accelerometer (calib run's "
+                      "filter, 9 states) on "
                       f"{schedule}: {', '.join(f'{x:.2f}' for x in ratio)}")
     return "\n\n".join(blocks)
 
@@ -201,12 +215,23 @@ def ferraris() -> str:
     poses = [(seg[k]["start"], seg[k]["end"]) for k in ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")]
     turns = [(seg[k]["start"], seg[k]["end"]) for k in ("x_rot", "y_rot", "z_rot")]
     raw = compensated(rec, None, ours.bias_rad_s)
-    imu_acc, imu_gyr = info.calibrate(acc=rec.acc_m_s2, gyr=np.degrees(rec.gyro_rad_s), acc_unit="m/s^2", gyr_unit="deg/s")
+    imu_acc, imu_gyr = info.calibrate(
+        acc=rec.acc_m_s2, gyr=np.degrees(rec.gyro_rad_s), acc_unit="m/s^2", gyr_unit="deg/s"
+    )
     imucal_rec = rec.with_signals(acc_m_s2=imu_acc, gyro_rad_s=np.radians(imu_gyr))
     versions = {"raw (gyro static bias removed)": raw, "imucal": imucal_rec, "ours (kf)": ours.compensate(rec),
                 "ours (iterated)": cals["iterated"].compensate(rec)}
-    lines.append("Residual |f| − g (mg) at the six poses, and the angle each 360° turn integrates to (imucal's measure, "
-                 "Σ ω Δt along the turn's axis; the protocol turns by −360°):")
+    lines.append(
+        "Residual |f| − g (mg) at the six poses, and the angle each 360° turn integrates to (imucal's measure, "
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        "Σ ω Δt along the turn's axis; the protocol turns by −360°):"
+    )
     lines.append("")
     lines.append("| calibration | " + " | ".join(k for k in ("x+", "x−", "y+", "y−", "z+", "z−")) +
                  " | RMS | x turn (°) | y turn (°) | z turn (°) |")
@@ -254,26 +279,42 @@ def imu_tk() -> str:
     cal = calibrate(rec)
     ranges, res, ang = _rest_table(rec, cal)
     mg = res * 1000 / G0
-    lines = [f"`calib run dataset:imu_tk_xsens`: status **{cal.status}**; "
-             + "; ".join(w for w in cal.warnings if w.startswith(("inconsistent", "diverged"))), "",
-             "Estimate (the loader's nominal: gyro (c − 32768)/6258 rad/s, accelerometer scaled so the first 40 s read g):", "",
-             "| | x | y | z |", "|---|---|---|---|"]
-    for triad, kind, label, sc in (("gyro", "bias", "gyro bias (°/s)", 180 / math.pi), ("gyro", "scale_factor", "gyro S", 1),
-                                   ("gyro", "nonorthogonality", "gyro G", 1), ("accelerometer", "bias", "acc bias (mg)", 1000 / G0),
-                                   ("accelerometer", "scale_factor", "acc S", 1),
-                                   ("accelerometer", "nonorthogonality", "acc G", 1)):
+    lines = [
+        f"`calib run dataset:imu_tk_xsens`: status **{cal.status}**; "
+        + "; ".join(w for w in cal.warnings if w.startswith(("inconsistent", "diverged"))),
+        "",
+        "Estimate (the loader's nominal: gyro (c − 32768)/6258 rad/s, accelerometer scaled so the first 40 s read g):",
+        "",
+        "| | x | y | z |",
+        "|---|---|---|---|",
+    ]
+    for triad, kind, label, sc in (
+        ("gyro", "bias", "gyro bias (°/s)", 180 / math.pi),
+        ("gyro", "scale_factor", "gyro S", 1),
+        ("gyro", "nonorthogonality", "gyro G", 1),
+        ("accelerometer", "bias", "acc bias (mg)", 1000 / G0),
+        ("accelerometer", "scale_factor", "acc S", 1),
+        ("accelerometer", "nonorthogonality", "acc G", 1),
+    ):
         v, s = cal.value(triad, kind) * sc, cal.std(triad, kind) * sc
         lines.append(f"| {label} | " + " | ".join(f"{a:+.5f} ± {b:.5f}" for a, b in zip(v, s)) + " |")
-    lines += ["", f"{len(ranges)} rest poses.  |f| − g (mg) and the gravity-direction error across each move between "
-              "consecutive poses (°), before and after:", "",
-              "| | |f| − g RMS | |f| − g max | direction error RMS | direction error max |", "|---|---|---|---|---|",
-              f"| before | {np.sqrt(np.mean(mg[:, 0]**2)):.1f} | {np.abs(mg[:, 0]).max():.1f} | "
-              f"{np.sqrt(np.mean(ang[:, 0]**2)):.2f} | {ang[:, 0].max():.2f} |",
-              f"| after | {np.sqrt(np.mean(mg[:, 1]**2)):.1f} | {np.abs(mg[:, 1]).max():.1f} | "
-              f"{np.sqrt(np.mean(ang[:, 1]**2)):.2f} | {ang[:, 1].max():.2f} |", "",
-              "<details><summary>every pose</summary>", "",
-              "| pose | t (s) | |f| − g before (mg) | after (mg) | direction error to the next pose before (°) | after (°) |",
-              "|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        f"{len(ranges)} rest poses.  |f| − g (mg) and the gravity-direction error across each move between "
+        "consecutive poses (°), before and after:",
+        "",
+        "| | |f| − g RMS | |f| − g max | direction error RMS | direction error max |",
+        "|---|---|---|---|---|",
+        f"| before | {np.sqrt(np.mean(mg[:, 0] ** 2)):.1f} | {np.abs(mg[:, 0]).max():.1f} | "
+        f"{np.sqrt(np.mean(ang[:, 0] ** 2)):.2f} | {ang[:, 0].max():.2f} |",
+        f"| after | {np.sqrt(np.mean(mg[:, 1] ** 2)):.1f} | {np.abs(mg[:, 1]).max():.1f} | "
+        f"{np.sqrt(np.mean(ang[:, 1] ** 2)):.2f} | {ang[:, 1].max():.2f} |",
+        "",
+        "<details><summary>every pose</summary>",
+        "",
+        "| pose | t (s) | |f| − g before (mg) | after (mg) | direction error to the next pose before (°) | after (°) |",
+        "|---|---|---|---|---|---|",
+    ]
     for i, (a, b) in enumerate(ranges):
         d = f"{ang[i, 0]:.2f} | {ang[i, 1]:.2f}" if i < len(ang) else "— | —"
         lines.append(f"| {i + 1} | {rec.t_s[a]:.1f}–{rec.t_s[b - 1]:.1f} | {mg[i, 0]:+.1f} | {mg[i, 1]:+.1f} | {d} |")
@@ -285,8 +326,18 @@ def broad() -> str:
     trials = [t for t in available_datasets() if t.startswith("broad/")]
     if not trials:
         return "BROAD is not in the data folder: skipped."
-    lines = ["| trial | status | accelerometer bias (mg) | accelerometer S | |f| − g at rest before → after (mg, RMS) | "
-             "gravity direction vs optical truth at rest, before → after (°, RMS) |", "|---|---|---|---|---|---|"]
+    lines = [
+        "| trial | status | accelerometer bias (mg) | accelerometer S | |f| − g at rest before → after (mg, RMS) | "
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        "gravity direction vs optical truth at rest, before → after (°, RMS) |",
+        "|---|---|---|---|---|---|",
+    ]
     for trial in trials:
         rec = load_dataset(trial)
         try:
@@ -312,7 +363,8 @@ def broad() -> str:
                 errs.append(np.degrees(np.arccos(np.clip(g_b @ f / np.linalg.norm(g_b) / np.linalg.norm(f), -1, 1))))
             return np.sqrt(np.mean(np.square(errs))) if errs else float("nan")
 
-        lines.append(f"| {trial.split('/')[1]} | {cal.status} | {_fmt_vec(cal.value('accelerometer', 'bias'), 1000 / G0, 1)} "
+        lines.append(f"| {trial.split('/')[1]} | {cal.status} | "
+                     f"{_fmt_vec(cal.value('accelerometer', 'bias'), 1000 / G0, 1)} "
                      f"| {_fmt_vec(cal.value('accelerometer', 'scale_factor'), 1, 4)} | "
                      f"{np.sqrt(np.mean(rb**2)):.1f} → {np.sqrt(np.mean(ra**2)):.1f} | "
                      f"{truth_angle(before):.2f} → {truth_angle(after):.2f} |")

@@ -8,11 +8,11 @@ Not a test dependency: it needs two things from the package registries that the 
     python benchmarks/render_rrd.py out/session.rrd docs/viewer/calib_demo.png
     python benchmarks/render_rrd.py a.rrd a.png b.rrd b.png ...   # several at once
 
-How: ``rerun --serve-web`` (the rerun-sdk's own CLI) hosts the web viewer and the recording on
-loopback ports and the .rrd is served over loopback HTTP; Chromium (``--headless --no-sandbox``, software rendering: SwiftShader WebGL) opens
-``http://127.0.0.1:PORT/?url=http://127.0.0.1:FILES/NAME.rrd`` at ``--size`` (default 1600×1000),
-waits ``--wait`` seconds for the data to stream and the layout to settle, and saves a screenshot.
-The blueprint in the file decides the layout; nothing is clicked.
+How: ``rerun --serve-web`` (the rerun-sdk's own CLI) hosts the web viewer and the recording on loopback ports and the
+.rrd is served over loopback HTTP; Chromium (``--headless --no-sandbox``, software rendering: SwiftShader WebGL) opens
+``http://127.0.0.1:PORT/?url=http://127.0.0.1:FILES/NAME.rrd`` at ``--size`` (default 1600×1000), waits ``--wait``
+seconds for the data to stream and the layout to settle, and saves a screenshot. The blueprint in the file decides the
+layout; nothing is clicked.
 """
 
 from __future__ import annotations
@@ -63,9 +63,18 @@ def _serve_file_folder(folder: Path, port: int):
     return httpd
 
 
-CHROMIUM_ARGS = ["--headless=new", "--no-sandbox", "--disable-quic", "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                 "--ignore-gpu-blocklist"]
+CHROMIUM_ARGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--ignore-gpu-blocklist",
+]
 
 
 def render(rrd: Path, png: Path, *, size: tuple[int, int] = (1600, 1000), wait_s: float = 25.0,
@@ -109,7 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="1600x1000", help="browser viewport WIDTHxHEIGHT in CSS pixels")
     ap.add_argument("--wait", type=float, default=25.0, help="seconds to let the data stream and the layout settle")
     ap.add_argument("--chromium", default="/usr/bin/chromium", help="the browser binary (Debian's chromium)")
-    ap.add_argument("--renderer", default="webgl", choices=("webgl", "webgpu"), help="the web viewer's graphics backend")
+    ap.add_argument(
+        "--renderer", default="webgl", choices=("webgl", "webgpu"), help="the web viewer's graphics backend"
+    )
     args = ap.parse_args(argv)
     if len(args.pairs) % 2:
         ap.error("give RRD PNG pairs")
@@ -117,7 +128,9 @@ def main(argv: list[str] | None = None) -> int:
     for rrd, png in zip(args.pairs[::2], args.pairs[1::2]):
         if not Path(rrd).is_file():
             ap.error(f"{rrd}: no such file")
-        out = render(Path(rrd), Path(png), size=(w, h), wait_s=args.wait, chromium=args.chromium, renderer=args.renderer)
+        out = render(
+            Path(rrd), Path(png), size=(w, h), wait_s=args.wait, chromium=args.chromium, renderer=args.renderer
+        )
         print(f"wrote {out}")
     return 0
 

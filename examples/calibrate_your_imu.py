@@ -15,11 +15,12 @@ import math
 
 import numpy as np
 
-from calib import Calibration
-from calib.session.paper import calibrate
-from calib.inputs import load_recording
 from gyrosim.calibration import truth_calibration
 from gyrosim.simulate import simulate
+
+from calib import Calibration
+from calib.inputs import load_recording
+from calib.session.paper import calibrate
 
 
 def main() -> None:

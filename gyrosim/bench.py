@@ -42,7 +42,9 @@ def _best_interleaved(fa, fb, repeats: int) -> tuple[float, float]:
     return ta, tb
 
 
-def run_bench(repeats: int = 3, schedule: str = "zhou2020", hand: str = "typical", rate_hz: float = 100.0) -> dict[str, float]:
+def run_bench(
+    repeats: int = 3, schedule: str = "zhou2020", hand: str = "typical", rate_hz: float = 100.0
+) -> dict[str, float]:
     """Print and return the speed table (steps/s, samples/s, overhead ratio)."""
     sched = load_schedule(schedule)
     hnd = load_hand(hand)
@@ -77,7 +79,9 @@ def run_bench(repeats: int = 3, schedule: str = "zhou2020", hand: str = "typical
     return {"bare_s": t_bare, "ours_s": t_ours, "overhead": overhead}
 
 
-def run_sensor_bench(repeats: int = 5, n: int = 200_000, rate_hz: float = 100.0, sensor: str = "mpu9250") -> dict[str, float]:
+def run_sensor_bench(
+    repeats: int = 5, n: int = 200_000, rate_hz: float = 100.0, sensor: str = "mpu9250"
+) -> dict[str, float]:
     """Error-model throughput: the full preset against bare numpy bias + scale/misalignment + noise.
 
     Both corrupt the same (n, 3) gyro and accelerometer truth in the same run; samples/s counts

@@ -325,7 +325,9 @@ class Calibration:
                   warnings=tuple(w for w in d.get("warnings", []) if not w.startswith("not a number, written as null")),
                   method=d.get("method", ""), diagnostics=diagnostics)
         if d.get("parameters") is not None and list(d["parameters"]) != out.parameter_names():
-            raise GyrosimError("calibration file: 'parameters' does not match its effects; the file was edited by hand?")
+            raise GyrosimError(
+                "calibration file: 'parameters' does not match its effects; the file was edited by hand?"
+            )
         return out
 
     @classmethod

@@ -48,8 +48,19 @@ import numpy as np
 
 from .errors import GyrosimError
 
-__all__ = ["CampaignSpec", "CampaignRow", "Task", "load_campaign", "make_tasks", "run_task", "run_campaign", "summarise",
-           "RESULT_COLUMNS", "read_rows", "write_rows"]
+__all__ = [
+    "CampaignSpec",
+    "CampaignRow",
+    "Task",
+    "load_campaign",
+    "make_tasks",
+    "run_task",
+    "run_campaign",
+    "summarise",
+    "RESULT_COLUMNS",
+    "read_rows",
+    "write_rows",
+]
 
 PARAMS = [f"err_bias_{a}_deg_s" for a in "xyz"] + [f"err_S_{a}_pct" for a in "xyz"] + [f"err_G_{a}_pct" for a in "xyz"]
 RESULT_COLUMNS = (["task_id", "hand", "severity", "seed", "sensor", "schedule", "rate_hz", "estimator", "status",
@@ -217,9 +228,22 @@ class Task:
 
 
 def make_tasks(spec: CampaignSpec) -> list[Task]:
-    return [Task(f"{h}|{sev:g}|{seed}", h, float(sev), seed, spec.sensor, spec.schedule, spec.rate_hz,
-                 spec.estimators, spec.calibrated_accelerometer)
-            for h in spec.hands for sev in spec.severity for seed in range(spec.first_seed, spec.first_seed + spec.seeds)]
+    return [
+        Task(
+            f"{h}|{sev:g}|{seed}",
+            h,
+            float(sev),
+            seed,
+            spec.sensor,
+            spec.schedule,
+            spec.rate_hz,
+            spec.estimators,
+            spec.calibrated_accelerometer,
+        )
+        for h in spec.hands
+        for sev in spec.severity
+        for seed in range(spec.first_seed, spec.first_seed + spec.seeds)
+    ]
 
 
 def _scaled_hand(name: str, factor: float):
@@ -228,10 +252,15 @@ def _scaled_hand(name: str, factor: float):
     h = load_hand(name)
     if factor == 1.0:
         return h
-    return replace(h, name=f"{h.name}×{factor:g}", tremor_acc_rms_m_s2=h.tremor_acc_rms_m_s2 * factor,
-                   tremor_rate_rms_rad_s=h.tremor_rate_rms_rad_s * factor, sway_acc_rms_m_s2=h.sway_acc_rms_m_s2 * factor,
-                   axis_wobble_rms_deg=h.axis_wobble_rms_deg * factor,
-                   pivot_offset_m=tuple(v * factor for v in h.pivot_offset_m))
+    return replace(
+        h,
+        name=f"{h.name}×{factor:g}",
+        tremor_acc_rms_m_s2=h.tremor_acc_rms_m_s2 * factor,
+        tremor_rate_rms_rad_s=h.tremor_rate_rms_rad_s * factor,
+        sway_acc_rms_m_s2=h.sway_acc_rms_m_s2 * factor,
+        axis_wobble_rms_deg=h.axis_wobble_rms_deg * factor,
+        pivot_offset_m=tuple(v * factor for v in h.pivot_offset_m),
+    )
 
 
 def _sensor(task: Task):
@@ -457,7 +486,9 @@ def summarise(results: str | Path, out: str | Path | None = None) -> list[dict]:
         summary.append(row)
     if out is not None:
         out = Path(out)
-        keys = sorted({k for r in summary for k in r}, key=lambda k: (k not in ("hand", "severity", "estimator", "n"), k))
+        keys = sorted(
+            {k for r in summary for k in r}, key=lambda k: (k not in ("hand", "severity", "estimator", "n"), k)
+        )
         with (out / "summary.csv").open("w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=keys)
             w.writeheader()
@@ -488,7 +519,9 @@ def summary_story(summary: list[dict]) -> str:
              "and the failed-or-diverged rate.", ""]
     parts = []
     for est in ests:
-        rs = sorted([r for r in summary if r["estimator"] == est and "rms_S_pct" in r], key=lambda r: r["ext_acc_rms_m_s2"])
+        rs = sorted(
+            [r for r in summary if r["estimator"] == est and "rms_S_pct" in r], key=lambda r: r["ext_acc_rms_m_s2"]
+        )
         if not rs:
             parts.append(f"{est}: every task crashed")
             continue
@@ -563,8 +596,11 @@ def _plot(summary: list[dict], path: Path) -> None:
         if not rs:
             continue
         x = np.array([r["ext_acc_rms_m_s2"] for r in rs])
-        for ax, group, label in zip(axes[:3], ("S_pct", "G_pct", "bias_deg_s"),
-                                    ("scale factor error RMS (%)", "non-orthogonality error RMS (%)", "bias error RMS (°/s)")):
+        for ax, group, label in zip(
+            axes[:3],
+            ("S_pct", "G_pct", "bias_deg_s"),
+            ("scale factor error RMS (%)", "non-orthogonality error RMS (%)", "bias error RMS (°/s)"),
+        ):
             y = np.array([r[f"rms_{group}"] for r in rs])
             lo = np.array([r[f"rms_{group}_lo"] for r in rs])
             hi = np.array([r[f"rms_{group}_hi"] for r in rs])

@@ -3,18 +3,9 @@
 A profile is written in TOML as a start temperature and a list of steps, each a hold or a ramp,
 optionally repeated (``repeat``) — the way a chamber programme is written:
 
-    start_c = -40.0
-    repeat = 5
-    [[step]]
-    hold_s = 3600            # soak
-    [[step]]
-    ramp_to_c = 85.0
-    rate_c_per_h = 18.0      # heating at 18 °C/h ("Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros", §3.1)
-    [[step]]
-    hold_s = 3600
-    [[step]]
-    ramp_to_c = -40.0
-    rate_c_per_h = 18.0      # cooling
+    start_c = -40.0 repeat = 5 [[step]] hold_s = 3600            # soak [[step]] ramp_to_c = 85.0 rate_c_per_h = 18.0
+    # heating at 18 °C/h ("Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros", §3.1)
+    [[step]] hold_s = 3600 [[step]] ramp_to_c = -40.0 rate_c_per_h = 18.0      # cooling
 
 The ambient is piecewise linear between the corners.  Built-ins (``gyrosim/presets/chambers``):
 ``tde_cycles_003`` (the MTEA paper's −40→85 °C cycles at 18 °C/h, five times) and ``points_001``
@@ -28,10 +19,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-
-from typing import TYPE_CHECKING
 
 from ._presets import builtin_names, load_named_toml
 from .errors import PresetError
@@ -163,13 +153,25 @@ def simulate_chamber(profile: "ChamberProfile | str", sensor, rate_hz: float = 1
     f[:, "xyz".index(up_axis)] = G0
     quat = {"z": [1.0, 0, 0, 0], "x": [math.cos(math.pi / 4), 0, -math.sin(math.pi / 4), 0],
             "y": [math.cos(math.pi / 4), math.sin(math.pi / 4), 0, 0]}[up_axis]
-    truth = Recording(t_s=t, gyro_rad_s=np.zeros((t.size, 3)), acc_m_s2=f,
-                      truth=Truth(omega_body_rad_s=np.zeros((t.size, 3)), specific_force_body_m_s2=f,
-                                  quat_nb=np.tile(quat, (t.size, 1))),
-                      meta={"rate_hz": rate_hz, "chamber": {"name": profile.name, "times_s": profile.times_s.tolist(),
-                                                            "ambient_c": profile.ambient_c.tolist(),
-                                                            "labels": list(profile.labels),
-                                                            "cycle_starts_s": list(profile.cycle_starts_s)},
-                            "schedule": f"static in chamber profile {profile.name}", "seed": -1 if seed is None else seed})
+    truth = Recording(
+        t_s=t,
+        gyro_rad_s=np.zeros((t.size, 3)),
+        acc_m_s2=f,
+        truth=Truth(
+            omega_body_rad_s=np.zeros((t.size, 3)), specific_force_body_m_s2=f, quat_nb=np.tile(quat, (t.size, 1))
+        ),
+        meta={
+            "rate_hz": rate_hz,
+            "chamber": {
+                "name": profile.name,
+                "times_s": profile.times_s.tolist(),
+                "ambient_c": profile.ambient_c.tolist(),
+                "labels": list(profile.labels),
+                "cycle_starts_s": list(profile.cycle_starts_s),
+            },
+            "schedule": f"static in chamber profile {profile.name}",
+            "seed": -1 if seed is None else seed,
+        },
+    )
     temp = sensor_temperature(profile, model.thermal, t)
     return apply_sensor(truth, model, np.random.default_rng(seed), temperature_c=temp)

@@ -149,7 +149,9 @@ def _knocks(specs: list[str] | None):
     for spec in specs or []:
         parts = spec.split(":")
         try:
-            out.append(Knock(int(parts[0]), float(parts[1]) if len(parts) > 1 else 0.5, parts[2] if len(parts) > 2 else "x"))
+            out.append(
+                Knock(int(parts[0]), float(parts[1]) if len(parts) > 1 else 0.5, parts[2] if len(parts) > 2 else "x")
+            )
         except ValueError as exc:
             raise GyrosimError(f"--knock {spec!r}: use HOLD[:DEG[:AXIS]], e.g. 2:0.5:x ({exc})") from exc
     return tuple(out)
@@ -168,9 +170,18 @@ def cmd_northfind(args: argparse.Namespace) -> int:
                              tilt_deg=args.tilt, tilt_azimuth_deg=args.tilt_azimuth, knocks=_knocks(args.knock))
     save_hdf5(rec, out)
     nf = rec.meta["northfind"]
-    print(f"wrote {out}: {rec.n} samples at {args.rate:g} Hz ({rec.duration_s / 60:.1f} min), {args.sensor} at latitude "
-          f"{args.latitude:g}°, {seq.positions} position(s) × {seq.hold_s:g} s, true headings "
-          + ", ".join(f"{h['truth_heading_deg']:.3f}°" for h in nf["holds"]))
+    print(
+        f"wrote {out}: {rec.n} samples at {args.rate:g} Hz ({rec.duration_s / 60:.1f} min), {args.sensor} at latitude "
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        f"{args.latitude:g}°, {seq.positions} position(s) × {seq.hold_s:g} s, true headings "
+        + ", ".join(f"{h['truth_heading_deg']:.3f}°" for h in nf["holds"])
+    )
     return 0
 
 
@@ -243,7 +254,8 @@ def cmd_orientation_campaign(args: argparse.Namespace) -> int:
           f"{'heading RMS °':>13} {'drift RMS °/min [95%]':>24} {'conv. s [95%]':>20} {'never':>5}")
     for r in summary:
         if "tilt_rms_deg" not in r:
-            print(f"{r['hand']:<9} {r['severity']:4g} {r['variant']:<10} {r['estimator']:<14} {r['n']:4d} {r['failed']:4d}"
+            print(f"{r['hand']:<9} {r['severity']:4g} {r['variant']:<10} {r['estimator']:<14} {r['n']:4d} "
+                  f"{r['failed']:4d}"
                   f"  (all failed: {r['first_error'][:80]})")
             continue
         print(f"{r['hand']:<9} {r['severity']:4g} {r['variant']:<10} {r['estimator']:<14} {r['n']:4d} {r['failed']:4d} "
@@ -307,7 +319,9 @@ def cmd_campaign(args: argparse.Namespace) -> int:
           f"{'S err % RMS [95%]':>22} {'G err % RMS [95%]':>22} {'bias °/s RMS':>12}")
     for r in summary:
         if "rms_S_pct" not in r:
-            print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d}  (all crashed)")
+            print(
+                f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d}  (all crashed)"
+            )
             continue
         print(f"{r['hand']:<10} {r['severity']:4g} {r['estimator']:<18} {r['n']:4d} {r['failed']:4d} "
               f"{r['ext_acc_rms_m_s2']:12.4f} {r['rms_S_pct']:8.4f} [{r['rms_S_pct_lo']:.4f}, {r['rms_S_pct_hi']:.4f}] "
@@ -325,7 +339,8 @@ def cmd_campaign_bench(args: argparse.Namespace) -> int:
         print(json.dumps(r, indent=2))
         for label in ("raw_and_calibrated", "raw_only"):
             cpu = r[label]["cpu_s_per_session"]
-            print(f"{label}: {cpu:.2f} CPU s/session in-process; 1000 sessions on 2 cores ≈ {1000 * cpu / 2 / 60:.1f} min "
+            print(f"{label}: {cpu:.2f} CPU s/session in-process; 1000 sessions on 2 cores ≈ {1000 * cpu / 2 / 60:.1f} "
+                  "min "
                   f"(× 1.3 for Dask workers, README: {1000 * cpu / 2 / 60 * 1.3:.1f} min)")
         return 0
     from .campaign import bench_scaling
@@ -334,7 +349,8 @@ def cmd_campaign_bench(args: argparse.Namespace) -> int:
     print(f"{args.sessions} sessions (zhou2020, typical, mpu9250, estimator kf), timed in the same run")
     print(f"{'runner':<24} {'workers':>7} {'s':>8} {'sessions/s':>11} {'× 1 worker':>11}")
     for r in rows:
-        print(f"{r['runner']:<24} {r['workers']:7d} {r['seconds']:8.2f} {r['sessions_per_s']:11.3f} {r['speedup_vs_1_worker']:11.2f}")
+        print(f"{r['runner']:<24} {r['workers']:7d} {r['seconds']:8.2f} {r['sessions_per_s']:11.3f} "
+              f"{r['speedup_vs_1_worker']:11.2f}")
     print(f"Dask overhead per task (1 worker − in-process compute): {rows[1]['overhead_per_task_s'] * 1e3:.0f} ms")
     return 0
 
@@ -353,17 +369,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="MuJoCo step rate, Hz, in (0, 1e6] (default 1000)")
     s.add_argument("--sensor", default=None, help="sensor preset or TOML path (default: none, /gyro = truth)")
     s.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
-    s.add_argument("--out", required=True, help="output .h5 path (written atomically; never one of the input TOML files)")
+    s.add_argument("--out", required=True, help="output .h5 path (written atomically; never one of the input TOML "
+                                                "files)")
     s.add_argument("--mag-field", help="Earth field E,N,U in µT (default 1.5,20,-44: 48° N)")
     s.add_argument("--location", help="Earth field from the World Magnetic Model: LAT,LON[,HEIGHT_M[,YYYY-MM-DD]]")
-    s.add_argument("--anomaly", action="append",
-                   help="ferrous sphere X,Y,Z,RADIUS_M in the room (m, ENU; the hand starts at 0.18,0.30,1.15); repeatable")
+    s.add_argument(
+        "--anomaly",
+        action="append",
+        help="ferrous sphere X,Y,Z,RADIUS_M in the room (m, ENU; the hand starts at 0.18,0.30,1.15); repeatable",
+    )
     s.add_argument("--quiet", action="store_true", help="no progress bar and no summary line")
     s.set_defaults(func=cmd_simulate)
 
     h = sub.add_parser("hands", help="list hand presets with the disturbances they produce")
-    h.add_argument("--schedule", default="zhou2020",
-                   help="schedule the expected disturbances are computed over: built-in name or TOML path (default zhou2020)")
+    h.add_argument(
+        "--schedule",
+        default="zhou2020",
+        help="schedule the expected disturbances are computed over: built-in name or TOML path (default zhou2020)",
+    )
     h.set_defaults(func=cmd_hands)
 
     sc = sub.add_parser("schedules", help="list built-in schedules")
@@ -386,7 +409,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     rt = sub.add_parser("ratetable", help="virtual rate table: ±rate / one-position on six faces at each chamber hold")
     rt.add_argument("--profile", default="points_001", help="chamber profile whose holds are the calibration points")
-    rt.add_argument("--sensor", default="consumer_thermal", help="sensor preset or TOML path (default consumer_thermal)")
+    rt.add_argument(
+        "--sensor", default="consumer_thermal", help="sensor preset or TOML path (default consumer_thermal)"
+    )
     rt.add_argument("--rate", type=number(0, 1e4, lo_open=True, unit="Hz"), default=100.0,
                     help="output rate, Hz, in (0, 1e4] (default 100)")
     rt.add_argument("--table-rate", type=number(0, 2000, lo_open=True, unit="°/s"), default=30.0,
@@ -399,30 +424,48 @@ def build_parser() -> argparse.ArgumentParser:
     rt.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
     rt.set_defaults(func=cmd_ratetable)
 
-    nf = sub.add_parser("northfind", help="gyrocompassing: a board held still in 2/4 positions on the indexing table at a latitude")
-    nf.add_argument("--sensor", default="fog_tactical", help="sensor preset or TOML path (its Earth rate is set to --latitude)")
-    nf.add_argument("--latitude", type=number(-90, 90, unit="°"), default=48.0, help="site latitude, °, in [-90, 90] (default 48)")
+    nf = sub.add_parser(
+        "northfind", help="gyrocompassing: a board held still in 2/4 positions on the indexing table at a latitude"
+    )
+    nf.add_argument("--sensor", default="fog_tactical", help="sensor preset or TOML path (its Earth rate is set to "
+                                                             "--latitude)")
+    nf.add_argument("--latitude", type=number(-90, 90, unit="°"), default=48.0, help="site latitude, °, in [-90, 90] "
+                                                                                     "(default 48)")
     nf.add_argument("--heading", type=number(-360, 360, unit="°"), default=30.0,
                     help="true heading of the forward axis in position 1, ° from North, in [-360, 360]")
     nf.add_argument("--positions", type=integer(2, 360), default=4,
                     help="equally spaced positions, 2 … 360 (2: 0/180°, 4: 0/90/180/270°)")
-    nf.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=300.0, help="rest per position, s, > 0 (default 300)")
+    nf.add_argument(
+        "--hold",
+        type=number(0, 1e7, lo_open=True, unit="s"),
+        default=300.0,
+        help="rest per position, s, > 0 (default 300)",
+    )
     nf.add_argument("--index-rate", type=number(0, 2000, lo_open=True, unit="°/s"), default=20.0,
                     help="table rate during the index moves, °/s, in (0, 2000]")
     nf.add_argument("--rate", type=number(0, 500, lo_open=True, unit="Hz"), default=100.0,
                     help="output rate, Hz (a divisor of 500; default 100)")
     nf.add_argument("--tilt", type=number(-90, 90, unit="°"), default=0.0,
                     help="tilt of the table axis from the vertical, °, in [-90, 90] (tripod not level)")
-    nf.add_argument("--tilt-azimuth", type=number(-360, 360, unit="°"), default=0.0, help="azimuth the axis leans towards, °")
-    nf.add_argument("--knock", action="append", metavar="HOLD[:DEG[:AXIS]]", help="knock the board during a hold (repeatable)")
-    nf.add_argument("--shield", type=number(0, None, lo_open=True), default=1.0,
-                    help="divide the gyro's magnetic sensitivity by this (1e3: a shielded FOG; default 1: as the preset)")
+    nf.add_argument("--tilt-azimuth", type=number(-360, 360, unit="°"), default=0.0, help="azimuth the axis leans "
+                                                                                          "towards, °")
+    nf.add_argument("--knock", action="append", metavar="HOLD[:DEG[:AXIS]]", help="knock the board during a hold "
+                                                                                  "(repeatable)")
+    nf.add_argument(
+        "--shield",
+        type=number(0, None, lo_open=True),
+        default=1.0,
+        help="divide the gyro's magnetic sensitivity by this (1e3: a shielded FOG; default 1: as the preset)",
+    )
     nf.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
     nf.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
     nf.set_defaults(func=cmd_northfind)
 
-    tt = sub.add_parser("tilttable", help="tilt-sensor static test: tilt steps about each axis on a dividing head, held still")
-    tt.add_argument("--sensor", default="tilt_001", help="sensor preset or TOML path (default tilt_001, the chip of 'Static Capacitance Test of MEMS Tilt Sensor')")
+    tt = sub.add_parser(
+        "tilttable", help="tilt-sensor static test: tilt steps about each axis on a dividing head, held still"
+    )
+    tt.add_argument("--sensor", default="tilt_001", help="sensor preset or TOML path (default tilt_001, the chip of "
+                                                         "'Static Capacitance Test of MEMS Tilt Sensor')")
     tt.add_argument("--angles", default=None, help="FROM:TO:STEP in ° (default -15:15:2.5, the seed's ±15° range)")
     tt.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=30.0, help="hold per step, s, > 0")
     tt.add_argument("--zero-hold", type=number(0, 1e7, unit="s"), default=3600.0,
@@ -430,7 +473,8 @@ def build_parser() -> argparse.ArgumentParser:
     tt.add_argument("--no-flip", action="store_true", help="leave out the 180° positions (0°/180° two-point method)")
     tt.add_argument("--rate", type=number(0, 1e4, lo_open=True, unit="Hz"), default=10.0,
                     help="output rate, Hz, in (0, 1e4] (default 10, the chip's)")
-    tt.add_argument("--knock", action="append", metavar="HOLD[:DEG[:AXIS]]", help="knock the board during a hold (repeatable)")
+    tt.add_argument("--knock", action="append", metavar="HOLD[:DEG[:AXIS]]", help="knock the board during a hold "
+                                                                                  "(repeatable)")
     tt.add_argument("--seed", type=seed, default=0, help="seed of the random generator, 0 … 2³²−1 (default 0)")
     tt.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
     tt.set_defaults(func=cmd_tilttable)
@@ -441,7 +485,8 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--seeds", type=integer(1, 1_000_000), help="sessions per hand and severity, 1 … 1e6 (default 10)")
     cp.add_argument("--first-seed", type=seed, help="seed of the first session, 0 … 2³²−1")
     cp.add_argument("--sensor", help="sensor preset (default mpu9250)")
-    cp.add_argument("--method", help="comma-separated estimators: names registered in the gyrosim.estimators entry points (calib's kf, "
+    cp.add_argument("--method", help="comma-separated estimators: names registered in the gyrosim.estimators entry "
+                                     "points (calib's kf, "
                          "iterated, kf_hand, kf_adaptive, ...) or import paths package.module:attribute")
     cp.add_argument("--schedule", help="schedule of every session: built-in name or TOML path (default zhou2020)")
     cp.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), help="sample rate, Hz, in (0, 1e6]")
@@ -449,7 +494,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="comma-separated factors > 0 on every hand imperfection (default 1)")
     cp.add_argument("--calibrated-accelerometer", action="store_true",
                     help="keep only the accelerometer's white noise (Zhou §3.3.2)")
-    cp.add_argument("--scheduler", default="local", help="local (LocalCluster on 127.0.0.1), none (in-process) or tcp://HOST:PORT")
+    cp.add_argument("--scheduler", default="local", help="local (LocalCluster on 127.0.0.1), none (in-process) or "
+                                                         "tcp://HOST:PORT")
     cp.add_argument("--workers", type=integer(1, 1024), help="LocalCluster workers, 1 … 1024 (default: cores)")
     cp.add_argument("--timeout", type=number(0, 3600, lo_open=True, unit="s"), default=10.0,
                     help="seconds to wait for a remote scheduler, in (0, 3600] (default 10)")
@@ -480,16 +526,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     cb = sub.add_parser("campaign-bench", help="campaign scaling: sessions/s in-process, on 1 and 2 Dask workers")
     cb.add_argument("--sessions", type=integer(1, 100_000), default=12, help="sessions to time, 1 … 1e5 (default 12)")
-    cb.add_argument("--orientation", action="store_true",
-                    help="time the orientation campaign's session (simulation, calibration, vqf/madgwick/mahony/fusion)")
+    cb.add_argument(
+        "--orientation",
+        action="store_true",
+        help="time the orientation campaign's session (simulation, calibration, vqf/madgwick/mahony/fusion)",
+    )
     cb.set_defaults(func=cmd_campaign_bench)
 
     b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
     b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",
                    help="scene: simulation vs bare mujoco.rollout; sensor: error model vs bare numpy")
     b.add_argument("--repeats", type=integer(1, 1000), default=5, help="timing repeats, 1 … 1000 (default 5)")
-    b.add_argument("--sensor", default="mpu9250", help="sensor preset or TOML path timed in the sensor row (default mpu9250)")
-    b.add_argument("--schedule", default="zhou2020", help="schedule simulated: built-in name or TOML path (default zhou2020)")
+    b.add_argument("--sensor", default="mpu9250", help="sensor preset or TOML path timed in the sensor row (default "
+                                                       "mpu9250)")
+    b.add_argument("--schedule", default="zhou2020", help="schedule simulated: built-in name or TOML path (default "
+                                                          "zhou2020)")
     b.add_argument("--hand", default="typical", help="hand preset or TOML path (default typical)")
     b.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), default=100.0,
                    help="sample rate, Hz, in (0, 1e6] (default 100)")

@@ -58,12 +58,29 @@ def kalibr_imu_yaml(cal: Calibration, update_rate_hz: float, *, rostopic: str = 
     an = _density(cal, "accelerometer", "white_noise", "density")
     grw = gyro_random_walk if gyro_random_walk is not None else _density(cal, "gyro", "random_walk", "value")
     arw = acc_random_walk if acc_random_walk is not None else _density(cal, "accelerometer", "random_walk", "value")
-    missing = [n for n, v in (("gyro white noise", gn), ("accelerometer white noise", an),
-                              ("--gyro-random-walk (rad/s²/√Hz)", grw), ("--acc-random-walk (m/s³/√Hz)", arw)) if v is None]
+    missing = [
+        n
+        for n, v in (
+            ("gyro white noise", gn),
+            ("accelerometer white noise", an),
+            ("--gyro-random-walk (rad/s²/√Hz)", grw),
+            ("--acc-random-walk (m/s³/√Hz)", arw),
+        )
+        if v is None
+    ]
     if missing:
-        raise GyrosimError(f"a Kalibr imu.yaml needs {', '.join(missing)}; the calibration does not carry it: a session "
-                           "of minutes cannot measure a bias random walk — take it from an Allan deviation of a long "
-                           "static recording (calib allan) or the datasheet and pass it")
+        raise GyrosimError(
+            f"a Kalibr imu.yaml needs {', '.join(missing)}; the calibration does not carry it: a session "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            "of minutes cannot measure a bias random walk — take it from an Allan deviation of a long "
+            "static recording (calib allan) or the datasheet and pass it"
+        )
     lines = [
         "# IMU noise model for Kalibr (https://github.com/ethz-asl/kalibr/wiki/IMU-Noise-Model)",
         "# continuous-time values: white noise density sigma (per sample sigma * sqrt(update_rate)),",
@@ -87,7 +104,8 @@ def kalibr_imu_yaml(cal: Calibration, update_rate_hz: float, *, rostopic: str = 
         for kind, label in (("bias", f"bias ({unit})"), ("scale_factor", "scale factor S"),
                             ("nonorthogonality", "non-orthogonality G")):
             if cal.has(triad, kind):
-                lines.append(f"#   {triad} {label}: {np.array2string(cal.value(triad, kind), precision=6, separator=', ')}")
+                lines.append(f"#   {triad} {label}: "
+                             f"{np.array2string(cal.value(triad, kind), precision=6, separator=', ')}")
     return "\n".join(lines) + "\n"
 
 
@@ -145,7 +163,11 @@ def imucal_json(cal: Calibration, comment: str = "") -> str:
             raise GyrosimError(f"imucal's format needs both triads; this calibration has no {triad} intrinsics "
                                "(calibrate with --accelerometer estimate)")
     def m(triad: str) -> np.ndarray:
-        return np.eye(3) + np.diag(cal.value(triad, "scale_factor")) + nonortho_matrix(cal.value(triad, "nonorthogonality"))
+        return (
+            np.eye(3)
+            + np.diag(cal.value(triad, "scale_factor"))
+            + nonortho_matrix(cal.value(triad, "nonorthogonality"))
+        )
 
     k_a, r_a = _k_r(m("accelerometer"))
     k_g, r_g = _k_r(m("gyro"))

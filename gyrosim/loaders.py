@@ -67,11 +67,19 @@ def load_broad(path: str | Path) -> Recording:
     n = gyro.shape[0]
     truth = Truth(quat_nb=quat, position_nav_m=pos, extra={"movement": movement.astype(float)})
     return Recording(
-        t_s=np.arange(n) / fs, gyro_rad_s=gyro, acc_m_s2=acc, mag_ut=mag, truth=truth,
-        meta={"rate_hz": fs, "source": f"BROAD {path.stem}; {_source(path.parent)}",
-              "licence": "CC BY 4.0 (Laidig et al., BROAD, Data 6(7):72, 2021)",
-              "conversion": "none (rad/s, m/s², µT as published); truth quat = opt_quat (sensor→ENU, w,x,y,z; NaN where occluded)",
-              "dataset": f"broad/{path.stem}"},
+        t_s=np.arange(n) / fs,
+        gyro_rad_s=gyro,
+        acc_m_s2=acc,
+        mag_ut=mag,
+        truth=truth,
+        meta={
+            "rate_hz": fs,
+            "source": f"BROAD {path.stem}; {_source(path.parent)}",
+            "licence": "CC BY 4.0 (Laidig et al., BROAD, Data 6(7):72, 2021)",
+            "conversion": "none (rad/s, m/s², µT as published); truth quat = opt_quat (sensor→ENU, w,x,y,z; NaN where "
+                          "occluded)",
+            "dataset": f"broad/{path.stem}",
+        },
     )
 
 

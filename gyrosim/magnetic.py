@@ -80,7 +80,9 @@ def wmm_field_enu_ut(latitude_deg: float, longitude_deg: float, height_m: float,
         geo = GeoMag(base_year=epoch)
         r = geo.calculate(glat=float(latitude_deg), glon=float(longitude_deg), alt=float(height_m) / 1000.0, time=year)
     except (ValueError, FileNotFoundError) as exc:  # pragma: no cover - guarded by the range check above
-        raise GyrosimError(f"World Magnetic Model failed for {latitude_deg}°, {longitude_deg}°, {year:.2f}: {exc}") from exc
+        raise GyrosimError(
+            f"World Magnetic Model failed for {latitude_deg}°, {longitude_deg}°, {year:.2f}: {exc}"
+        ) from exc
     enu = np.array([r.y, r.x, -r.z]) / 1000.0  # nT north-east-down → µT east-north-up
     src = (f"WMM{epoch} (pygeomag) at {latitude_deg:.4f}°, {longitude_deg:.4f}°, {height_m:.0f} m, {year:.3f}: "
            f"|B| {r.f / 1000:.2f} µT, inclination {r.i:.2f}°, declination {r.d:.2f}°")
@@ -100,7 +102,9 @@ class Dipole:
         object.__setattr__(self, "moment_a_m2", _vec3(self.moment_a_m2, "dipole moment_a_m2"))
 
     @classmethod
-    def ferrous_sphere(cls, position_m: Any, radius_m: float, earth_enu_ut: Any, label: str = "ferrous sphere") -> "Dipole":
+    def ferrous_sphere(
+        cls, position_m: Any, radius_m: float, earth_enu_ut: Any, label: str = "ferrous sphere"
+    ) -> "Dipole":
         """A soft-iron sphere (μ_r ≫ 1) of radius ``radius_m`` magnetised by the Earth field:
         m = 4π a³ B₀ / μ₀ (Jackson §5.11, the μ_r → ∞ limit of 4π a³ (μ_r − 1)/(μ_r + 2) H₀)."""
         if not (math.isfinite(radius_m) and radius_m > 0):
@@ -202,7 +206,9 @@ def environment_from_text(field_enu_ut: str | None = None, location: str | None 
             lat, lon = float(p[0]), float(p[1])
             height = float(p[2]) if len(p) > 2 else 0.0
         except ValueError as exc:
-            raise GyrosimError(f"location {location!r}: LAT,LON[,HEIGHT_M[,YYYY-MM-DD]] with numbers in degrees and m") from exc
+            raise GyrosimError(
+                f"location {location!r}: LAT,LON[,HEIGHT_M[,YYYY-MM-DD]] with numbers in degrees and m"
+            ) from exc
         env = MagneticEnvironment.at(lat, lon, height, p[3] if len(p) > 3 else "2025-01-01")
     elif field_enu_ut:
         try:

@@ -36,7 +36,14 @@ from .rig import Knock, apply_knocks, static_truth
 from .rotations import quat_from_rotvec, quat_from_two_vectors, quat_multiply, quat_rotate
 from .sensor_model import SensorModel, load_sensor
 
-__all__ = ["NorthFindSequence", "with_latitude", "shielded", "simulate_northfind_truth", "simulate_northfind", "true_heading_deg"]
+__all__ = [
+    "NorthFindSequence",
+    "with_latitude",
+    "shielded",
+    "simulate_northfind_truth",
+    "simulate_northfind",
+    "true_heading_deg",
+]
 
 
 @dataclass(frozen=True)
@@ -75,9 +82,9 @@ def with_latitude(model: SensorModel, latitude_deg: float) -> SensorModel:
 
 
 def shielded(model: SensorModel, factor: float) -> SensorModel:
-    """The sensor model with its gyro's magnetic sensitivity divided by ``factor`` (a µ-metal
-    shield: "Magnetic Sensitivity of FOG IMU" gives 1e4 °/(h·T) for an unshielded FOG coil, 1–10 for a shielded POS-grade
-    one, i.e. factors 1e3–1e4)."""
+    """The sensor model with its gyro's magnetic sensitivity divided by ``factor`` (a µ-metal shield: "Magnetic
+    Sensitivity of FOG IMU" gives 1e4 °/(h·T) for an unshielded FOG coil, 1–10 for a shielded POS-grade one, i.e.
+    factors 1e3–1e4)."""
     if not factor >= 1:
         raise GyrosimError(f"magnetic shielding factor must be ≥ 1, got {factor}")
     return replace(model, gyro=tuple(replace(e, value=e.value / factor) if isinstance(e, MagneticSensitivity) else e
@@ -92,7 +99,8 @@ def _index_move(seq: NorthFindSequence, rate_hz: float, physics_hz: float) -> tu
     data = mujoco.MjData(model)
     sub = int(round(physics_hz / rate_hz))
     if sub < 1 or abs(sub * rate_hz - physics_hz) > 1e-9 * physics_hz:
-        raise GyrosimError(f"north-finding: the physics rate {physics_hz} Hz must be a multiple of the output rate {rate_hz} Hz")
+        raise GyrosimError(f"north-finding: the physics rate {physics_hz} Hz must be a multiple of the output rate "
+                           f"{rate_hz} Hz")
     omega = math.radians(seq.index_rate_deg_s)
     n_turn = int(round(math.radians(seq.index_deg) / omega * physics_hz))
     n_settle = int(round(seq.settle_s * physics_hz))

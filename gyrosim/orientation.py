@@ -11,15 +11,14 @@ callable ``estimator(rec: Recording) -> Attitude`` (or an (N, 4) array of quater
   :mod:`gyrosim.rotations` and of ``/truth/quat``).  A 6-axis estimate's heading is relative (it
   starts where the filter starts it); scoring removes that offset (:mod:`gyrosim.attitude_errors`).
 
-Registered names (entry-point group ``gyrosim.orientation_estimators``, :mod:`gyrosim.plugins`; calib
-registers these from :mod:`calib.orientation.estimators`, the optional extra ``orientation``): ``vqf`` (Laidig & Seel
-2023, package ``vqf``), ``madgwick`` and ``mahony`` (compiled, equal to the ``ahrs`` package's to
-rounding; ``madgwick_ahrs``/``mahony_ahrs`` run ``ahrs`` itself), ``fusion`` (x-io's Fusion,
-package ``imufusion``).  Each exists 6-axis (``vqf``) and 9-axis (``vqf_9d``).  A user's own is
-registered the same way by an installed package (the entry point names a zero-argument factory that
-returns the estimator), or named by import path ``package.module:attribute`` (a callable, or a
-class/factory called with no arguments that returns one).  :func:`run_orientation` checks what comes back: an estimator that
-raises, returns the wrong shape, NaN or non-unit quaternions raises :class:`OrientationFailure`
+Registered names (entry-point group ``gyrosim.orientation_estimators``, :mod:`gyrosim.plugins`; calib registers these
+from :mod:`calib.orientation.estimators`, the optional extra ``orientation``): ``vqf`` (Laidig & Seel 2023, package
+``vqf``), ``madgwick`` and ``mahony`` (compiled, equal to the ``ahrs`` package's to rounding;
+``madgwick_ahrs``/``mahony_ahrs`` run ``ahrs`` itself), ``fusion`` (x-io's Fusion, package ``imufusion``).  Each exists
+6-axis (``vqf``) and 9-axis (``vqf_9d``).  A user's own is registered the same way by an installed package (the entry
+point names a zero-argument factory that returns the estimator), or named by import path ``package.module:attribute`` (a
+callable, or a class/factory called with no arguments that returns one).  :func:`run_orientation` checks what comes
+back: an estimator that raises, returns the wrong shape, NaN or non-unit quaternions raises :class:`OrientationFailure`
 with the reason, which a campaign records for that task and goes on.
 """
 
@@ -34,8 +33,18 @@ from .errors import GyrosimError
 from .plugins import load, load_object, registered
 from .recording import Recording
 
-__all__ = ["Attitude", "OrientationEstimator", "OrientationFailure", "MissingExtraError",
-           "ENTRY_POINT_GROUP", "registered_orientation_estimators", "load_orientation_estimator", "run_orientation", "UNIT_NORM_TOL", "EXTRA_HINT"]
+__all__ = [
+    "Attitude",
+    "OrientationEstimator",
+    "OrientationFailure",
+    "MissingExtraError",
+    "ENTRY_POINT_GROUP",
+    "registered_orientation_estimators",
+    "load_orientation_estimator",
+    "run_orientation",
+    "UNIT_NORM_TOL",
+    "EXTRA_HINT",
+]
 
 ENTRY_POINT_GROUP = "gyrosim.orientation_estimators"
 
@@ -98,7 +107,9 @@ def load_orientation_estimator(spec: str) -> Callable[[Recording], Attitude | np
     return obj
 
 
-def run_orientation(estimator: Callable[[Recording], Attitude | np.ndarray], rec: Recording, name: str = "") -> Attitude:
+def run_orientation(
+    estimator: Callable[[Recording], Attitude | np.ndarray], rec: Recording, name: str = ""
+) -> Attitude:
     """Run ``estimator`` on ``rec`` and check the result; any failure is an :class:`OrientationFailure`
     whose message says what went wrong (the estimator's own exception, a shape, NaN, a norm)."""
     try:
@@ -115,8 +126,17 @@ def run_orientation(estimator: Callable[[Recording], Attitude | np.ndarray], rec
     att = out if isinstance(out, Attitude) else Attitude(quat_nb=np.asarray(out, dtype=float), method=name)
     q = np.asarray(att.quat_nb, dtype=float)
     if q.shape != (rec.n, 4):
-        raise OrientationFailure(f"{name or 'estimator'} returned quaternions of shape {q.shape}, expected ({rec.n}, 4) "
-                                 "(one (w, x, y, z) per sample)")
+        raise OrientationFailure(
+            f"{name or 'estimator'} returned quaternions of shape {q.shape}, expected ({rec.n}, 4) "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            "(one (w, x, y, z) per sample)"
+        )
     bad = ~np.isfinite(q).all(axis=1)
     if bad.any():
         raise OrientationFailure(f"{name or 'estimator'} returned {int(bad.sum())} non-finite quaternion(s), first at "

@@ -127,7 +127,8 @@ def score_broad(estimators: tuple[str, ...] | None = None, root: Path | None = N
 
 
 def format_table(result: dict) -> str:
-    lines = [f"{'trial':<44} {'estimator':<12} {'total °':>8} {'heading °':>9} {'incl. °':>8}   published (tot/head/incl)"]
+    lines = [f"{'trial':<44} {'estimator':<12} {'total °':>8} {'heading °':>9} {'incl. °':>8}   published "
+             "(tot/head/incl)"]
     for r in result["rows"]:
         pub = r.get("published")
         ptxt = (f"{pub['total_rmse_deg']:.2f}/{pub['heading_rmse_deg']:.2f}/{pub['inclination_rmse_deg']:.2f} "

@@ -101,8 +101,12 @@ class OrientationTask:
 
 
 def make_tasks(spec: OrientationSpec) -> list[OrientationTask]:
-    return [OrientationTask(f"{h}|{sev:g}|{seed}", h, float(sev), seed, spec)
-            for h in spec.hands for sev in spec.severity for seed in range(spec.first_seed, spec.first_seed + spec.seeds)]
+    return [
+        OrientationTask(f"{h}|{sev:g}|{seed}", h, float(sev), seed, spec)
+        for h in spec.hands
+        for sev in spec.severity
+        for seed in range(spec.first_seed, spec.first_seed + spec.seeds)
+    ]
 
 
 def _calibrated(rec, spec: OrientationSpec):
@@ -130,7 +134,9 @@ def _disturb(rec, spec: OrientationSpec, q_true: np.ndarray) -> tuple[object, fl
     t_d = float(t[-1]) - spec.disturbance_before_end_s
     t_e = t_d + spec.disturbance_s
     k = int(np.searchsorted(t, t_d))
-    up_in_body = quat_rotate(np.array([q_true[k, 0], -q_true[k, 1], -q_true[k, 2], -q_true[k, 3]]), np.array([0.0, 0.0, 1.0]))
+    up_in_body = quat_rotate(
+        np.array([q_true[k, 0], -q_true[k, 1], -q_true[k, 2], -q_true[k, 3]]), np.array([0.0, 0.0, 1.0])
+    )
     axis = int(np.argmin(np.abs(up_in_body)))
     pulse = np.zeros_like(rec.gyro_rad_s)
     pulse[(t >= t_d) & (t < t_e), axis] = math.radians(spec.disturbance_deg_s)
@@ -313,7 +319,9 @@ def summarise_orientation(results: str | Path, out: str | Path | None = None) ->
             row["axes"] = int(float(ok[0]["axes"]))
             row["ext_acc_rms_m_s2"] = float(np.mean([float(r["ext_acc_rms_m_s2"]) for r in ok]))
             row["tilt_rms_deg"], row["tilt_rms_deg_lo"], row["tilt_rms_deg_hi"] = _mean_ci(f["tilt_rms_deg"])
-            row["heading_rms_deg"], row["heading_rms_deg_lo"], row["heading_rms_deg_hi"] = _mean_ci(f["heading_rms_deg"])
+            row["heading_rms_deg"], row["heading_rms_deg_lo"], row["heading_rms_deg_hi"] = _mean_ci(
+                f["heading_rms_deg"]
+            )
             row["drift_rms_deg_min"], row["drift_rms_deg_min_lo"], row["drift_rms_deg_min_hi"] = _rms_ci(
                 f["heading_drift_deg_min"])
             conv = f["convergence_s"]
@@ -377,17 +385,31 @@ def summary_markdown(summary: list[dict]) -> str:
     head = "heading RMS ° [95 %]" if nine else "heading drift RMS °/min [95 %]"
     lines = [f"| estimator | hand (ext. acc. RMS) | variant | n | failed | tilt RMS ° [95 %] | {head} | "
              "convergence s, median [95 %] (never) |", "|---|---|---|---|---|---|---|---|"]
-    for r in sorted(summary, key=lambda r: (r["estimator"], r.get("ext_acc_rms_m_s2", 0.0), r["hand"], r["variant"] != "raw")):
+    for r in sorted(
+        summary, key=lambda r: (r["estimator"], r.get("ext_acc_rms_m_s2", 0.0), r["hand"], r["variant"] != "raw")
+    ):
         if "tilt_rms_deg" not in r:
-            lines.append(f"| `{r['estimator']}` | {r['hand']} | {r['variant']} | {r['n']} | {r['failed']} | all failed: "
-                         f"{r['first_error'][:80]} | | |")
+            lines.append(
+                f"| `{r['estimator']}` | {r['hand']} | {r['variant']} | {r['n']} | {r['failed']} | all failed: "
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                f"{r['first_error'][:80]} | | |"
+            )
             continue
         hk = "heading_rms_deg" if nine else "drift_rms_deg_min"
         lines.append(
-            f"| `{r['estimator']}` | {r['hand']} ({r['ext_acc_rms_m_s2']:.3f} m/s²) | {r['variant']} | {r['n']} | {r['failed']} | "
+            f"| `{r['estimator']}` | {r['hand']} ({r['ext_acc_rms_m_s2']:.3f} m/s²) | {r['variant']} | {r['n']} | "
+            f"{r['failed']} | "
             f"{r['tilt_rms_deg']:.3g} [{r['tilt_rms_deg_lo']:.3g}, {r['tilt_rms_deg_hi']:.3g}] | "
             f"{r[hk]:.3g} [{r[hk + '_lo']:.3g}, {r[hk + '_hi']:.3g}] | "
-            f"{r['convergence_s']:.3g} [{r['convergence_s_lo']:.3g}, {r['convergence_s_hi']:.3g}] ({r['not_converged']}) |")
+            f"{r['convergence_s']:.3g} [{r['convergence_s_lo']:.3g}, {r['convergence_s_hi']:.3g}] "
+            f"({r['not_converged']}) |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -404,13 +426,17 @@ def plot_orientation(summary: list[dict], out: Path) -> list[Path]:
     nine = any(r.get("axes") == 9 for r in ok)
     head_key, head_label = (("heading_rms_deg", "heading error RMS (°)") if nine
                             else ("drift_rms_deg_min", "heading drift RMS over sessions (°/min)"))
-    panels = [("tilt_rms_deg", "tilt error RMS (°)"), (head_key, head_label), ("convergence_s", "convergence after the disturbance (s, median)")]
+    panels = [("tilt_rms_deg", "tilt error RMS (°)"), (head_key, head_label), ("convergence_s", "convergence after the "
+                                                                                                "disturbance (s, "
+                                                                                                "median)")]
     ests = sorted({r["estimator"] for r in ok})
     colors = {e: f"C{i}" for i, e in enumerate(ests)}
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
     for e in ests:
         for v, ls in (("raw", "--"), ("calibrated", "-")):
-            rs = sorted([r for r in ok if r["estimator"] == e and r["variant"] == v], key=lambda r: r["ext_acc_rms_m_s2"])
+            rs = sorted(
+                [r for r in ok if r["estimator"] == e and r["variant"] == v], key=lambda r: r["ext_acc_rms_m_s2"]
+            )
             if not rs:
                 continue
             x = np.array([r["ext_acc_rms_m_s2"] for r in rs])

@@ -90,8 +90,11 @@ def view_session(*, hand: str = "typical", sensor: str = "mpu9250", seed: int = 
     stream = rr.RecordingStream("gyrosim_orientation")
     stream.save(str(path))
     rows = np.array([[0.12 * i, 0.0, 0.0] for i in range(len(estimators) + 1)])  # the boards side by side (m, ENU)
-    stream.send_blueprint(orientation_blueprint(tuple(estimators), Span.of(t),
-                                                board_eye(rows, fill=2.6, max_radius_m=float(np.ptp(rows[:, 0])) / 2 + 0.1)))
+    stream.send_blueprint(
+        orientation_blueprint(
+            tuple(estimators), Span.of(t), board_eye(rows, fill=2.6, max_radius_m=float(np.ptp(rows[:, 0])) / 2 + 0.1)
+        )
+    )
     summary = []
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     _board(stream, "world/truth", (20, 150, 40), 0.0, t[sel], q_true[sel])
@@ -114,8 +117,11 @@ def view_session(*, hand: str = "typical", sensor: str = "mpu9250", seed: int = 
             stream.log(f"errors/{kind}/{name}", rr.SeriesLines(colors=[color], names=[name]), static=True)
             stream.send_columns(f"errors/{kind}/{name}", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
                                 columns=rr.Scalars.columns(scalars=np.degrees(series)))
-    log_story(stream, f"**Orientation estimators on one {variant} session** ({schedule}, hand {hand}, sensor {sensor}, seed "
-                      f"{seed}, {t[-1] - t[0]:.0f} s): the true attitude (green board) and each estimator's, side by side "
-                      f"0.12 m apart; the rate disturbance acts {t_d:.1f}–{t_e:.1f} s. " + "; ".join(summary) + ".")
+    log_story(
+        stream,
+        f"**Orientation estimators on one {variant} session** ({schedule}, hand {hand}, sensor {sensor}, seed "
+        f"{seed}, {t[-1] - t[0]:.0f} s): the true attitude (green board) and each estimator's, side by side "
+        f"0.12 m apart; the rate disturbance acts {t_d:.1f}–{t_e:.1f} s. " + "; ".join(summary) + ".",
+    )
     stream.flush()
     return path

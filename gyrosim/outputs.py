@@ -57,7 +57,8 @@ def same_file(a: PathLike, b: PathLike) -> bool:
 
 def _writable_folder(folder: Path, what: str, path: PathLike) -> None:
     if not folder.exists():
-        raise OutputPathError(f"cannot write {what} {os.fspath(path)!r}: folder {str(folder)!r} does not exist; create it first")
+        raise OutputPathError(f"cannot write {what} {os.fspath(path)!r}: folder {str(folder)!r} does not exist; create "
+                              "it first")
     if not folder.is_dir():
         raise OutputPathError(f"cannot write {what} {os.fspath(path)!r}: {str(folder)!r} is not a folder")
     try:
@@ -95,7 +96,9 @@ def check_output_paths(outputs: Mapping[str, PathLike | None], inputs: Iterable[
         path = Path(os.fspath(out))
         res = _resolved(path)
         if res in seen:
-            raise OutputPathError(f"{opt} and {seen[res]} name the same path {os.fspath(out)!r}; give each its own file")
+            raise OutputPathError(
+                f"{opt} and {seen[res]} name the same path {os.fspath(out)!r}; give each its own file"
+            )
         seen[res] = opt
         targets = [path]
         if opt in folders:
@@ -104,7 +107,9 @@ def check_output_paths(outputs: Mapping[str, PathLike | None], inputs: Iterable[
                                       "give a folder path")
             for inp in real_inputs:
                 if same_file(inp, path):
-                    raise OutputPathError(f"{opt} {os.fspath(out)!r} is the input itself; give a separate output folder")
+                    raise OutputPathError(
+                        f"{opt} {os.fspath(out)!r} is the input itself; give a separate output folder"
+                    )
             targets = [path / name for name in (folder_files or {}).get(opt, ())]
             _writable_folder(path if path.is_dir() else (res.parent), "folder", out)
         else:
@@ -192,7 +197,9 @@ def json_safe(obj: Any, reasons: Mapping[str, str] | None = None) -> tuple[Any, 
     return out, [f"{k or 'value'}: {v} → null" for k, v in notes.items()]
 
 
-def write_json_atomic(path: PathLike, obj: Any, *, reasons: Mapping[str, str] | None = None, indent: int = 2) -> list[str]:
+def write_json_atomic(
+    path: PathLike, obj: Any, *, reasons: Mapping[str, str] | None = None, indent: int = 2
+) -> list[str]:
     """Write ``obj`` as valid JSON, atomically; return the notes on nulled values.
 
     NaN/inf become ``null`` (:func:`json_safe`); when ``obj`` is a dict, the notes are appended to

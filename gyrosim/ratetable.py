@@ -1,4 +1,5 @@
-"""Virtual rate table in a thermal chamber: the tri-axis ±rate / one-position scheme of "Measurement Error and Calibration of FOG IMU".
+"""Virtual rate table in a thermal chamber: the tri-axis ±rate / one-position scheme of "Measurement Error and
+Calibration of FOG IMU".
 
 ``models/ratetable.xml`` is a single-axis table (velocity servo on a hinge about world z) carrying
 a cube with six IMU sites, one per face (each IMU axis up and down).  At every calibration
@@ -76,7 +77,8 @@ def _run_table(seq: RateTableSequence, rate_hz: float, physics_hz: float) -> tup
     data = mujoco.MjData(model)
     sub = int(round(physics_hz / rate_hz))
     if abs(sub * rate_hz - physics_hz) > 1e-9 * physics_hz:
-        raise GyrosimError(f"rate table: the physics rate {physics_hz} Hz must be a multiple of the output rate {rate_hz} Hz")
+        raise GyrosimError(f"rate table: the physics rate {physics_hz} Hz must be a multiple of the output rate "
+                           f"{rate_hz} Hz")
     omega = math.radians(seq.rate_deg_s)
     phases = [("static", 0.0, seq.static_s),
               ("+rate", omega, seq.spin_up_s + seq.turn_s + seq.stop_s),

@@ -112,7 +112,8 @@ class Truth:
 class Recording:
     """IMU samples with optional truth and metadata. Arrays are copied and made read-only.
 
-    Attributes:
+    Attributes
+    ----------
         t_s: sample times (s), strictly increasing.
         gyro_rad_s: angular rate (rad/s), body frame RFU, shape (N, 3).
         acc_m_s2: specific force (m/s²), body frame RFU, shape (N, 3).

@@ -71,7 +71,8 @@ def minimum_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 class Segment:
     """One step of a schedule.
 
-    Attributes:
+    Attributes
+    ----------
         kind: ``rest``, ``rotate``, ``switch`` or ``translate``.
         duration_s: length of the segment (s), > 0.
         axis_body: unit rotation axis in the body frame (RFU) for rotate/switch, else None.

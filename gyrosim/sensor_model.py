@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from ._kernels import add_affine, add_upsampled
-from .effects import EFFECTS, Effect, SignalContext, effect_from_dict
 from ._presets import builtin_names, load_named_toml
+from .effects import EFFECTS, Effect, SignalContext, effect_from_dict
 from .errors import GyrosimError, PresetError
 from .thermal import ThermalModel
 
@@ -254,7 +254,8 @@ def sensor_from_toml_dict(data: dict[str, Any], default_name: str) -> SensorMode
     """Build a :class:`SensorModel` from a preset table in datasheet units."""
     bad = set(data) - _SENSOR_KEYS
     if bad:
-        raise PresetError(f"sensor preset {default_name!r}: unknown key(s) {sorted(bad)}; allowed: {sorted(_SENSOR_KEYS)}")
+        raise PresetError(f"sensor preset {default_name!r}: unknown key(s) {sorted(bad)}; allowed: "
+                          f"{sorted(_SENSOR_KEYS)}")
     data = _resolve_extends(data, default_name)
     effects = {}
     for triad in TRIADS:

@@ -225,7 +225,9 @@ def log_story(stream: rr.RecordingStream, markdown: str, path: str = STORY_PATH)
 
 
 def story_view(path: str = STORY_PATH, name: str = "what this recording shows") -> rrb.TextDocumentView:
-    return rrb.TextDocumentView(origin=path, name=name, format_options=rrb.archetypes.TextDocumentFormat(word_wrap=True))
+    return rrb.TextDocumentView(
+        origin=path, name=name, format_options=rrb.archetypes.TextDocumentFormat(word_wrap=True)
+    )
 
 
 def story_blueprint(body: rrb.Container | rrb.View, *, story: rrb.View | None = None, story_share: float = 1.0,

@@ -191,13 +191,17 @@ DERIVED: dict[str, Callable[[Base], Path]] = {
     "epoch_ms": lambda b: b.write_csv("epoch_ms.csv", t=np.round(b.t * 1e3) + 1.7e12),
     "epoch_us": lambda b: b.write_csv("epoch_us.csv", t=np.round(b.t * 1e6) + 1.7e15),
     "h5_t_ms": _h5_from_base("h5_t_ms.h5", t=lambda t: t * 1e3),
-    "header_t_ms": lambda b: b.write_csv("header_t_ms.csv", t=np.round(b.t * 1e3), header=HEADER.replace("t,", "t_ms,", 1)),
+    "header_t_ms": lambda b: b.write_csv(
+        "header_t_ms.csv", t=np.round(b.t * 1e3), header=HEADER.replace("t,", "t_ms,", 1)
+    ),
     "jitter_4ms": _jitter,
     "gaps_2": _rows_op("gaps_2.csv", _drop_every(1000, 10, 2)),
     "gap_200": _rows_op("gap_200.csv", _drop_every(1, 1, 200)),
     "backwards": _rows_op("backwards.csv", lambda l: l[:100] + [l[101], l[100]] + l[102:]),
     "duplicate_row": _rows_op("duplicate_row.csv", lambda l: l[:100] + [l[100]] + l[100:]),
-    "duplicate_time": _rows_op("duplicate_time.csv", lambda l: l[:101] + [l[100].split(",")[0] + ",0,0,0,0,0,9.8"] + l[101:]),
+    "duplicate_time": _rows_op(
+        "duplicate_time.csv", lambda l: l[:101] + [l[100].split(",")[0] + ",0,0,0,0,0,9.8"] + l[101:]
+    ),
     "every_100th": lambda b: b.write_csv("every_100th.csv", t=b.t[::100], g=b.g[::100], a=b.a[::100]),
     "every_10th": lambda b: b.write_csv("every_10th.csv", t=b.t[::10], g=b.g[::10], a=b.a[::10]),
     "khz10": _khz10_head,
@@ -212,38 +216,61 @@ DERIVED: dict[str, Callable[[Base], Path]] = {
     "csv_named_h5": lambda b: Path(shutil.copyfile(b.csv, b.folder / "csv_named.h5")),
     "h5_named_csv": lambda b: Path(shutil.copyfile(b.h5, b.folder / "h5_named.csv")),
     "empty_h5": lambda b: b.write_h5("empty.h5"),
-    "truncated_h5": lambda b: (b.folder / "truncated.h5").write_bytes(b.h5.read_bytes()[: b.h5.stat().st_size // 2])
-    and b.folder / "truncated.h5",
+    "truncated_h5": lambda b: (
+        (b.folder / "truncated.h5").write_bytes(b.h5.read_bytes()[: b.h5.stat().st_size // 2])
+        and b.folder / "truncated.h5"
+    ),
     "h5_missing_acc": _h5_from_base("h5_missing_acc.h5", acc=None),
     "h5_gyro_2_columns": _h5_from_base("h5_gyro_2.h5", gyro=lambda g: g[:, :2]),
     "h5_gyro_text": _h5_from_base("h5_gyro_text.h5", gyro=lambda g: np.array([b"x"] * g.shape[0])),
     "h5_int_counts": _h5_from_base("h5_int_counts.h5", gyro=lambda g: np.round(np.degrees(g) * 131).astype(np.int16)),
     "h5_nan": _h5_from_base("h5_nan.h5", gyro=lambda g: np.where(np.arange(g.shape[0])[:, None] == 500, np.nan, g)),
-    "truncated_csv": _rows_op("truncated_csv.csv", lambda l: l[:-1] + [l[-1][: len(l[-1]) // 2]], trailing_newline=False),
+    "truncated_csv": _rows_op(
+        "truncated_csv.csv", lambda l: l[:-1] + [l[-1][: len(l[-1]) // 2]], trailing_newline=False
+    ),
     "extra_field": _rows_op("extra_field.csv", lambda l: l[:523] + [l[523] + ",1.0"] + l[524:]),
     "missing_field": _rows_op("missing_field.csv", lambda l: l[:523] + [l[523].rsplit(",", 1)[0]] + l[524:]),
-    "non_numeric": _rows_op("non_numeric.csv", lambda l: l[:17] + [l[17].replace(l[17].split(",")[2], "abc", 1)] + l[18:]),
-    "empty_cell": _rows_op("empty_cell.csv", lambda l: l[:17] + [",".join(l[17].split(",")[:2] + [""] + l[17].split(",")[3:])] + l[18:]),
-    "nan_value": _rows_op("nan_value.csv", lambda l: l[:51] + [",".join(l[51].split(",")[:1] + ["nan"] + l[51].split(",")[2:])] + l[52:]),
-    "inf_value": _rows_op("inf_value.csv", lambda l: l[:51] + [",".join(l[51].split(",")[:5] + ["inf"] + l[51].split(",")[6:])] + l[52:]),
+    "non_numeric": _rows_op(
+        "non_numeric.csv", lambda l: l[:17] + [l[17].replace(l[17].split(",")[2], "abc", 1)] + l[18:]
+    ),
+    "empty_cell": _rows_op(
+        "empty_cell.csv", lambda l: l[:17] + [",".join(l[17].split(",")[:2] + [""] + l[17].split(",")[3:])] + l[18:]
+    ),
+    "nan_value": _rows_op(
+        "nan_value.csv", lambda l: l[:51] + [",".join(l[51].split(",")[:1] + ["nan"] + l[51].split(",")[2:])] + l[52:]
+    ),
+    "inf_value": _rows_op(
+        "inf_value.csv", lambda l: l[:51] + [",".join(l[51].split(",")[:5] + ["inf"] + l[51].split(",")[6:])] + l[52:]
+    ),
     "bom": lambda b: b.text("bom.csv", "\ufeff" + b.csv.read_text()),
     "semicolon": lambda b: b.write_csv("semicolon.csv", sep=";"),
     "tab": lambda b: b.write_csv("tab.csv", sep="\t"),
-    "semicolon_decimal_comma": lambda b: b.text("decimal_comma.csv",
-                                                csv_text(b.t, b.g, b.a, sep=";").replace(".", ",")),
+    "semicolon_decimal_comma": lambda b: b.text(
+        "decimal_comma.csv", csv_text(b.t, b.g, b.a, sep=";").replace(".", ",")
+    ),
     "spaces": lambda b: b.write_csv("spaces.csv", sep=" "),
     "crlf": lambda b: b.write_csv("crlf.csv", newline="\r\n"),
     "header_case": lambda b: b.write_csv("header_case.csv", header=' T , Gyro_X ,"GYRO_Y",gyro_z,ACC_X,acc_y, acc_z '),
-    "reordered": lambda b: b.write_csv("reordered.csv", t=b.a[:, 2], g=b.g[:, [2, 1, 0]], a=np.column_stack([b.a[:, :2], b.t]),
-                                       header="acc_z,gyro_z,gyro_y,gyro_x,acc_x,acc_y,t"),
-    "missing_column": lambda b: b.text("missing_column.csv", "\n".join(",".join(l.split(",")[:6]) for l in b.rows()) + "\n"),
+    "reordered": lambda b: b.write_csv(
+        "reordered.csv",
+        t=b.a[:, 2],
+        g=b.g[:, [2, 1, 0]],
+        a=np.column_stack([b.a[:, :2], b.t]),
+        header="acc_z,gyro_z,gyro_y,gyro_x,acc_x,acc_y,t",
+    ),
+    "missing_column": lambda b: b.text(
+        "missing_column.csv", "\n".join(",".join(l.split(",")[:6]) for l in b.rows()) + "\n"
+    ),
     "unknown_column": lambda b: b.write_csv("unknown_column.csv", header=HEADER + ",quality", extra=np.ones(b.t.size)),
-    "mag_columns": lambda b: b.write_csv("mag.csv", header=HEADER + ",mag_x,mag_y,mag_z",
-                                         extra=np.tile([20.0, 5.0, -40.0], (b.t.size, 1))),
+    "mag_columns": lambda b: b.write_csv(
+        "mag.csv", header=HEADER + ",mag_x,mag_y,mag_z", extra=np.tile([20.0, 5.0, -40.0], (b.t.size, 1))
+    ),
     "no_header": lambda b: b.text("no_header.csv", "\n".join(b.rows()[1:]) + "\n"),
     "comments": lambda b: b.text("comments.csv", "# logged by a test\n# units: s, rad/s, m/s^2\n" + b.csv.read_text()),
     "utf16": lambda b: b.text("utf16.csv", b.csv.read_text(), encoding="utf-16"),
-    "latin1_comment": lambda b: b.text("latin1.csv", "# gyro in rad/s, 25 \xb0C\n" + b.csv.read_text(), encoding="latin-1"),
+    "latin1_comment": lambda b: b.text(
+        "latin1.csv", "# gyro in rad/s, 25 \xb0C\n" + b.csv.read_text(), encoding="latin-1"
+    ),
     "directory": lambda b: (b.folder / "a_folder").mkdir(exist_ok=True) or b.folder / "a_folder",
     "nonexistent": lambda b: b.folder / "no_such_file.csv",
     # ---- values

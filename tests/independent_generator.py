@@ -135,7 +135,9 @@ def sum_of_sines(rng: np.random.Generator, t: np.ndarray, band_hz: tuple[float, 
     return out
 
 
-def attitude_wobble(rng: np.random.Generator, t: np.ndarray, bands, components: int = 30) -> tuple[np.ndarray, np.ndarray]:
+def attitude_wobble(
+    rng: np.random.Generator, t: np.ndarray, bands, components: int = 30
+) -> tuple[np.ndarray, np.ndarray]:
     """A hand's rotational tremor / sway as a small body-frame rotation vector φ(t) (N, 3) rad and its
     derivative φ̇ (closed form): per (f_lo, f_hi, rms_rad) band and axis a sum of ``components`` sines of
     uniform random frequency and phase with E|φ|² = rms² (as :func:`sum_of_sines`, in angle)."""
@@ -151,17 +153,41 @@ def attitude_wobble(rng: np.random.Generator, t: np.ndarray, bands, components: 
     return phi, dphi
 
 
-def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_deg_s=(1.5, -1.0, 0.8),
-                    scale=(0.03, -0.02, 0.04), nonortho=(0.015, -0.01, 0.02), gyro_noise_deg_s=0.05,
-                    acc_noise_g=0.001, acc_bias_g=(0.0, 0.0, 0.0), acc_scale=(0.0, 0.0, 0.0),
-                    acc_nonortho=(0.0, 0.0, 0.0), kin=None, g_sensitivity=None, delay_s: float = 0.0,
-                    field_enu_ut=None, mag_noise_ut: float = 0.0,
-                    lever_arm_m=None, tremor_acc_rms_m_s2: float = 0.0, tremor_band_hz=(8.0, 12.0),
-                    sway_acc_rms_m_s2: float = 0.0, sway_band_hz=(0.2, 1.0),
-                    bias_walk_rad_s_sqrt_s: float = 0.0, bias_ramp_rad_s2=(0.0, 0.0, 0.0),
-                    bias_flicker_rad_s: float = 0.0, scale_nonlinearity_per_rad_s=(0.0, 0.0, 0.0), temperature_c=None, scale_per_c=(0.0, 0.0, 0.0), acc_bias_per_c=(0.0, 0.0, 0.0),
-                    gyro_bias_per_c=(0.0, 0.0, 0.0),
-                    wobble_bands=(), output_lowpass_hz: float | None = None, output_lowpass_order: int = 2) -> dict:
+def generate_arrays(
+    *,
+    rate_hz: float = 100.0,
+    seed: int = 0,
+    steps=STEPS,
+    bias_deg_s=(1.5, -1.0, 0.8),
+    scale=(0.03, -0.02, 0.04),
+    nonortho=(0.015, -0.01, 0.02),
+    gyro_noise_deg_s=0.05,
+    acc_noise_g=0.001,
+    acc_bias_g=(0.0, 0.0, 0.0),
+    acc_scale=(0.0, 0.0, 0.0),
+    acc_nonortho=(0.0, 0.0, 0.0),
+    kin=None,
+    g_sensitivity=None,
+    delay_s: float = 0.0,
+    field_enu_ut=None,
+    mag_noise_ut: float = 0.0,
+    lever_arm_m=None,
+    tremor_acc_rms_m_s2: float = 0.0,
+    tremor_band_hz=(8.0, 12.0),
+    sway_acc_rms_m_s2: float = 0.0,
+    sway_band_hz=(0.2, 1.0),
+    bias_walk_rad_s_sqrt_s: float = 0.0,
+    bias_ramp_rad_s2=(0.0, 0.0, 0.0),
+    bias_flicker_rad_s: float = 0.0,
+    scale_nonlinearity_per_rad_s=(0.0, 0.0, 0.0),
+    temperature_c=None,
+    scale_per_c=(0.0, 0.0, 0.0),
+    acc_bias_per_c=(0.0, 0.0, 0.0),
+    gyro_bias_per_c=(0.0, 0.0, 0.0),
+    wobble_bands=(),
+    output_lowpass_hz: float | None = None,
+    output_lowpass_order: int = 2,
+) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
     ``g_sensitivity``: 3×3 (rad/s)/(m/s²), gyro += K f with f the true specific force (gravity);
@@ -237,7 +263,11 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
         from independent_noise import flicker
         fl = flicker(n, bias_flicker_rad_s, np.random.default_rng([seed, 29]))
         bias_path = bias_path + fl - fl[0]
-    clean = omega @ _m(scale, nonortho).T + bias_path + np.asarray(scale_nonlinearity_per_rad_s, float) * omega * np.abs(omega)
+    clean = (
+        omega @ _m(scale, nonortho).T
+        + bias_path
+        + np.asarray(scale_nonlinearity_per_rad_s, float) * omega * np.abs(omega)
+    )
     temp = None
     if temperature_c is not None:
         temp = np.asarray(temperature_c, float)
@@ -262,11 +292,24 @@ def generate_arrays(*, rate_hz: float = 100.0, seed: int = 0, steps=STEPS, bias_
     if field_enu_ut is not None:
         mag = np.einsum("nji,j->ni", dcm, np.asarray(field_enu_ut, float))
         mag = mag + rng.normal(size=(n, 3)) * mag_noise_ut
-    return {"t_s": t, "gyro_rad_s": gyro, "acc_m_s2": acc, "mag_ut": mag, "omega_rad_s": omega, "quat_nb": quat,
-            "bias_rad_s": bias, "bias_path_rad_s": bias_path, "scale_factor": np.asarray(scale, float), "nonorthogonality": np.asarray(nonortho, float),
-            "acc_bias_m_s2": acc_bias, "acc_scale_factor": np.asarray(acc_scale, float),
-            "acc_nonorthogonality": np.asarray(acc_nonortho, float),
-            "gyro_noise_rad_s": math.radians(gyro_noise_deg_s), "acc_noise_m_s2": acc_noise_g * G, "temp_c": temp}
+    return {
+        "t_s": t,
+        "gyro_rad_s": gyro,
+        "acc_m_s2": acc,
+        "mag_ut": mag,
+        "omega_rad_s": omega,
+        "quat_nb": quat,
+        "bias_rad_s": bias,
+        "bias_path_rad_s": bias_path,
+        "scale_factor": np.asarray(scale, float),
+        "nonorthogonality": np.asarray(nonortho, float),
+        "acc_bias_m_s2": acc_bias,
+        "acc_scale_factor": np.asarray(acc_scale, float),
+        "acc_nonorthogonality": np.asarray(acc_nonortho, float),
+        "gyro_noise_rad_s": math.radians(gyro_noise_deg_s),
+        "acc_noise_m_s2": acc_noise_g * G,
+        "temp_c": temp,
+    }
 
 
 def write_csv(path: Path, data: dict) -> Path:
@@ -284,7 +327,9 @@ def generate(path: Path, **kwargs) -> dict:
     """Write a CSV (see :func:`generate_arrays` for the keywords) and return the true parameters."""
     data = generate_arrays(**kwargs)
     write_csv(path, data)
-    return {k: v for k, v in data.items() if k not in ("t_s", "gyro_rad_s", "acc_m_s2", "mag_ut", "omega_rad_s", "quat_nb")}
+    return {
+        k: v for k, v in data.items() if k not in ("t_s", "gyro_rad_s", "acc_m_s2", "mag_ut", "omega_rad_s", "quat_nb")
+    }
 
 
 def _rotation(rotvec) -> np.ndarray:
@@ -297,8 +342,16 @@ def _rotation(rotvec) -> np.ndarray:
     return np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
 
 
-def magnetometer_arrays(quat_nb: np.ndarray, *, field_enu_ut=(1.5, 20.0, -44.0), hard_iron_ut=(0.0, 0.0, 0.0),
-                        soft_iron=None, rotation_rad=(0.0, 0.0, 0.0), noise_ut: float = 0.6, seed: int = 0) -> np.ndarray:
+def magnetometer_arrays(
+    quat_nb: np.ndarray,
+    *,
+    field_enu_ut=(1.5, 20.0, -44.0),
+    hard_iron_ut=(0.0, 0.0, 0.0),
+    soft_iron=None,
+    rotation_rad=(0.0, 0.0, 0.0),
+    noise_ut: float = 0.6,
+    seed: int = 0,
+) -> np.ndarray:
     """Magnetometer samples (N, 3) µT of a board with attitude ``quat_nb`` (body→ENU) in a uniform
     field: m = A R(θ)ᵀ Cᵀ B + h + noise (A soft iron 3×3, R(θ) the axes' rotation against the body
     frame, h hard iron; AN4246's m = A B + h with the axes rotated first)."""

@@ -43,7 +43,13 @@ def _write(path: Path, t, gyro_rad_s, acc_m_s2) -> None:
         w = csv.writer(fh)
         w.writerow(["t", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"])
         for k in range(t.size):
-            w.writerow([f"{t[k]:.4f}", *(f"{v:.10g}" for v in np.degrees(gyro_rad_s[k])), *(f"{v:.10g}" for v in acc_m_s2[k] / G)])
+            w.writerow(
+                [
+                    f"{t[k]:.4f}",
+                    *(f"{v:.10g}" for v in np.degrees(gyro_rad_s[k])),
+                    *(f"{v:.10g}" for v in acc_m_s2[k] / G),
+                ]
+            )
 
 
 def northfind_csv(path: Path, *, latitude_deg: float, heading_deg: float, positions: int = 4, hold_s: float = 120.0,
@@ -77,9 +83,20 @@ def northfind_csv(path: Path, *, latitude_deg: float, heading_deg: float, positi
     return {"headings_deg": heads, "arw_rad_rt_s": math.radians(arw_deg_rt_h) / 60}
 
 
-def tilt_csv(path: Path, holds_path: Path, *, angles_deg=tuple(np.arange(-15, 15.01, 2.5)), hold_s: float = 20.0,
-             rate_hz: float = 10.0, scale=(0.004, -0.003, 0.0), misalign=((0, 0.01, 0.004), (-0.006, 0, 0.008), (0, 0, 0)),
-             bias_g=(0.002, -0.001, 0.0), k_per_g: float = 0.03, noise_ug_rt_hz: float = 30.0, seed: int = 0) -> dict:
+def tilt_csv(
+    path: Path,
+    holds_path: Path,
+    *,
+    angles_deg=tuple(np.arange(-15, 15.01, 2.5)),
+    hold_s: float = 20.0,
+    rate_hz: float = 10.0,
+    scale=(0.004, -0.003, 0.0),
+    misalign=((0, 0.01, 0.004), (-0.006, 0, 0.008), (0, 0, 0)),
+    bias_g=(0.002, -0.001, 0.0),
+    k_per_g: float = 0.03,
+    noise_ug_rt_hz: float = 30.0,
+    seed: int = 0,
+) -> dict:
     """Write the accelerometer CSV (gyro columns 0) and the holds CSV; return the truth."""
     rng = np.random.default_rng(seed)
     m = np.eye(3) + np.diag(scale) + np.asarray(misalign)

@@ -113,9 +113,10 @@ def test_every_estimator_calib_exports_is_registered_and_resolves():
 
 def test_orientation_estimators_and_the_magnetometer_calibrator_are_registered():
     # gyrosim's orientation campaign reaches calib's filters and calib mag's fit by entry point only
+    from gyrosim.orientation import registered_orientation_estimators
+
     import calib.orientation.estimators as orientation
     from calib.mag import calibrate_magnetometer
-    from gyrosim.orientation import registered_orientation_estimators
 
     assert set(registered_orientation_estimators()) >= set(orientation._BUILTINS)
     for name in orientation._BUILTINS:
@@ -201,17 +202,19 @@ def test_a_name_two_packages_register_differently_is_refused(monkeypatch, tmp_pa
 def test_public_api_exports_resolve():
     import inspect
 
-    import calib
     import gyrosim
+
+    import calib
 
     for pkg in (gyrosim, calib):
         missing = [n for n in pkg.__all__ if not hasattr(pkg, n)]
         assert not missing, f"{pkg.__name__}.__all__ names what it does not export: {missing}"
         assert set(pkg.__all__) <= set(dir(pkg))
     # the function, not the module of the same name; the module stays importable by its path
+    from gyrosim import simulate
+
     from calib import calibrate
     from calib.session.paper import prepare
-    from gyrosim import simulate
 
     assert inspect.isfunction(calibrate) and calibrate.__module__ == "calib.session.paper"
     assert prepare.__module__ == "calib.session.paper"
@@ -248,8 +251,9 @@ def test_exports_do_not_depend_on_import_order_and_load_on_use():
 def _parsers():
     import argparse
 
-    from calib.app.cli import build_parser as calib_parser
     from gyrosim.cli import build_parser as gyrosim_parser
+
+    from calib.app.cli import build_parser as calib_parser
 
     for build in (gyrosim_parser, calib_parser):
         top = build()
@@ -296,7 +300,9 @@ def test_no_issue_numbers_in_code_or_cli_help():
             for i, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
     for top, commands, _ in _parsers():
         hits += [f"{top.prog} {name} --help" for name, p in commands.items() if pattern.search(p.format_help())]
-    assert not hits, "issue numbers belong in the tracker, not the code (say what, not which ticket):\n" + "\n".join(hits)
+    assert not hits, "issue numbers belong in the tracker, not the code (say what, not which ticket):\n" + "\n".join(
+        hits
+    )
 
 
 def test_calib_uses_only_gyrosims_public_names():
@@ -358,6 +364,8 @@ def test_no_module_outside_the_effects_package_switches_on_effect_names():
                 if switch.search(line):
                     found.setdefault(rel, []).append(f"{rel}:{i}: {line.strip()}")
     over = [hit for rel, hits in found.items() if len(hits) > _KIND_SWITCH_ALLOWANCE.get(rel, 0) for hit in hits]
-    assert not over, "switch on effect names outside gyrosim/effects (declare it on the effect class):\n" + "\n".join(over)
+    assert not over, "switch on effect names outside gyrosim/effects (declare it on the effect class):\n" + "\n".join(
+        over
+    )
     fewer = {rel: n for rel, n in _KIND_SWITCH_ALLOWANCE.items() if len(found.get(rel, [])) < n}
     assert not fewer, f"fewer name switches than allowed in {fewer}: lower _KIND_SWITCH_ALLOWANCE to match"

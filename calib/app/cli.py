@@ -17,14 +17,18 @@ from calib import __version__
 from calib.app.outputs import atomic_path, check_output_paths, staged_folder, write_json_atomic, write_text_atomic
 
 
-
 def _open(args: argparse.Namespace, requirements, path: str | None = None):
     """The input boundary for a command's recording (calib.inputs.open_recording) with its options."""
     from calib.inputs import open_recording
 
-    return open_recording(path or args.recording, getattr(args, "gyro_unit", "rad/s"), getattr(args, "acc_unit", "m/s^2"),
-                          requirements=requirements, time_unit=getattr(args, "time_unit", None),
-                          decimate=getattr(args, "decimate", None))
+    return open_recording(
+        path or args.recording,
+        getattr(args, "gyro_unit", "rad/s"),
+        getattr(args, "acc_unit", "m/s^2"),
+        requirements=requirements,
+        time_unit=getattr(args, "time_unit", None),
+        decimate=getattr(args, "decimate", None),
+    )
 
 
 def _files(*specs: str | None) -> list[str]:
@@ -102,16 +106,28 @@ def _print_calibration(cal, truth) -> None:
     if ref:   # where S holds (calib.session.hand.filter.scale_reference_rate): the user applies it at other rates
         m = np.degrees(ref["rate_rad_s"])
         top = np.degrees(ref["max_abs_rate_rad_s"])
-        print(f"  scale factor holds at ±{', '.join(f'{v:.0f}' for v in m)} °/s (x, y, z: the chord over the rates this "
-              f"session turned at, up to {', '.join(f'{v:.0f}' for v in top)} °/s); at other rates a gyro's scale "
-              "nonlinearity adds to it — calibrate at the rates you will use")
+        print(
+            f"  scale factor holds at ±{', '.join(f'{v:.0f}' for v in m)} °/s (x, y, z: the chord over the rates this "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            f"session turned at, up to {', '.join(f'{v:.0f}' for v in top)} °/s); at other rates a gyro's scale "
+            "nonlinearity adds to it — calibrate at the rates you will use"
+        )
     if truth is not None:
         err_s = cal.scale_factor - truth.value("gyro", "scale_factor")
         err_g = cal.nonorthogonality - truth.value("gyro", "nonorthogonality")
         print(f"  error vs truth: S {np.round(err_s, 5).tolist()}, G {np.round(err_g, 5).tolist()}")
         if cal.has("accelerometer", "bias"):
-            print(f"  accelerometer error vs truth: b {np.round(cal.value('accelerometer', 'bias') - truth.value('accelerometer', 'bias'), 4).tolist()} m/s², "
-                  f"S {np.round(cal.value('accelerometer', 'scale_factor') - truth.value('accelerometer', 'scale_factor'), 5).tolist()}")
+            print(
+                "  accelerometer error vs truth: b "
+                f"{np.round(cal.value('accelerometer', 'bias') - truth.value('accelerometer', 'bias'), 4).tolist()} "
+                "m/s², "
+                f"S {np.round(cal.value('accelerometer', 'scale_factor') - truth.value('accelerometer', 'scale_factor'), 5).tolist()}"
+            )
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -120,8 +136,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     check (status inconsistent/diverged), 2 on bad input (calib.inputs: nothing is written)."""
     from gyrosim.calibration import truth_calibration
 
-    from calib.session.paper import DEPRECATED_METHODS, calibrate
     from calib.inputs import KF
+    from calib.session.paper import DEPRECATED_METHODS, calibrate
 
     check_output_paths({"--json": args.json, "--rrd": args.rrd}, _files(args.recording))
     if args.method is None:   # the default: the hand-aware filter, unless a hand-blind allowance was given
@@ -135,7 +151,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     rec = loaded.recording
     if args.method == "hand":   # kf_hand_joint (accelerometer estimated) or kf_hand (--accelerometer calibrated)
         if args.external_acc is not None:
-            raise GyrosimError("--external-acc is an allowance of the hand-blind filters (kf_session, iterated_session); "
+            raise GyrosimError("--external-acc is an allowance of the hand-blind filters (kf_session, "
+                               "iterated_session); "
                                "--method hand models the hand's acceleration and estimates its spectrum from the data")
         from calib.session.hand.filter import kf_hand
 
@@ -146,8 +163,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                            external_acc_allowance_m_s2=args.external_acc, gravity_m_s2=args.gravity,
                            keep_history=args.rrd is not None)
     d = result.to_dict()
-    from calib.session.paper import prepare
     from calib.session.coach import coach
+    from calib.session.paper import prepare
 
     coaching = coach(rec, result, prepare(rec, accelerometer=args.accelerometer, gravity_m_s2=args.gravity))
     d["coaching"] = coaching.to_dict()
@@ -202,10 +219,20 @@ def cmd_apply(args: argparse.Namespace) -> int:
     check_output_paths({"--out": out}, _files(args.recording, args.calibration))
     cal = Calibration.load(args.calibration)
     if cal.status == "diverged" and not args.force:
-        raise GyrosimError(f"{args.calibration} has status 'diverged': its numbers are no calibration; re-run calib run "
-                           "(see its warnings) or pass --force to apply it anyway")
+        raise GyrosimError(
+            f"{args.calibration} has status 'diverged': its numbers are no calibration; re-run calib run "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            "(see its warnings) or pass --force to apply it anyway"
+        )
     if cal.status != "ok":
-        print(f"warning: {args.calibration} has status '{cal.status}': its σ does not describe its error", file=sys.stderr)
+        print(
+            f"warning: {args.calibration} has status '{cal.status}': its σ does not describe its error", file=sys.stderr
+        )
     loaded = _open(args, GENERIC)
     _print_input_warnings(loaded.report)
     comp = cal.compensate(loaded.recording)
@@ -311,8 +338,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def cmd_allan(args: argparse.Namespace) -> int:
     """Allan deviation of a static recording's gyro: fitted N, B, K per IEEE 952, and a plot."""
-    from calib.noise.allan import allan_deviation, fit_noise_terms, plot_allan
     from calib.inputs import ALLAN
+    from calib.noise.allan import allan_deviation, fit_noise_terms, plot_allan
 
     check_output_paths({"--png": args.png}, _files(args.recording))
     loaded = _open(args, ALLAN)
@@ -323,8 +350,10 @@ def cmd_allan(args: argparse.Namespace) -> int:
     print(f"{args.recording}: {rec.duration_s:.0f} s at {rec.rate_hz:g} Hz, three gyro axes pooled")
     _print_input_warnings(loaded.report)
     print(f"  angle random walk   N = {fit.arw * deg * 60:.4f} ± {fit.arw_std * deg * 60:.4f} °/√h")
-    print(f"  bias instability    B = {fit.bias_instability * deg * 3600:.3f} ± {fit.bias_instability_std * deg * 3600:.3f} °/h")
-    print(f"  rate random walk    K = {fit.rate_random_walk * deg * 3600 * 60:.3f} ± {fit.rate_random_walk_std * deg * 3600 * 60:.3f} °/h/√h")
+    print(f"  bias instability    B = {fit.bias_instability * deg * 3600:.3f} ± "
+          f"{fit.bias_instability_std * deg * 3600:.3f} °/h")
+    print(f"  rate random walk    K = {fit.rate_random_walk * deg * 3600 * 60:.3f} ± "
+          f"{fit.rate_random_walk_std * deg * 3600 * 60:.3f} °/h/√h")
     print("  (± is the fit's 1σ from the Allan confidence; the recording must be static)")
     if args.png:
         with atomic_path(args.png) as tmp:
@@ -379,8 +408,11 @@ def _noise_recording(args: argparse.Namespace):
         segs.append(prepare_recording(sub, req if len(spans) == 1 else req.with_(min_samples=16)))
         notes.append(f"{a - t0:.1f}–{b - t0:.1f} s")
     first = segs[0]
-    warn = tuple(loaded.report.warnings) + (f"analysed {len(segs)} still span(s) of the file: t = {', '.join(notes)}",) \
+    warn = (
+        tuple(loaded.report.warnings)
+        + (f"analysed {len(segs)} still span(s) of the file: t = {', '.join(notes)}",)
         + tuple(w for sg in segs for w in sg.report.warnings)
+    )
     report = type(first.report)(**{**first.report.__dict__, "warnings": warn})
     if len(segs) == 1:
         return type(first)(first.recording, report), None
@@ -409,7 +441,8 @@ def cmd_noise(args: argparse.Namespace) -> int:
         p = sum(len(NOISE_TERMS[k].noise_parameters) for k in kinds)
         need = minimum_samples(p)
         if n_total < need:
-            raise TooShortError(f"{args.recording}: {n_total} samples ({n_total / rec.rate_hz:.1f} s); the model {model_name(kinds)} "
+            raise TooShortError(f"{args.recording}: {n_total} samples ({n_total / rec.rate_hz:.1f} s); the model "
+                                f"{model_name(kinds)} "
                                 f"({p} parameters) needs at least {need} samples = {need / rec.rate_hz:.1f} s at "
                                 f"{rec.rate_hz:g} Hz (J ≥ p + 2 octave scales with the largest Allan cluster ≤ T/8)")
     sig = "gyro_rad_s" if args.triad == "gyro" else "acc_m_s2"
@@ -418,20 +451,38 @@ def cmd_noise(args: argparse.Namespace) -> int:
     trend = temperature_trend_c(rec.t_s, rec.temp_c)
     trend_msg = None
     if trend is not None and abs(trend) >= args.max_temperature_trend:
-        trend_msg = (f"the temperature changes by {trend:+.2f} °C over the {rec.duration_s:.0f}-s record (straight-line fit): "
-                     "the bias follows the temperature, so its drift would be read as random walk (or rate ramp) and "
-                     "that estimate biased high")
+        trend_msg = (
+            f"the temperature changes by {trend:+.2f} °C over the {rec.duration_s:.0f}-s record (straight-line "
+            ""
+            ""
+            ""
+            ""
+            ""
+            "fit): "
+            "the bias follows the temperature, so its drift would be read as random walk (or rate ramp) and "
+            "that estimate biased high"
+        )
         asked_slow = models is not None and any(NOISE_TERMS[k].noise_bias_drift for k in models[0])
         if asked_slow and not args.allow_temperature_trend:
-            raise TemperatureTrendError(f"{args.recording}: {trend_msg}; record at a stable temperature, compensate the "
-                                        "temperature first (calib temperature), or pass --allow-temperature-trend")
+            raise TemperatureTrendError(
+                f"{args.recording}: {trend_msg}; record at a stable temperature, compensate the "
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                "temperature first (calib temperature), or pass --allow-temperature-trend"
+            )
         warnings.append(trend_msg)
     res = identify_noise(x, rec.rate_hz, args.triad, models, tuple(warnings))
     chosen_slow = [a.axis for a in res.axes if any(NOISE_TERMS[k].noise_bias_drift for k in a.selection.chosen.kinds)]
     if trend_msg and chosen_slow and not args.allow_temperature_trend:
-        raise TemperatureTrendError(f"{args.recording}: axes {', '.join(chosen_slow)} chose a random walk or rate ramp, "
-                                    f"but {trend_msg}; record at a stable temperature, compensate the temperature first "
-                                    "(calib temperature), or pass --allow-temperature-trend")
+        raise TemperatureTrendError(
+            f"{args.recording}: axes {', '.join(chosen_slow)} chose a random walk or rate ramp, "
+            f"but {trend_msg}; record at a stable temperature, compensate the temperature first "
+            "(calib temperature), or pass --allow-temperature-trend"
+        )
     print(f"{args.recording}: {n_total} samples, static")
     _print_input_warnings(loaded.report)
     for line in summary_lines(res):
@@ -492,8 +543,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
 def cmd_inspect(args: argparse.Namespace) -> int:
     """Summarise a recording (any file ``calib run`` reads): format, length, rate, channels, truth,
     what the input boundary did to it and what a method would refuse (:mod:`calib.app.inspect`)."""
-    from calib.inputs import INSPECT
     from calib.app.inspect import summarise_recording
+    from calib.inputs import INSPECT
 
     loaded = _open(args, INSPECT)
     summary = summarise_recording(args.recording, loaded.recording, loaded.report)
@@ -582,7 +633,14 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     from gyrosim.recording import save_hdf5
 
     from calib.inputs import RATETABLE, TEMPERATURE
-    from calib.temperature.compensation import METHODS, ThermalCompensation, compare_methods, fit_compensation, fit_methods, split_cycles
+    from calib.temperature.compensation import (
+        METHODS,
+        ThermalCompensation,
+        compare_methods,
+        fit_compensation,
+        fit_methods,
+        split_cycles,
+    )
 
     if args.compensate and not args.out:
         raise GyrosimError("--compensate needs --out PATH for the compensated recording")
@@ -611,7 +669,8 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     rows = compare_methods(train, test, methods, fitted=fitted)
     base = rows[0]
     print(f"held out: {len(test)} record(s)/cycle(s); trained on {len(train)}")
-    print(f"{'method':<38} {'RMS °/s':>9} {'BS °/h':>9} {'ADEV min °/h':>13} {'ADEV 1000 s °/h':>16} {'× better (BS)':>14}")
+    print(f"{'method':<38} {'RMS °/s':>9} {'BS °/h':>9} {'ADEV min °/h':>13} {'ADEV 1000 s °/h':>16} "
+          f"{'× better (BS)':>14}")
     for r in rows:
         print(f"{r.method:<38} {r.held_out_rms_deg_s:9.4f} {r.bias_stability_deg_h:9.2f} {r.adev_min_deg_h:13.2f} "
               f"{r.adev_1000s_deg_h:16.2f} {base.bias_stability_deg_h / r.bias_stability_deg_h:14.1f}")
@@ -634,7 +693,8 @@ def cmd_temperature(args: argparse.Namespace) -> int:
 
 
 def cmd_ratetable(args: argparse.Namespace) -> int:
-    """Bias and scale per axis at every calibration temperature of a rate-table recording ("Measurement Error and Calibration of FOG IMU")."""
+    """Bias and scale per axis at every calibration temperature of a rate-table recording ("Measurement Error and
+    Calibration of FOG IMU")."""
     from calib.inputs import RATETABLE
     from calib.temperature.ratetable import calibrate_rate_table
 
@@ -642,7 +702,8 @@ def cmd_ratetable(args: argparse.Namespace) -> int:
     print(f"{'T °C':>7} {'axis':>4} {'bias °/s':>10} {'±1σ':>8} {'scale ppm':>10} {'±1σ':>7}")
     for p in points:
         for i, a in enumerate("xyz"):
-            print(f"{p.temp_c[i]:7.2f} {a:>4} {math.degrees(p.bias_rad_s[i]):10.4f} {math.degrees(p.bias_sigma[i]):8.4f} "
+            print(f"{p.temp_c[i]:7.2f} {a:>4} {math.degrees(p.bias_rad_s[i]):10.4f} "
+                  f"{math.degrees(p.bias_sigma[i]):8.4f} "
                   f"{p.scale[i] * 1e6:10.0f} {p.scale_sigma[i] * 1e6:7.0f}")
     return 0
 
@@ -681,17 +742,33 @@ def cmd_northfind(args: argparse.Namespace) -> int:
     loaded = _open(args, NORTHFIND)
     rec = loaded.recording
     _print_input_warnings(loaded.report)
-    res, _ = find_north(rec, args.latitude_deg, accuracy_deg=args.accuracy_deg, noise=_noise_arg(args.noise, args.noise_from),
-                        min_hold_s=args.min_hold, index=args.index)
+    res, _ = find_north(
+        rec,
+        args.latitude_deg,
+        accuracy_deg=args.accuracy_deg,
+        noise=_noise_arg(args.noise, args.noise_from),
+        min_hold_s=args.min_hold,
+        index=args.index,
+    )
     d = res.to_dict()
     print(f"{args.recording}: {res.status} — {res.reason}")
     if res.heading_deg is not None:
-        print(f"  heading of the forward axis (position 1): {res.heading_deg:.3f}° ± {res.heading_sigma_deg:.3f}° (1σ) "
-              f"from true North, latitude {res.latitude_deg:g}°" + ("" if res.ok else f"  [{res.status}: not to be used]"))
-        print(f"  bias residual σ_res = {res.bias_residual_sigma_deg_h:.4f} °/h ⊥ North; limit σ_ψ = σ_res/(Ω_E cos L); "
-              f"horizontal rate {res.horizontal_rate_deg_h:.4f} ± {res.horizontal_rate_sigma_deg_h:.4f} °/h "
-              f"(Earth: {res.horizontal_rate_expected_deg_h:.4f}); table tilt {res.table_tilt_deg:.4f}°; "
-              f"index angles from the {res.index_source}; noise {res.noise_source}")
+        print(
+            f"  heading of the forward axis (position 1): {res.heading_deg:.3f}° ± {res.heading_sigma_deg:.3f}° (1σ) "
+            f"from true North, latitude {res.latitude_deg:g}°" + ("" if res.ok else f"  [{res.status}: not to be used]")
+        )
+        print(
+            f"  bias residual σ_res = {res.bias_residual_sigma_deg_h:.4f} °/h ⊥ North; limit σ_ψ = σ_res/(Ω_E cos L); "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            f"horizontal rate {res.horizontal_rate_deg_h:.4f} ± {res.horizontal_rate_sigma_deg_h:.4f} °/h "
+            f"(Earth: {res.horizontal_rate_expected_deg_h:.4f}); table tilt {res.table_tilt_deg:.4f}°; "
+            f"index angles from the {res.index_source}; noise {res.noise_source}"
+        )
     if res.max_latitude_deg is not None or res.accuracy_deg is not None:
         print(f"  to {res.accuracy_deg:g}° this record's procedure reaches up to latitude "
               + (f"{res.max_latitude_deg:.1f}°" if res.max_latitude_deg is not None else "— (not even at the equator)"))
@@ -715,8 +792,14 @@ def cmd_northfind_latitude(args: argparse.Namespace) -> int:
     """Seed 001's "effect of latitude": the north-finding limit against latitude for sensor presets."""
     from gyrosim.sensor_model import load_sensor
 
+    from calib.instruments.northfind_plan import (
+        latitude_curve,
+        max_latitude_deg,
+        plot_latitude_curve,
+        procedure_sigma_res,
+        rest_time_needed,
+    )
     from calib.noise.window_means import noise_terms_from_model
-    from calib.instruments.northfind_plan import latitude_curve, max_latitude_deg, plot_latitude_curve, procedure_sigma_res, rest_time_needed
 
     check_output_paths({"--png": args.png, "--json": args.json})
     lats = np.arange(0.0, 80.0 + 1e-9, 10.0)
@@ -729,17 +812,25 @@ def cmd_northfind_latitude(args: argparse.Namespace) -> int:
         nz = noise_terms_from_model(load_sensor(n), "gyro")
         rows[n] = {"sigma_deg": latitude_curve(nz, lats, args.hold, args.positions).tolist(),
                    "sigma_res_deg_h": math.degrees(procedure_sigma_res(nz, args.hold, args.positions)) * 3600}
-        curves[f"{n} ({args.positions} × {args.hold:g} s)"] = (fine, latitude_curve(nz, fine, args.hold, args.positions))
+        curves[f"{n} ({args.positions} × {args.hold:g} s)"] = (
+            fine,
+            latitude_curve(nz, fine, args.hold, args.positions),
+        )
         if args.accuracy_deg:
-            rows[n]["max_latitude_deg"] = max_latitude_deg(math.radians(rows[n]["sigma_res_deg_h"] / 3600), args.accuracy_deg)
-            rows[n]["rest_time_needed"] = {f"{lat:g}": rest_time_needed(nz, lat, args.accuracy_deg, positions=args.positions)[1]
-                                           for lat in (0.0, 45.0, 70.0)}
+            rows[n]["max_latitude_deg"] = max_latitude_deg(
+                math.radians(rows[n]["sigma_res_deg_h"] / 3600), args.accuracy_deg
+            )
+            rows[n]["rest_time_needed"] = {
+                f"{lat:g}": rest_time_needed(nz, lat, args.accuracy_deg, positions=args.positions)[1]
+                for lat in (0.0, 45.0, 70.0)
+            }
     for i, lat in enumerate(lats):
         print(f"{lat:10.0f} " + " ".join(f"{rows[n]['sigma_deg'][i]:16.4g}" for n in names))
     if args.accuracy_deg:
         for n in names:
             lm = rows[n]["max_latitude_deg"]
-            print(f"{n}: {args.accuracy_deg:g}° reachable up to latitude " + (f"{lm:.1f}°" if lm is not None else "— (nowhere)")
+            print(f"{n}: {args.accuracy_deg:g}° reachable up to latitude " + (f"{lm:.1f}°" if lm is not None else "— "
+                                                                                                                  "(nowhere)")
                   + f" with this procedure; {rows[n]['rest_time_needed']['45']}")
     points = None
     if args.mc:
@@ -775,16 +866,28 @@ def cmd_northfind_mc(args: argparse.Namespace) -> int:
     with tqdm(total=args.seeds * len(lats), desc="north-finding", unit="run", leave=False) as bar:
         rows = northfind_monte_carlo(model, lats, args.seeds, first_seed=args.first_seed, seq=seq, rate_hz=args.rate,
                                      progress=bar.update)
-    print(f"{args.sensor} (magnetic shield ×{args.shield:g}), {args.positions} positions × {args.hold:g} s, {args.rate:g} Hz, "
+    print(f"{args.sensor} (magnetic shield ×{args.shield:g}), {args.positions} positions × {args.hold:g} s, "
+          f"{args.rate:g} Hz, "
           f"{args.seeds} devices per latitude")
     print(f"{'latitude °':>10} {'RMS err °':>10} {'limit °':>9} {'RMS/limit':>9} {'mean err °':>10} {'mean σ̂ °':>9} "
           f"{'RMS err/σ̂':>9}  status")
     for r in rows:
-        print(f"{r.latitude_deg:10g} {r.rms_error_deg:10.4f} {r.limit_deg:9.4f} {r.efficiency:9.3f} {r.mean_error_deg:10.4f} "
+        print(f"{r.latitude_deg:10g} {r.rms_error_deg:10.4f} {r.limit_deg:9.4f} {r.efficiency:9.3f} "
+              f"{r.mean_error_deg:10.4f} "
               f"{r.mean_sigma_deg:9.4f} {r.z_rms:9.3f}  {r.statuses}")
     if args.json:
-        write_json_atomic(args.json, {"sensor": args.sensor, "shield": args.shield, "positions": args.positions, "hold_s": args.hold,
-                                "rate_hz": args.rate, "seeds": args.seeds, "rows": [r.to_dict() for r in rows]})
+        write_json_atomic(
+            args.json,
+            {
+                "sensor": args.sensor,
+                "shield": args.shield,
+                "positions": args.positions,
+                "hold_s": args.hold,
+                "rate_hz": args.rate,
+                "seeds": args.seeds,
+                "rows": [r.to_dict() for r in rows],
+            },
+        )
         print(f"wrote {args.json}")
     return 0
 
@@ -824,25 +927,35 @@ def cmd_tilt(args: argparse.Namespace) -> int:
     def fmt(v, sd, spec):
         return "—" if v is None else (f"{v:{spec}} ± {sd:{spec}}" if sd is not None else f"{v:{spec}}")
 
-    print(f"{'axis':>4} {'scale g/g':>22} {'nonlinearity %FS':>20} {'(°)':>7} {'cross-axis %':>16} {'zero offset µg':>16} "
+    print(f"{'axis':>4} {'scale g/g':>22} {'nonlinearity %FS':>20} {'(°)':>7} {'cross-axis %':>16} "
+          f"{'zero offset µg':>16} "
           f"{'mech. zero °':>18} {'Allan min µg (τ s)':>22} {'std µg':>14}")
     for a in res.axes.values():
-        print(f"{a.axis:>4} {fmt(a.scale_factor, a.scale_factor_sigma, '.6f'):>22} "
-              f"{fmt(a.nonlinearity_pct_fs, a.nonlinearity_pct_fs_sigma, '.4f'):>20} "
-              f"{(a.nonlinearity_deg if a.nonlinearity_deg is not None else float('nan')):7.4f} "
-              f"{fmt(a.cross_axis_pct, a.cross_axis_pct_sigma, '.3f'):>16} {fmt(a.zero_offset_ug, a.zero_offset_ug_sigma, '.1f'):>16} "
-              f"{fmt(a.mechanical_zero_deg, a.mechanical_zero_deg_sigma, '.4f'):>18} "
-              f"{fmt(a.zero_stability_ug, a.zero_stability_ug_sigma, '.2f'):>14} ({a.zero_stability_tau_s or float('nan'):.0f}) "
-              f"{fmt(a.zero_std_ug, a.zero_std_ug_sigma, '.1f'):>14}")
+        print(
+            f"{a.axis:>4} {fmt(a.scale_factor, a.scale_factor_sigma, '.6f'):>22} "
+            f"{fmt(a.nonlinearity_pct_fs, a.nonlinearity_pct_fs_sigma, '.4f'):>20} "
+            f"{(a.nonlinearity_deg if a.nonlinearity_deg is not None else float('nan')):7.4f} "
+            f"{fmt(a.cross_axis_pct, a.cross_axis_pct_sigma, '.3f'):>16} "
+            f"{fmt(a.zero_offset_ug, a.zero_offset_ug_sigma, '.1f'):>16} "
+            f"{fmt(a.mechanical_zero_deg, a.mechanical_zero_deg_sigma, '.4f'):>18} "
+            f"{fmt(a.zero_stability_ug, a.zero_stability_ug_sigma, '.2f'):>14} "
+            f"({a.zero_stability_tau_s or float('nan'):.0f}) "
+            f"{fmt(a.zero_std_ug, a.zero_std_ug_sigma, '.1f'):>14}"
+        )
     for a in res.axes.values():
         if a.linearity_table:
-            print(f"  linearity, axis {a.axis} (seed Tables A.1–A.3): angle °, input g, output g, residual µg, residual °")
+            print(
+                f"  linearity, axis {a.axis} (seed Tables A.1–A.3): angle °, input g, output g, residual µg, residual °"
+            )
             for r in a.linearity_table:
                 print(f"    {r['angle_deg']:7.2f} {r['input_g']:+.6f} {r['output_g']:+.6f} {r['residual_ug']:+9.2f} "
                       f"{r['residual_deg']:+.5f}")
         if a.cross_axis_table:
-            print(f"  cross-axis, axis {a.axis} against sweep {a.cross_axis_table[0]['sweep']} (seed Table A.4): "
-                  f"horizontal {a.cross_axis_horizontal_pct:+.3f} %, vertical {a.cross_axis_vertical_pct if a.cross_axis_vertical_pct is not None else float('nan'):+.3f} %")
+            print(
+                f"  cross-axis, axis {a.axis} against sweep {a.cross_axis_table[0]['sweep']} (seed Table A.4): "
+                f"horizontal {a.cross_axis_horizontal_pct:+.3f} %, vertical "
+                f"{a.cross_axis_vertical_pct if a.cross_axis_vertical_pct is not None else float('nan'):+.3f} %"
+            )
     if args.png:
         plot_tilt(res, args.png)
         print(f"wrote {args.png}")
@@ -866,11 +979,13 @@ def cmd_tilt_mc(args: argparse.Namespace) -> int:
     with tqdm(total=args.seeds, desc="tilt test", unit="device", leave=False) as bar:
         rows = tilt_monte_carlo(load_sensor(args.sensor), args.seeds, first_seed=args.first_seed, seq=seq,
                                 rate_hz=args.rate, progress=bar.update)
-    print(f"{args.sensor}: {args.seeds} devices, {args.hold:g} s holds, {args.zero_hold:g} s level hold, {args.rate:g} Hz")
+    print(f"{args.sensor}: {args.seeds} devices, {args.hold:g} s holds, {args.zero_hold:g} s level hold, {args.rate:g} "
+          "Hz")
     print(f"{'axis':>4} {'figure':<26} {'device mean':>12} {'RMS error':>11} {'mean error':>11} {'mean σ̂':>10} "
           f"{'RMS err/σ̂':>10} {'max |err/σ̂|':>12}")
     for r in rows:
-        print(f"{r.axis:>4} {r.figure:<26} {r.device_mean:12.5g} {r.rms_error:11.4g} {r.mean_error:11.3g} {r.mean_sigma:10.4g} "
+        print(f"{r.axis:>4} {r.figure:<26} {r.device_mean:12.5g} {r.rms_error:11.4g} {r.mean_error:11.3g} "
+              f"{r.mean_sigma:10.4g} "
               f"{r.z_rms:10.2f} {r.max_abs_z:12.2f}")
     if args.json:
         write_json_atomic(args.json, {"sensor": args.sensor, "seeds": args.seeds, "rows": [r.to_dict() for r in rows]})
@@ -892,7 +1007,13 @@ def cmd_mag(args: argparse.Namespace) -> int:
     """Hard and soft iron (and misalignment) of a recording's magnetometer (calib.mag)."""
     from calib.inputs import MAG
     from calib.mag import calibrate_magnetometer, true_magnetometer
-    from calib.mag.heading import compass_quaternion, heading_error_rad, heading_noise_floor_rad, magnetic_reference, up_from_quat
+    from calib.mag.heading import (
+        compass_quaternion,
+        heading_error_rad,
+        heading_noise_floor_rad,
+        magnetic_reference,
+        up_from_quat,
+    )
 
     check_output_paths({"--json": args.json, "--rrd": args.rrd}, _files(args.recording))
     loaded = _open(args, MAG)
@@ -925,7 +1046,8 @@ def cmd_mag(args: argparse.Namespace) -> int:
         print(f"  misalignment  {fmt(mg['misalignment_deg'], mg['std']['misalignment_deg'], 3)} ° (sensor axes vs IMU)")
     for d in res.disturbances:
         where = f" near {np.round(d.position_nav_m, 2).tolist()} m (ENU)" if d.position_nav_m else ""
-        print(f"  disturbance   t = {d.t_start_s:.2f}–{d.t_end_s:.2f} s: |B| off by up to {d.max_field_deviation_ut:.2f} µT{where}")
+        print(f"  disturbance   t = {d.t_start_s:.2f}–{d.t_end_s:.2f} s: |B| off by up to "
+              f"{d.max_field_deviation_ut:.2f} µT{where}")
     d = res.to_dict()
     truth = true_magnetometer(rec)
     if truth is not None and rec.truth is not None and rec.truth.quat_nb is not None and res.ok:
@@ -970,7 +1092,8 @@ def cmd_mag_compare(args: argparse.Namespace) -> int:
     from calib.mag.compare import comparison_table, plot_heading_allan, simulated_comparison
 
     c = simulated_comparison(args.sensor, seed=args.seed, hand=args.hand, method=args.method)
-    print(f"sensor {c.sensor} (seed {args.seed}), calibrated on multiposition ({c.calibration.status}), used on 'compass'; "
+    print(f"sensor {c.sensor} (seed {args.seed}), calibrated on multiposition ({c.calibration.status}), used on "
+          "'compass'; "
           "heading error against the truth, tilt from the accelerometer:")
     print(comparison_table(c.rows))
     print("the same with the true tilt (the magnetometer alone):")
@@ -999,8 +1122,10 @@ def cmd_mag_bench(args: argparse.Namespace) -> int:
 
 
 RATE = number(0, 1e6, lo_open=True, unit="Hz")
-RECORDING_HELP = ("recording: gyrosim .h5, BROAD .hdf5, CSV (t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z[,temp][,mag_x,mag_y,"
-                  "mag_z]; separator , ; tab) or dataset:NAME — the format is read from the content")
+RECORDING_HELP = (
+    "recording: gyrosim .h5, BROAD .hdf5, CSV (t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z[,temp][,mag_x,mag_y,"
+    "mag_z]; separator , ; tab) or dataset:NAME — the format is read from the content"
+)
 
 
 def _decimate_arg(text: str) -> int | str:
@@ -1011,7 +1136,8 @@ def _decimate_arg(text: str) -> int | str:
 
 def _input_options(p: argparse.ArgumentParser, decimate: bool = False) -> None:
     """Options every command reading a recording shares (calib.inputs)."""
-    p.add_argument("--gyro-unit", default="rad/s", help="unit of the gyro columns: rad/s (default), deg/s, mdeg/s, rad/h, deg/h")
+    p.add_argument("--gyro-unit", default="rad/s", help="unit of the gyro columns: rad/s (default), deg/s, mdeg/s, "
+                                                        "rad/h, deg/h")
     p.add_argument("--acc-unit", default="m/s^2", help="unit of the accelerometer columns: m/s^2 (default), g, mg, ug")
     p.add_argument("--time-unit", default=None, choices=("auto", "s", "ms", "us", "ns"),
                    help="unit of the time column (default auto: seconds unless the step makes that implausible; "
@@ -1038,30 +1164,51 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
                    help="estimate the accelerometer with the gyro (default) or assume it calibrated (Zhou §3.3.2)")
     d.set_defaults(func=cmd_demo)
-    r = sub.add_parser("run", help="calibrate a recording (HDF5 or CSV): gyro and accelerometer bias, scale factor, "
-                                   "non-orthogonality; exit 1 when the result fails its own check (status inconsistent/diverged)")
+    r = sub.add_parser(
+        "run",
+        help="calibrate a recording (HDF5 or CSV): gyro and accelerometer bias, scale factor, "
+        "non-orthogonality; exit 1 when the result fails its own check (status inconsistent/diverged)",
+    )
     r.add_argument("recording", help=RECORDING_HELP)
-    r.add_argument("--method", default=None, choices=("kf_session", "iterated_session", "hand", "kf", "iterated"),
-                   help="default: hand (kf_session when --external-acc is given); "
-                        "kf_session: one filter pass with a session-wide external-acceleration allowance (the result "
-                        "is labelled kf_joint, or kf_session_r with --accelerometer calibrated: the registered "
-                        "estimators it equals); iterated_session: re-linearised passes (Gauss–Newton on the batch "
-                        "posterior; iterated_joint / iterated_session_r); hand: the hand's lever arm and coloured external "
-                        "acceleration in the model (labelled kf_hand_joint, or kf_hand with --accelerometer calibrated; "
-                        "docs/hand.md); "
-                        "kf, iterated: former spellings of kf_session, iterated_session (deprecated)")
-    r.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
-                   help="estimate: the accelerometer's bias, scale factor and non-orthogonality with the gyro's (default); "
-                        "calibrated: assume it calibrated (Zhou 2020 §3.3.2, the paper's 9-state filter)")
-    r.add_argument("--gravity", type=number(9.7, 9.9, unit="m/s²"), default=None,
-                   help="local gravity, m/s², in [9.7, 9.9] (default: 9.80665 with --accelerometer estimate — the "
-                        "accelerometer scale factors are relative to it; the mean |f| at rest with --accelerometer calibrated)")
-    r.add_argument("--json", help="write the result as JSON (a Calibration file: calib apply / export read it; never an "
-                                  "input file)")
+    r.add_argument(
+        "--method",
+        default=None,
+        choices=("kf_session", "iterated_session", "hand", "kf", "iterated"),
+        help="default: hand (kf_session when --external-acc is given); "
+        "kf_session: one filter pass with a session-wide external-acceleration allowance (the result "
+        "is labelled kf_joint, or kf_session_r with --accelerometer calibrated: the registered "
+        "estimators it equals); iterated_session: re-linearised passes (Gauss–Newton on the batch "
+        "posterior; iterated_joint / iterated_session_r); hand: the hand's lever arm and coloured external "
+        "acceleration in the model (labelled kf_hand_joint, or kf_hand with --accelerometer calibrated; "
+        "docs/hand.md); "
+        "kf, iterated: former spellings of kf_session, iterated_session (deprecated)",
+    )
+    r.add_argument(
+        "--accelerometer",
+        default="estimate",
+        choices=("estimate", "calibrated"),
+        help="estimate: the accelerometer's bias, scale factor and non-orthogonality with the gyro's (default); "
+        "calibrated: assume it calibrated (Zhou 2020 §3.3.2, the paper's 9-state filter)",
+    )
+    r.add_argument(
+        "--gravity",
+        type=number(9.7, 9.9, unit="m/s²"),
+        default=None,
+        help="local gravity, m/s², in [9.7, 9.9] (default: 9.80665 with --accelerometer estimate — the "
+        "accelerometer scale factors are relative to it; the mean |f| at rest with --accelerometer calibrated)",
+    )
+    r.add_argument(
+        "--json",
+        help="write the result as JSON (a Calibration file: calib apply / export read it; never an input file)",
+    )
     r.add_argument("--rrd", help="write a rerun recording (P converging, estimates, signals; never an input file)")
     _input_options(r, decimate=True)
-    r.add_argument("--external-acc", type=number(0, 100, unit="m/s²"), default=None,
-                   help="allowance for the hand's external acceleration, m/s² RMS, in [0, 100] (default: from the rest data)")
+    r.add_argument(
+        "--external-acc",
+        type=number(0, 100, unit="m/s²"),
+        default=None,
+        help="allowance for the hand's external acceleration, m/s² RMS, in [0, 100] (default: from the rest data)",
+    )
     r.set_defaults(func=cmd_run)
     ap = sub.add_parser("apply", help="compensate a recording with a calibration JSON (from calib run --json)")
     ap.add_argument("calibration", help="calibration JSON written by calib run --json")
@@ -1070,10 +1217,15 @@ def build_parser() -> argparse.ArgumentParser:
     _input_options(ap)
     ap.add_argument("--force", action="store_true", help="apply even a calibration whose status is 'diverged'")
     ap.set_defaults(func=cmd_apply)
-    ex = sub.add_parser("export", help="write a calibration JSON in another tool's format (Kalibr imu.yaml, imucal JSON)")
+    ex = sub.add_parser("export", help="write a calibration JSON in another tool's format (Kalibr imu.yaml, imucal "
+                                       "JSON)")
     ex.add_argument("calibration", help="calibration JSON written by calib run --json")
-    ex.add_argument("--format", required=True, choices=("kalibr", "imucal"),
-                    help="kalibr: imu.yaml noise densities and random walks (continuous time); imucal: its Ferraris JSON")
+    ex.add_argument(
+        "--format",
+        required=True,
+        choices=("kalibr", "imucal"),
+        help="kalibr: imu.yaml noise densities and random walks (continuous time); imucal: its Ferraris JSON",
+    )
     ex.add_argument("--out", required=True, help="output file")
     ex.add_argument("--rate", type=number(0, 1e6, lo_open=True, unit="Hz"), default=None,
                     help="IMU rate for Kalibr's update_rate, Hz, in (0, 1e6] (default: the session's)")
@@ -1085,17 +1237,23 @@ def build_parser() -> argparse.ArgumentParser:
                     help="accelerometer bias random walk, m/s³/√Hz, ≥ 0")
     ex.set_defaults(func=cmd_export)
     mc = sub.add_parser("montecarlo", help="Monte Carlo of the calibration against the Cramér–Rao bound")
-    mc.add_argument("--schedule", default="zhou2020", help="schedule of every session: built-in name or TOML path (default zhou2020)")
+    mc.add_argument("--schedule", default="zhou2020", help="schedule of every session: built-in name or TOML path "
+                                                           "(default zhou2020)")
     mc.add_argument("--hand", default="ideal", help="hand preset or TOML path (default ideal: the paper's motion)")
-    mc.add_argument("--sensor", default="zhou2020_sim", help="sensor preset or TOML path (default zhou2020_sim: Zhou 2020 Table 7)")
+    mc.add_argument("--sensor", default="zhou2020_sim", help="sensor preset or TOML path (default zhou2020_sim: Zhou "
+                                                             "2020 Table 7)")
     mc.add_argument("--seeds", type=integer(2, 100_000), default=50, help="sessions, 2 … 1e5 (default 50)")
-    mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] (default 100)")
-    mc.add_argument("--methods", default=None,
-                    help="comma-separated: any registered estimator (kf = the paper's filter, iterated = it in three "
-                         "passes, kf_hand, kf_session_r, …, or package.module:attribute) and kf_session, "
-                         "iterated_session (calib run's filter, with the --accelerometer mode asked); default "
-                         "kf,iterated_session, or kf_session,iterated_session with --accelerometer estimate (the paper's "
-                         "kf assumes a calibrated accelerometer)")
+    mc.add_argument("--rate", type=number(20, 1000, unit="Hz"), default=100.0, help="sample rate, Hz, in [20, 1000] "
+                                                                                    "(default 100)")
+    mc.add_argument(
+        "--methods",
+        default=None,
+        help="comma-separated: any registered estimator (kf = the paper's filter, iterated = it in three "
+        "passes, kf_hand, kf_session_r, …, or package.module:attribute) and kf_session, "
+        "iterated_session (calib run's filter, with the --accelerometer mode asked); default "
+        "kf,iterated_session, or kf_session,iterated_session with --accelerometer estimate (the paper's "
+        "kf assumes a calibrated accelerometer)",
+    )
     mc.add_argument("--calibrated-accelerometer", action="store_true",
                     help="simulate a calibrated accelerometer: keep only its white noise (Zhou §3.3.2's assumption)")
     mc.add_argument("--accelerometer", default="calibrated", choices=("estimate", "calibrated"),
@@ -1104,11 +1262,13 @@ def build_parser() -> argparse.ArgumentParser:
     mc.add_argument("--json", help="write the table as JSON")
     mc.set_defaults(func=cmd_montecarlo)
     ob = sub.add_parser("observability", help="observability of each schedule segment (Zhou 2020 §4, Tables 5, 10, 11)")
-    ob.add_argument("--schedule", default="zhou2020", help="schedule to analyse: built-in name or TOML path (default zhou2020)")
+    ob.add_argument("--schedule", default="zhou2020", help="schedule to analyse: built-in name or TOML path (default "
+                                                           "zhou2020)")
     ob.add_argument("--rate", type=RATE, default=100.0, help="sample rate, Hz, in (0, 1e6] (default 100)")
     ob.set_defaults(func=cmd_observability)
     be = sub.add_parser("bench", help="calibration speed: calib run (21 states) vs the paper's filterpy kf, same run")
-    be.add_argument("--batch", type=integer(1, 10_000), default=50, help="batch size of the kernel-only row, 1 … 10000 (default 50)")
+    be.add_argument("--batch", type=integer(1, 10_000), default=50, help="batch size of the kernel-only row, 1 … 10000 "
+                                                                         "(default 50)")
     be.add_argument("--repeats", type=integer(1, 1000), default=3,
                     help="interleaved repetitions, 1 … 1000; the best of each is reported (default 3)")
     be.set_defaults(func=cmd_bench)
@@ -1117,9 +1277,19 @@ def build_parser() -> argparse.ArgumentParser:
     al.add_argument("--png", help="write the Allan plot (PNG; never an input file)")
     _input_options(al)
     al.set_defaults(func=cmd_allan)
-    no = sub.add_parser("noise", help="stochastic model of a static record: wavelet variance, GMWM fit, model chosen by "
-                                      "WIC, 95 %% intervals, every unit, noise-inflation figure")
-    no.add_argument("recording", help=RECORDING_HELP + "; static (a moving record is refused unless --span/--longest-still)")
+    no = sub.add_parser(
+        "noise",
+        help="stochastic model of a static record: wavelet variance, GMWM fit, model chosen by "
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        "WIC, 95 %% intervals, every unit, noise-inflation figure",
+    )
+    no.add_argument("recording", help=RECORDING_HELP + "; static (a moving record is refused unless "
+                                                       "--span/--longest-still)")
     no.add_argument("--triad", choices=("gyro", "acc"), default="gyro", help="which triad (default gyro)")
     no.add_argument("--model", default="auto",
                     help="auto (default: chosen among 32 candidates by WIC) or a model such as white+rw, "
@@ -1138,12 +1308,15 @@ def build_parser() -> argparse.ArgumentParser:
     no.set_defaults(func=cmd_noise)
     pl = sub.add_parser("plan", help="how long to record: record length per noise parameter for a target relative σ, "
                                      "and schedule repetitions for a target σ on S and G (CRLB)")
-    pl.add_argument("--sensor", required=True, help="sensor preset name, TOML, Kalibr imu.yaml, or a calib noise --json")
+    pl.add_argument(
+        "--sensor", required=True, help="sensor preset name, TOML, Kalibr imu.yaml, or a calib noise --json"
+    )
     pl.add_argument("--target", type=number(1e-4, 10.0), default=0.1,
                     help="target relative 1σ of each stochastic parameter (default 0.1 = 10 %%)")
     pl.add_argument("--rate", type=number(1.0, 1e5), default=100.0, help="sample rate (Hz, default 100)")
     pl.add_argument("--target-s", type=number(1e-9, 1.0), default=None, help="target σ on the gyro scale factors S (1)")
-    pl.add_argument("--target-g", type=number(1e-9, 1.0), default=None, help="target σ on the gyro non-orthogonality G (1)")
+    pl.add_argument("--target-g", type=number(1e-9, 1.0), default=None, help="target σ on the gyro non-orthogonality G "
+                                                                             "(1)")
     pl.add_argument("--schedule", default="zhou2020", help="schedule for --target-s/-g (default zhou2020)")
     pl.add_argument("--json", help="write the plan (JSON)")
     pl.set_defaults(func=cmd_plan)
@@ -1165,12 +1338,16 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("--train-cycles", type=integer(1, 10_000), default=2,
                     help="chamber cycles to train on, ≥ 1; the rest are held out (default 2)")
     tp.add_argument("--train", help="a separate training recording instead of cycles")
-    tp.add_argument("--methods", help="comma-separated subset of: none, polynomial, piecewise_linear, rbf, polynomial+dT/dt")
-    tp.add_argument("--ratetable", help="also evaluate the piecewise-linear model between calibration points from this rate-table recording")
+    tp.add_argument("--methods", help="comma-separated subset of: none, polynomial, piecewise_linear, rbf, "
+                                      "polynomial+dT/dt")
+    tp.add_argument("--ratetable", help="also evaluate the piecewise-linear model between calibration points from this "
+                                        "rate-table recording")
     tp.add_argument("--compensate", help="method whose compensation to write (needs --out)")
     tp.add_argument("--out", help="compensated recording (.h5); never the input")
     tp.add_argument("--json", help="write the comparison table as JSON")
-    tp.add_argument("--rrd", help="write a rerun recording: temperature, drift, each model's held-out residual, bias vs temperature")
+    tp.add_argument(
+        "--rrd", help="write a rerun recording: temperature, drift, each model's held-out residual, bias vs temperature"
+    )
     _input_options(tp)
     tp.set_defaults(func=cmd_temperature)
     rtc = sub.add_parser("ratetable", help="bias and scale at each temperature point of a rate-table recording")
@@ -1181,21 +1358,33 @@ def build_parser() -> argparse.ArgumentParser:
     cb.set_defaults(func=cmd_closeloop_bench)
     cs = sub.add_parser("closeloop-suite", help="undeclared-effect suites over seeds: single effects, pairs, a static "
                         "chamber with accelerometer drift, slow motion, magnetometer effects, negative controls")
-    cs.add_argument("--seeds", type=integer(1, 100_000), default=10, help="sensor-noise seeds per case, 1 … 1e5 (default 10)")
-    cs.add_argument("--first-seed", type=seed, default=100, help="first seed, 0 … 2³²−1 (seeds are consecutive; default 100)")
-    cs.add_argument("--cases", default="all", help="comma-separated case names (calib.closeloop.suite SUITE, HARD_SUITE, "
+    cs.add_argument("--seeds", type=integer(1, 100_000), default=10, help="sensor-noise seeds per case, 1 … 1e5 "
+                                                                          "(default 10)")
+    cs.add_argument(
+        "--first-seed", type=seed, default=100, help="first seed, 0 … 2³²−1 (seeds are consecutive; default 100)"
+    )
+    cs.add_argument("--cases", default="all", help="comma-separated case names (calib.closeloop.suite SUITE, "
+                                                   "HARD_SUITE, "
                     "'negative', MAG_SUITE), 'mag' (the magnetometer cases) or 'all'")
     cs.add_argument("--truth-seed", type=seed, default=1,
                     help="seed of the simulated truth sessions (motion, hand), 0 … 2³²−1 (default 1)")
     cs.add_argument("--hand", default="typical", help="hand of the 'typical' session (the slow session uses 'steady')")
     cs.set_defaults(func=cmd_closeloop_suite)
-    nf = sub.add_parser("northfind", help="gyrocompassing: true heading from a static 2/4-position record, with σ and its limit")
+    nf = sub.add_parser("northfind", help="gyrocompassing: true heading from a static 2/4-position record, with σ and "
+                                          "its limit")
     nf.add_argument("recording", help="gyrosim .h5 (gyrosim northfind) or CSV t,gyro_x..,acc_x..")
     nf.add_argument("--latitude-deg", type=number(-90, 90, unit="°"), default=None,
                     help="site latitude, °, in [-90, 90] (default: the recording's metadata)")
-    nf.add_argument("--accuracy-deg", type=number(0, 180, lo_open=True, unit="°"), default=None,
-                    help="refuse (exit 1) when the limit σ_ψ is worse than this; prints the rest time needed and the highest latitude")
-    nf.add_argument("--noise", default=None, help="gyro noise N,B,K in °/√h, °/h, °/h/√h (default: fitted on the holds)")
+    nf.add_argument(
+        "--accuracy-deg",
+        type=number(0, 180, lo_open=True, unit="°"),
+        default=None,
+        help="refuse (exit 1) when the limit σ_ψ is worse than this; prints the rest time needed and the highest "
+             "latitude",
+    )
+    nf.add_argument(
+        "--noise", default=None, help="gyro noise N,B,K in °/√h, °/h, °/h/√h (default: fitted on the holds)"
+    )
     nf.add_argument("--noise-from", default=None, help="take the gyro noise from a sensor preset (a datasheet prior)")
     nf.add_argument("--index", default="auto", choices=("auto", "encoder", "gyro"),
                     help="angles between positions: the table encoder (metadata) or the integrated gyro")
@@ -1204,17 +1393,22 @@ def build_parser() -> argparse.ArgumentParser:
     nf.add_argument("--json", help="write the result (status, heading, σ, limit, holds) as JSON")
     _input_options(nf)
     nf.set_defaults(func=cmd_northfind)
-    nl = sub.add_parser("northfind-latitude", help="north-finding limit against latitude for sensor presets (table, plot)")
+    nl = sub.add_parser("northfind-latitude", help="north-finding limit against latitude for sensor presets (table, "
+                                                   "plot)")
     nl.add_argument("--sensors", default="fog_tactical,mpu9250", help="comma-separated sensor presets")
     nl.add_argument("--positions", type=integer(2, 360), default=4, help="positions, 2 … 360 (default 4)")
-    nl.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=300.0, help="rest per position, s, > 0")
+    nl.add_argument(
+        "--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=300.0, help="rest per position, s, > 0"
+    )
     nl.add_argument("--accuracy-deg", type=number(0, 180, lo_open=True, unit="°"), default=None,
                     help="print the highest latitude reaching this accuracy, °, > 0")
     nl.add_argument("--mc", action="append", help="northfind-mc JSON whose RMS errors to draw as points (repeatable)")
     nl.add_argument("--png", help="write the latitude plot")
     nl.add_argument("--json", help="write the table as JSON")
     nl.set_defaults(func=cmd_northfind_latitude)
-    nm = sub.add_parser("northfind-mc", help="north-finding error vs the physical limit over many devices and latitudes")
+    nm = sub.add_parser(
+        "northfind-mc", help="north-finding error vs the physical limit over many devices and latitudes"
+    )
     nm.add_argument("--sensor", default="fog_tactical", help="sensor preset or TOML path (default fog_tactical)")
     nm.add_argument("--shield", type=number(0, None, lo_open=True), default=1e3,
                     help="divide the magnetic sensitivity by this, > 0 (default 1e3: shielded)")
@@ -1222,31 +1416,43 @@ def build_parser() -> argparse.ArgumentParser:
     nm.add_argument("--seeds", type=integer(1, 100_000), default=50, help="devices, 1 … 1e5 (default 50)")
     nm.add_argument("--first-seed", type=seed, default=0, help="first seed, 0 … 2³²−1")
     nm.add_argument("--positions", type=integer(2, 360), default=4, help="positions, 2 … 360 (default 4)")
-    nm.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=300.0, help="rest per position, s, > 0")
+    nm.add_argument(
+        "--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=300.0, help="rest per position, s, > 0"
+    )
     nm.add_argument("--rate", type=number(0, 500, lo_open=True, unit="Hz"), default=20.0,
                     help="output rate, Hz (a divisor of 500; default 20)")
     nm.add_argument("--json", help="write the table as JSON (input of northfind-latitude --mc)")
     nm.set_defaults(func=cmd_northfind_mc)
-    tl = sub.add_parser("tilt", help="tilt-sensor static test: sensitivity, linearity, cross-axis, zero offset and stability")
+    tl = sub.add_parser("tilt", help="tilt-sensor static test: sensitivity, linearity, cross-axis, zero offset and "
+                                     "stability")
     tl.add_argument("recording", help="gyrosim .h5 (gyrosim tilttable), or a CSV with --holds")
-    tl.add_argument("--holds", help="CSV sweep,kind,angle_deg,t_start_s,t_stop_s for a recording without tilt-table metadata")
+    tl.add_argument("--holds", help="CSV sweep,kind,angle_deg,t_start_s,t_stop_s for a recording without tilt-table "
+                                    "metadata")
     tl.add_argument("--json", help="write the figures, tables and excluded holds as JSON")
     tl.add_argument("--png", help="write output against input angle with the residuals")
     _input_options(tl)
     tl.set_defaults(func=cmd_tilt)
     tm = sub.add_parser("tilt-mc", help="each calib tilt figure against the drawn device's value over many devices")
-    tm.add_argument("--sensor", default="tilt_001", help="tilt-sensor preset or TOML path (default tilt_001, the chip of 'Static Capacitance Test of MEMS Tilt Sensor')")
+    tm.add_argument("--sensor", default="tilt_001", help="tilt-sensor preset or TOML path (default tilt_001, the chip "
+                                                         "of 'Static Capacitance Test of MEMS Tilt Sensor')")
     tm.add_argument("--seeds", type=integer(1, 100_000), default=20, help="devices, 1 … 1e5 (default 20)")
     tm.add_argument("--first-seed", type=seed, default=0, help="first seed, 0 … 2³²−1")
     tm.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=30.0, help="hold per angle, s, > 0")
-    tm.add_argument("--zero-hold", type=number(0, 1e7, lo_open=True, unit="s"), default=3600.0, help="zero hold, s, > 0")
+    tm.add_argument(
+        "--zero-hold", type=number(0, 1e7, lo_open=True, unit="s"), default=3600.0, help="zero hold, s, > 0"
+    )
     tm.add_argument("--rate", type=number(0, 1e4, lo_open=True, unit="Hz"), default=10.0, help="output rate, Hz, > 0")
     tm.add_argument("--json", help="write the table as JSON")
     tm.set_defaults(func=cmd_tilt_mc)
     mg = sub.add_parser("mag", help="magnetometer calibration: hard and soft iron, misalignment, local disturbances")
-    mg.add_argument("recording", help="gyrosim .h5 (with /mag), BROAD .hdf5, CSV with mag_x,mag_y,mag_z (µT) or dataset:NAME")
-    mg.add_argument("--method", default="ellipsoid", choices=("ellipsoid", "aided"),
-                    help="ellipsoid: field magnitude only; aided: also the inclination against gravity (sees the misalignment)")
+    mg.add_argument("recording", help="gyrosim .h5 (with /mag), BROAD .hdf5, CSV with mag_x,mag_y,mag_z (µT) or "
+                                      "dataset:NAME")
+    mg.add_argument(
+        "--method",
+        default="ellipsoid",
+        choices=("ellipsoid", "aided"),
+        help="ellipsoid: field magnitude only; aided: also the inclination against gravity (sees the misalignment)",
+    )
     mg.add_argument("--json", help="write the result as JSON (magnetometer.hard_iron_uT, soft_iron, field_uT, ...)")
     mg.add_argument("--rrd", help="write a rerun recording (raw ellipsoid, calibrated sphere, |B|, disturbances)")
     mg.add_argument("--mag-unit", default="uT", help="unit of the magnetometer channel (uT, gauss, mgauss, nT)")
@@ -1254,7 +1460,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="true field magnitude, µT, in (0, 10000] (fixes the scale of A)")
     mg.add_argument("--inclination-deg", type=number(-90, 90, unit="°"),
                     help="true inclination, °, in [-90, 90] (resolves a one-axis session's hard iron)")
-    mg.add_argument("--location", help="field and inclination from the World Magnetic Model: LAT,LON[,HEIGHT_M[,YYYY-MM-DD]]")
+    mg.add_argument("--location", help="field and inclination from the World Magnetic Model: "
+                                       "LAT,LON[,HEIGHT_M[,YYYY-MM-DD]]")
     mg.add_argument("--range-ut", type=number(0, 1e7, lo_open=True, unit="µT"),
                     help="magnetometer range (datasheet full scale), µT, > 0: samples at it are excluded; without it "
                          "only flat tops beyond 200 µT are found from the data")
@@ -1262,15 +1469,23 @@ def build_parser() -> argparse.ArgumentParser:
     mg.add_argument("--to", dest="t_to", type=number(unit="s"), help="calibrate up to this time, s (finite)")
     _input_options(mg)
     mg.set_defaults(func=cmd_mag)
-    mc2 = sub.add_parser("mag-compare", help="in-motion heading compensation (Soft Magnetic Error Compensation Method of Electronic Compass): KF / adaptive KF / particle filter vs calibration (simulated)")
-    mc2.add_argument("--sensor", default="phone", help="sensor preset with a magnetometer, or TOML path (default phone)")
+    mc2 = sub.add_parser(
+        "mag-compare",
+        help="in-motion heading compensation (Soft Magnetic Error Compensation Method "
+        "of Electronic Compass): KF / adaptive KF / particle filter vs calibration "
+        "(simulated)",
+    )
+    mc2.add_argument(
+        "--sensor", default="phone", help="sensor preset with a magnetometer, or TOML path (default phone)"
+    )
     mc2.add_argument("--seed", type=seed, default=7, help="seed, 0 … 2³²−1 (default 7)")
     mc2.add_argument("--hand", default="typical", help="hand preset or TOML path (default typical)")
     mc2.add_argument("--method", default="aided", choices=("ellipsoid", "aided"),
                      help="calibration method, as calib mag --method (default aided)")
     mc2.add_argument("--png", help="write the Allan plot of the heading error")
     mc2.set_defaults(func=cmd_mag_compare)
-    mm = sub.add_parser("mag-measured", help="magnetometers of the measured recordings: field spread, heading vs optical")
+    mm = sub.add_parser("mag-measured", help="magnetometers of the measured recordings: field spread, heading vs "
+                                             "optical")
     mm.add_argument("--method", default="ellipsoid", choices=("ellipsoid", "aided"),
                     help="calibration method, as calib mag --method (default ellipsoid)")
     mm.set_defaults(func=cmd_mag_measured)

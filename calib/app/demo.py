@@ -29,25 +29,35 @@ class DemoResult:
     calibration: Calibration
 
 
-def run_demo(out: str | Path, *, schedule: str = "zhou2020", hand: str = "typical", sensor: str = "zhou2020_sim",
-             rate_hz: float = 100.0, seed: int = 1, accelerometer: str = "estimate",
-             progress: Callable[[int], None] | None = None, log: Callable[[str], None] = lambda msg: None) -> DemoResult:
-    """Simulate ``schedule`` × ``hand`` × ``sensor`` (seed ``seed``), calibrate it with the paper-family joint
-    filter (:func:`calib.session.paper.calibrate`, ``kf_session``: Zhou's Figures 2–3 on the paper's sensor; ``calib
-    run``'s default is the hand-aware filter (docs/hand.md) — with this preset's noise the two agree in S, G, and
-    the filter's own gyro bias is 3× tighter than the rest mean the hand-aware one reports, measured on seed 1),
-    validate the attitude on the free-style session of seed + 1000 (:func:`calib.session.validation.validate_attitude`), and write :data:`DEMO_FILES`
-    into ``out`` (created).  ``progress(physics_steps)`` follows the simulation; ``log(text)`` the stages."""
+def run_demo(
+    out: str | Path,
+    *,
+    schedule: str = "zhou2020",
+    hand: str = "typical",
+    sensor: str = "zhou2020_sim",
+    rate_hz: float = 100.0,
+    seed: int = 1,
+    accelerometer: str = "estimate",
+    progress: Callable[[int], None] | None = None,
+    log: Callable[[str], None] = lambda msg: None,
+) -> DemoResult:
+    """Simulate ``schedule`` × ``hand`` × ``sensor`` (seed ``seed``), calibrate it with the paper-family joint filter
+    (:func:`calib.session.paper.calibrate`, ``kf_session``: Zhou's Figures 2–3 on the paper's sensor; ``calib run``'s
+    default is the hand-aware filter (docs/hand.md) — with this preset's noise the two agree in S, G, and the filter's
+    own gyro bias is 3× tighter than the rest mean the hand-aware one reports, measured on seed 1), validate the
+    attitude on the free-style session of seed + 1000 (:func:`calib.session.validation.validate_attitude`), and write
+    :data:`DEMO_FILES` into ``out`` (created).  ``progress(physics_steps)`` follows the simulation; ``log(text)`` the
+    stages."""
     from gyrosim.hand import load_hand
     from gyrosim.recording import save_hdf5
     from gyrosim.schedule import load_schedule
     from gyrosim.sensor_model import load_sensor
     from gyrosim.simulate import simulate
 
-    from calib.session.paper import calibrate, true_gyro_parameters
     from calib.app.report import write_session_report
-    from calib.session.validation import validate_attitude
     from calib.app.rerun import save_calibration_rrd
+    from calib.session.paper import calibrate, true_gyro_parameters
+    from calib.session.validation import validate_attitude
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -63,7 +63,18 @@ def summarise_recording(name: str, rec: Recording, report) -> RecordingSummary:
         if key in rec.meta:
             v = rec.meta[key]
             prov.append((key, str(v["name"] if isinstance(v, dict) and "name" in v else v)))
-    return RecordingSummary(name, rec.n, rec.duration_s, rec.rate_hz, float(dt.min()), float(dt.max()),
-                            float(np.linalg.norm(rec.gyro_rad_s, axis=1).max()),
-                            float(np.linalg.norm(rec.acc_m_s2, axis=1).mean()), rec.temp_c is not None,
-                            rec.mag_ut is not None, tuple(rec.truth.channels()) if rec.truth else None, tuple(prov), report)
+    return RecordingSummary(
+        name,
+        rec.n,
+        rec.duration_s,
+        rec.rate_hz,
+        float(dt.min()),
+        float(dt.max()),
+        float(np.linalg.norm(rec.gyro_rad_s, axis=1).max()),
+        float(np.linalg.norm(rec.acc_m_s2, axis=1).mean()),
+        rec.temp_c is not None,
+        rec.mag_ut is not None,
+        tuple(rec.truth.channels()) if rec.truth else None,
+        tuple(prov),
+        report,
+    )

@@ -7,8 +7,16 @@ input), :func:`write_json_atomic` (any dict; NaN/inf → ``null`` with the reaso
 because the simulator's command line needs it too, and gyrosim never imports calib.
 """
 
-from gyrosim.outputs import (atomic_path, check_output_paths, json_safe, same_file, staged_folder, write_bytes_atomic,
-                             write_json_atomic, write_text_atomic)
+from gyrosim.outputs import (
+                             atomic_path,
+                             check_output_paths,
+                             json_safe,
+                             same_file,
+                             staged_folder,
+                             write_bytes_atomic,
+                             write_json_atomic,
+                             write_text_atomic,
+)
 
 __all__ = ["check_output_paths", "atomic_path", "write_text_atomic", "write_bytes_atomic", "write_json_atomic",
            "json_safe", "staged_folder", "same_file"]

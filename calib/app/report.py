@@ -25,7 +25,9 @@ def plot_convergence(result, truth: dict | None, path: Path) -> Path:
     h = result.history.arrays()
     t, sd = h["t_s"], np.sqrt(h["p_diag"])
     fig, axes = plt.subplots(2, 2, figsize=(11, 6), sharex=True)
-    for row, (name, key, cols) in enumerate((("scale factor S", "scale", slice(3, 6)), ("non-orthogonality G", "nonorthogonality", slice(6, 9)))):
+    for row, (name, key, cols) in enumerate(
+        (("scale factor S", "scale", slice(3, 6)), ("non-orthogonality G", "nonorthogonality", slice(6, 9)))
+    ):
         est = h[key]
         for i, c in enumerate("xyz"):
             axes[row, 0].plot(t, est[:, i], label=f"{c}")
@@ -72,15 +74,26 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
     lines = [
         f"# Hand-held calibration session: {schedule.name}, hand `{hand.name}`, sensor `{sensor.name}`, seed {seed}",
         "",
-        f"{rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo (`session.h5`), calibrated with "
-        f"the Zhou 2020 filter (method `{result.method}`). Open `session.rrd` with `rerun session.rrd` to watch P converge.",
+        f"{rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo (`session.h5`), calibrated "
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        ""
+        "with "
+        f"the Zhou 2020 filter (method `{result.method}`). Open `session.rrd` with `rerun session.rrd` to watch P "
+        "converge.",
         "",
         "## What the hand did",
         "",
         "| disturbance at the IMU (RMS) | measured | expected from the hand preset |",
         "|---|---|---|",
         f"| external acceleration (m/s²) | {ext:.4f} | {expected['external_acc_rms_m_s2']:.4f} |",
-        f"| rate disturbance (°/s) | {math.degrees(rate):.3f} | {math.degrees(expected['rate_disturbance_rms_rad_s']):.3f} |",
+        f"| rate disturbance (°/s) | {math.degrees(rate):.3f} | "
+        f"{math.degrees(expected['rate_disturbance_rms_rad_s']):.3f} |",
         "",
         "## What the calibration found",
         "",
@@ -98,10 +111,15 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
     lines += [f"- warning: {w}" for w in cal["warnings"]] or ["No warnings."]
     lines += ["", f"![convergence]({png.name})", ""]
     if validation is not None:
-        lines += ["## Attitude validation (Zhou 2020 §5.2, Table 12)", "",
-                  "The same device turns freely for 70 s (schedule `freestyle`); the gyro is integrated from the true "
-                  "initial attitude with the bias removed only, and fully compensated, and compared with the truth:", "",
-                  validation.table(), ""]
+        lines += [
+            "## Attitude validation (Zhou 2020 §5.2, Table 12)",
+            "",
+            "The same device turns freely for 70 s (schedule `freestyle`); the gyro is integrated from the true "
+            "initial attitude with the bias removed only, and fully compensated, and compared with the truth:",
+            "",
+            validation.table(),
+            "",
+        ]
         report["attitude_validation_deg"] = {
             "without": {"mean": validation.without_mean_deg.tolist(), "rms": validation.without_rms_deg.tolist()},
             "with": {"mean": validation.with_mean_deg.tolist(), "rms": validation.with_rms_deg.tolist()},

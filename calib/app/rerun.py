@@ -23,8 +23,17 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from gyrosim.recording import Recording
-from gyrosim.viewer import (Span, board_eye, board_view, log10_floor, log_marks, log_story, series_view, shared_range,
-                            story_blueprint)
+from gyrosim.viewer import (
+    Span,
+    board_eye,
+    board_view,
+    log10_floor,
+    log_marks,
+    log_story,
+    series_view,
+    shared_range,
+    story_blueprint,
+)
 
 TIMELINE = "sensor_time"
 AXES = ("x", "y", "z")
@@ -57,7 +66,11 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
     sel, q, pos = sel[ok], q[ok], pos[ok]
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     stream.log("world/board/pcb", rr.Boxes3D(half_sizes=[0.02, 0.015, 0.0008], colors=[20, 120, 40]), static=True)
-    stream.log("world/board/axes", rr.Arrows3D(vectors=np.eye(3) * 0.05, colors=[[255, 0, 0], [0, 255, 0], [0, 0, 255]]), static=True)
+    stream.log(
+        "world/board/axes",
+        rr.Arrows3D(vectors=np.eye(3) * 0.05, colors=[[255, 0, 0], [0, 255, 0], [0, 0, 255]]),
+        static=True,
+    )
     stream.send_columns(
         "world/board",
         indexes=[rr.TimeColumn(TIMELINE, duration=t[sel])],
@@ -86,7 +99,9 @@ def log_calibration(stream: rr.RecordingStream, result, truth: dict | None = Non
     if "ba_x" in names:
         for block, key in (("ba", "acc_bias"), ("Sa", "acc_scale"), ("Ga", "acc_nonorthogonality")):
             _series(stream, f"calib/estimate/{block}", t, h[key])
-    stream.send_columns("calib/nis", indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=rr.Scalars.columns(scalars=h["nis"]))
+    stream.send_columns(
+        "calib/nis", indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=rr.Scalars.columns(scalars=h["nis"])
+    )
     if truth is not None:
         ends = np.array([t[0], t[-1]])
         for name, key in (("S", "scale_factor"), ("G", "nonorthogonality")):
@@ -144,7 +159,8 @@ def calibration_story(rec: Recording, result, truth: dict | None) -> str:
             idx = [i for i, n in enumerate(names) if n.split("_")[0] == blk]
             if idx:
                 s = sd[:, idx].max(axis=1)
-                parts.append(f"√P of the {label} falls from {s[0]:.2g} to {s[-1]:.2g} (×{s[0] / max(s[-1], 1e-300):.0f}), "
+                parts.append(f"√P of the {label} falls from {s[0]:.2g} to {s[-1]:.2g} "
+                             f"(×{s[0] / max(s[-1], 1e-300):.0f}), "
                              f"within 10 % of its final value from {_first_within(t, s):.0f} s")
         lines.append("Left: log10 √P per state over the whole session — " + "; ".join(parts) + ".")
     sf, g = result.value("gyro", "scale_factor"), result.value("gyro", "nonorthogonality")
@@ -275,9 +291,12 @@ def save_session_rrd(path: str | Path, rec: Recording, application_id: str = "gy
     pos = _board_positions(rec)
     eye = _eye(rec, pos)
     stream.send_blueprint(blueprint(Span.of(rec.t_s), eye))
-    log_story(stream, f"**Recorded session, {rec.t_s[-1] - rec.t_s[0]:.0f} s at {rec.rate_hz:.0f} Hz:** the raw gyro and "
-                      "accelerometer (body frame), the external acceleration the hand adds (truth) and the hand and board "
-                      "in 3-D" + ("" if pos is not None else " (no attitude truth: no 3-D pose)") + ".")
+    log_story(
+        stream,
+        f"**Recorded session, {rec.t_s[-1] - rec.t_s[0]:.0f} s at {rec.rate_hz:.0f} Hz:** the raw gyro and "
+        "accelerometer (body frame), the external acceleration the hand adds (truth) and the hand and board "
+        "in 3-D" + ("" if pos is not None else " (no attitude truth: no 3-D pose)") + ".",
+    )
     log_recording(stream, rec)
     stream.flush()
     return path
@@ -318,18 +337,24 @@ def magnetometer_story(rec: Recording, result) -> str:
     m = np.asarray(rec.mag_ut, float)
     b = result.compensate(m)
     raw, cal = np.linalg.norm(m, axis=1), np.linalg.norm(b, axis=1)
-    lines = [f"**Magnetometer calibration (`{result.method}`), status {result.status}** — {rec.t_s[-1] - rec.t_s[0]:.0f} s "
-             f"at {rec.rate_hz:.0f} Hz.", "",
-             f"Hard iron {np.round(result.hard_iron_ut, 2).tolist()} µT (±{np.round(result.hard_iron_std_ut, 2).tolist()}); "
-             f"field {result.field_ut:.2f} ± {result.field_std_ut:.2f} µT, inclination {result.inclination_deg:.2f}° "
-             f"({result.field_reference}).",
-             f"Left: the samples in 3-D — the raw ellipsoid (off-centre) becomes the calibrated sphere on the origin. "
-             f"Middle: |B| raw (spread {np.std(raw):.2f} µT RMS) vs calibrated ({np.std(cal):.2f} µT), one y scale."]
+    lines = [
+        f"**Magnetometer calibration (`{result.method}`), status {result.status}** — {rec.t_s[-1] - rec.t_s[0]:.0f} s "
+        f"at {rec.rate_hz:.0f} Hz.",
+        "",
+        f"Hard iron {np.round(result.hard_iron_ut, 2).tolist()} µT (±{np.round(result.hard_iron_std_ut, 2).tolist()}); "
+        f"field {result.field_ut:.2f} ± {result.field_std_ut:.2f} µT, inclination {result.inclination_deg:.2f}° "
+        f"({result.field_reference}).",
+        f"Left: the samples in 3-D — the raw ellipsoid (off-centre) becomes the calibrated sphere on the origin. "
+        f"Middle: |B| raw (spread {np.std(raw):.2f} µT RMS) vs calibrated ({np.std(cal):.2f} µT), one y scale.",
+    ]
     if result.disturbances:
         d = result.disturbances
-        lines.append(f"Red dots mark the {len(d)} local disturbance(s) found: " +
-                     ", ".join(f"{x.t_start_s:.0f}–{x.t_end_s:.0f} s (up to {x.max_field_deviation_ut:.1f} µT)" for x in d[:5]) +
-                     (" …" if len(d) > 5 else "") + "; their samples are red in the cloud.")
+        lines.append(
+            f"Red dots mark the {len(d)} local disturbance(s) found: "
+            + ", ".join(f"{x.t_start_s:.0f}–{x.t_end_s:.0f} s (up to {x.max_field_deviation_ut:.1f} µT)" for x in d[:5])
+            + (" …" if len(d) > 5 else "")
+            + "; their samples are red in the cloud."
+        )
     else:
         lines.append("**No local disturbance was found** in this recording (no red marks).")
     if result.warnings:

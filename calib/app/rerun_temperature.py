@@ -27,8 +27,18 @@ import rerun.blueprint as rrb
 
 from gyrosim.recording import Recording
 from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
-from gyrosim.viewer import (MARK_COLOURS, Span, log_bars, log_marks, log_story, scalar_style, send_series, series_view,
-                            shared_range, story_blueprint)
+from gyrosim.viewer import (
+    MARK_COLOURS,
+    Span,
+    log_bars,
+    log_marks,
+    log_story,
+    scalar_style,
+    send_series,
+    series_view,
+    shared_range,
+    story_blueprint,
+)
 
 from calib.temperature.compensation import Metrics, ThermalCompensation
 from calib.temperature.timeblocks import block_means, time_block_index
@@ -66,10 +76,14 @@ def temperature_story(rows: list[Metrics], held_out: list[tuple[float, float]], 
         return "\n".join(lines + ["No model was fitted."])
     base = next((r for r in rows if r.method == "none"), rows[0])
     best = min(rows, key=lambda r: r.bias_stability_deg_h)
-    lines.append(f"Best: **{best.method}**, bias stability {best.bias_stability_deg_h:.2f} °/h against "
-                 f"{base.bias_stability_deg_h:.2f} °/h uncompensated (×{base.bias_stability_deg_h / best.bias_stability_deg_h:.1f} "
-                 f"better; held-out RMS {best.held_out_rms_deg_s:.4f} °/s). All: " +
-                 "; ".join(f"{r.method} {r.bias_stability_deg_h:.2f} °/h" for r in rows) + ".")
+    lines.append(
+        f"Best: **{best.method}**, bias stability {best.bias_stability_deg_h:.2f} °/h against "
+        f"{base.bias_stability_deg_h:.2f} °/h uncompensated "
+        f"(×{base.bias_stability_deg_h / best.bias_stability_deg_h:.1f} "
+        f"better; held-out RMS {best.held_out_rms_deg_s:.4f} °/s). All: "
+        + "; ".join(f"{r.method} {r.bias_stability_deg_h:.2f} °/h" for r in rows)
+        + "."
+    )
     lines.append("Left: the temperature (held-out cycles marked) and the uncompensated drift. Middle: what each model "
                  "leaves, 10 s means, one y scale for the three axes. Right: bias against temperature, measured "
                  "(grey) and the best model (colour).")
@@ -84,9 +98,12 @@ def temperature_blueprint(span: Span, methods: list[str], residual_range: tuple[
     )
     middle = rrb.Vertical(*[series_view(f"temperature/residual/{a}", f"{a}: residual of each model (°/h)", span,
                                         y_range=residual_range) for a in AXES])
-    right = rrb.Vertical(*[rrb.BarChartView(origin=f"temperature/vs_temp/{a}", name=f"{a}: bias (°/h) vs temperature (°C)",
+    right = rrb.Vertical(*[rrb.BarChartView(origin=f"temperature/vs_temp/{a}", name=f"{a}: bias (°/h) vs temperature "
+                                                                                    "(°C)",
                                             plot_legend=rrb.PlotLegend(visible=False)) for a in AXES])
-    return story_blueprint(rrb.Horizontal(left, middle, right, column_shares=[2, 3, 2]), story_share=1.0, body_share=5.0)
+    return story_blueprint(
+        rrb.Horizontal(left, middle, right, column_shares=[2, 3, 2]), story_share=1.0, body_share=5.0
+    )
 
 
 def save_temperature_rrd(path: str | Path, rec: Recording, fitted: dict[str, ThermalCompensation], rows: list[Metrics],

@@ -45,8 +45,19 @@ from gyrosim.effects import EFFECTS, Effect, SignalContext
 if TYPE_CHECKING:  # annotations only
     from calib.closeloop.reference import Reference
 
-__all__ = ["Channel", "Candidate", "Untestable", "FittedTerm", "ReportedTerm", "BuildOptions", "CandidateFamily", "GenericFamily",
-           "register_family", "unregister_family", "registered_families"]
+__all__ = [
+    "Channel",
+    "Candidate",
+    "Untestable",
+    "FittedTerm",
+    "ReportedTerm",
+    "BuildOptions",
+    "CandidateFamily",
+    "GenericFamily",
+    "register_family",
+    "unregister_family",
+    "registered_families",
+]
 
 
 class Channel(enum.IntEnum):
@@ -60,10 +71,12 @@ class Channel(enum.IntEnum):
     TIME = 3          # nothing measured: a function of time (the catch-all)
 
     def describe(self) -> str:
-        return {Channel.RATE: "the gyro's own input rate (from the reference)",
-                Channel.DEDICATED: "a dedicated measurement of the quantity (thermometer at the gyro, reference attitude)",
-                Channel.OTHER_SENSOR: "another sensor whose own errors enter the regressor",
-                Channel.TIME: "time only (nothing measured)"}[self]
+        return {
+            Channel.RATE: "the gyro's own input rate (from the reference)",
+            Channel.DEDICATED: "a dedicated measurement of the quantity (thermometer at the gyro, reference attitude)",
+            Channel.OTHER_SENSOR: "another sensor whose own errors enter the regressor",
+            Channel.TIME: "time only (nothing measured)",
+        }[self]
 
 
 class Untestable(Exception):

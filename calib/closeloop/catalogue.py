@@ -12,8 +12,14 @@ from typing import TYPE_CHECKING
 from gyrosim.effects import EFFECTS, SignalContext
 
 from calib.closeloop import families  # noqa: F401 - registers the vocabulary's families
-from calib.closeloop.candidates import (BuildOptions, Candidate, CandidateFamily, GenericFamily, Untestable,
-                                        registered_families)
+from calib.closeloop.candidates import (
+    BuildOptions,
+    Candidate,
+    CandidateFamily,
+    GenericFamily,
+    Untestable,
+    registered_families,
+)
 
 if TYPE_CHECKING:
     from calib.closeloop.reference import Reference

@@ -138,7 +138,9 @@ def find_confounded(setup: LoopSetup, state: ModelState, pool: dict[str, Candida
 
     ``scores``: the candidates with a positive gain (catch-alls included); ``best``: the largest
     gain among those tied to a measured channel (a catch-all only when there is none)."""
-    pairs = [_pair(setup, state, pool, scores, best, k, tau, union) for k, s in scores.items() if k != best and s.gain > 0]
+    pairs = [
+        _pair(setup, state, pool, scores, best, k, tau, union) for k, s in scores.items() if k != best and s.gain > 0
+    ]
     group = [p for p in pairs if p.overlap >= MIN_OVERLAP or p.g_c_given_b <= 0 or p.g_b_given_c <= 0]
     if not group:
         return best, None
@@ -178,6 +180,7 @@ def find_confounded(setup: LoopSetup, state: ModelState, pool: dict[str, Candida
 
 def overlap_summary(group: ConfoundedGroup, exclude: Sequence[str] = ()) -> str:
     """One line for a trace: the rivals with their evidence."""
-    parts = [f"{m.effect} (G = {m.gain:.0f}, explains {m.explained_fraction:.0%} alone, overlap {m.overlap_with_best:.0%}, "
+    parts = [f"{m.effect} (G = {m.gain:.0f}, explains {m.explained_fraction:.0%} alone, overlap "
+             f"{m.overlap_with_best:.0%}, "
              f"ρ = {m.contribution_correlation:.2f})" for m in group.members if m.effect not in exclude]
     return ", ".join(parts)

@@ -45,9 +45,18 @@ def random_walk_mle(series: list[np.ndarray], block_s: float) -> tuple[float, fl
         return 0.5 * sum(float(np.sum(np.log(lam) + z**2 / lam)) for z in zs)
 
     s2_0 = float(np.mean([np.var(np.diff(s[:n])) / 2 for s in series])) + 1e-300
-    best = min((optimize.minimize(nll, [math.log(max(s2_0 * f / block_s, 1e-300)), math.log(s2_0)], method="Nelder-Mead",
-                                  options={"xatol": 1e-6, "fatol": 1e-6, "maxiter": 2000})
-                for f in (1e-3, 1e-1, 10.0)), key=lambda r: r.fun)
+    best = min(
+        (
+            optimize.minimize(
+                nll,
+                [math.log(max(s2_0 * f / block_s, 1e-300)), math.log(s2_0)],
+                method="Nelder-Mead",
+                options={"xatol": 1e-6, "fatol": 1e-6, "maxiter": 2000},
+            )
+            for f in (1e-3, 1e-1, 10.0)
+        ),
+        key=lambda r: r.fun,
+    )
     h = 1e-3
     p = best.x
     d2 = (nll(p + [h, 0]) - 2 * nll(p) + nll(p - [h, 0])) / h**2

@@ -240,8 +240,17 @@ def accept_on_every_metric(current: dict[str, MetricSums], declared: dict[str, M
     for against, changes in checks:
         worse = [c for c in changes if c.verdict == "worse"]
         if worse:
-            why = (f"adding {kind} makes {', '.join(c.describe() for c in worse)} worse than {against} beyond its noise "
-                   f"(z > {worse[0].threshold:.2f})")
+            why = (
+                f"adding {kind} makes {', '.join(c.describe() for c in worse)} worse than {against} beyond its noise "
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                f"(z > {worse[0].threshold:.2f})"
+            )
             return against_current, Rejection(rnd, kind, against, changes,
                                               explain_disagreement(list(changes), fitted_on, caveat), why)
     return against_current, None

@@ -31,18 +31,35 @@ from dataclasses import replace
 
 import numpy as np
 
-from gyrosim.effects import (EARTH_RATE_RAD_S, Bias, EarthRate, Effect, GSensitivity, MagneticSensitivity, RateRamp,
-                             Misalignment, NonOrthogonality, RandomWalk, ScaleFactor, ScaleNonlinearity, SignalContext,
-                             TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale, ThermalHysteresis,
-                             TimeOffset, nonortho_matrix)
+from gyrosim.effects import (
+    EARTH_RATE_RAD_S,
+    Bias,
+    EarthRate,
+    Effect,
+    GSensitivity,
+    MagneticSensitivity,
+    Misalignment,
+    NonOrthogonality,
+    RandomWalk,
+    RateRamp,
+    ScaleFactor,
+    ScaleNonlinearity,
+    SignalContext,
+    TemperatureBias,
+    TemperaturePiecewise,
+    TemperatureRBF,
+    TemperatureScale,
+    ThermalHysteresis,
+    TimeOffset,
+    nonortho_matrix,
+)
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.units import G0, RAD2DEG
-
-from calib.temperature.timeblocks import block_means, time_block_index
 
 from calib.closeloop.candidates import Candidate, CandidateFamily, Channel, ReportedTerm, Untestable, register_family
 from calib.closeloop.drift import random_walk_mle
 from calib.closeloop.reference import Reference, motion_field, motion_specific_force
+from calib.temperature.timeblocks import block_means, time_block_index
 
 __all__ = ["earth_rate_summary"]
 
@@ -97,7 +114,8 @@ class _AxisMatrix(_RateDriven):
 
     def implausible(self, kind, theta, sigma, ctx):
         if np.any(np.abs(theta) >= 0.99 * self.bound):
-            return (f"fitted {kind} reaches ±{self.bound:g} (a {self.bound * 100:.0f} % axis error): not a sensor defect "
+            return (f"fitted {kind} reaches ±{self.bound:g} (a {self.bound * 100:.0f} % axis error): not a sensor "
+                    "defect "
                     "but a different solution of the self-consistency equations")
         return super().implausible(kind, theta, sigma, ctx)
 

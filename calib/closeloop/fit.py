@@ -35,8 +35,20 @@ import numpy as np
 from calib.closeloop.candidates import Candidate
 from calib.closeloop.reference import Reference
 
-__all__ = ["FitResult", "fit_model", "integrated_time", "HeldOutScore", "held_out_score", "held_out_split", "noise_tau", "UnionDesign", "cluster_robust",
-           "reduce_rows", "design_rows", "stack_bounds"]
+__all__ = [
+    "FitResult",
+    "fit_model",
+    "integrated_time",
+    "HeldOutScore",
+    "held_out_score",
+    "held_out_split",
+    "noise_tau",
+    "UnionDesign",
+    "cluster_robust",
+    "reduce_rows",
+    "design_rows",
+    "stack_bounds",
+]
 
 CHUNK_ROWS = 20_000
 

@@ -43,7 +43,6 @@ from gyrosim.rotations import quat_angle_between
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0, RAD2DEG
 
-from calib.inputs import CLOSELOOP, check_recording
 from calib.closeloop.candidates import BuildOptions, Candidate, FittedTerm, Untestable
 from calib.closeloop.catalogue import build_candidate, candidate_kinds, family_for
 from calib.closeloop.confounding import overlap_summary
@@ -58,8 +57,16 @@ from calib.closeloop.reference import GravityReference, NoReferenceError, RateRe
 from calib.closeloop.result import Finding, LoopReport, trace_of
 from calib.closeloop.select import GyroSteps
 from calib.closeloop.state import LoopSetup, ModelState, refit
-from calib.closeloop.structure import ChannelCorrelation, JitterGrowth, SpectralLine, channel_correlations, spectral_lines, \
-    variance_growth, whiteness
+from calib.closeloop.structure import (
+    ChannelCorrelation,
+    JitterGrowth,
+    SpectralLine,
+    channel_correlations,
+    spectral_lines,
+    variance_growth,
+    whiteness,
+)
+from calib.inputs import CLOSELOOP, check_recording
 
 __all__ = ["Finding", "RateEvidence", "CloseloopResult", "Unexplained", "Checks", "run_closeloop", "DEFAULT_DECLARED",
            "JSON_KEYS"]
@@ -133,9 +140,26 @@ class Checks(JsonView):
 
 
 #: report.json's keys, in the order ``calib closeloop`` writes them (promises: add, don't rename)
-JSON_KEYS = ("reference", "reference_description", "notes", "declared", "declared_params", "found", "unexplained",
-             "not_tested", "not_distinguished", "error_before", "error_after", "checks", "rounds", "metrics", "rejected",
-             "disagreements", "tested", "identifiability")
+JSON_KEYS = (
+    "reference",
+    "reference_description",
+    "notes",
+    "declared",
+    "declared_params",
+    "found",
+    "unexplained",
+    "not_tested",
+    "not_distinguished",
+    "error_before",
+    "error_after",
+    "checks",
+    "rounds",
+    "metrics",
+    "rejected",
+    "disagreements",
+    "tested",
+    "identifiability",
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -466,8 +490,11 @@ def _final_covariance(setup: LoopSetup, final: ModelState) -> FitResult:
     influence = (f0.cov / (f0.sigma**2 * f0.tau_int)) @ j.T if f0.sigma > 0 else None
     cov = fit.cov
     for i, t in enumerate(final.terms):
-        extra = t.family.extra_covariance(t, influence, ref, _residual_without(setup, final, i)) if influence is not None \
+        extra = (
+            t.family.extra_covariance(t, influence, ref, _residual_without(setup, final, i))
+            if influence is not None
             else None
+        )
         if extra is not None:
             cov = cov + extra
     return replace(fit, cov=cov)
@@ -537,8 +564,10 @@ def _unexplained(ref: Reference, rec: Recording, r: np.ndarray, held: np.ndarray
     parts = []
     if lines:
         l0 = lines[0]
-        parts.append(f"spectral line at {l0.frequency_hz:.2f} Hz on {l0.axis} (amplitude {l0.amplitude_rad_s * RAD2DEG:.3g} "
-                     f"°/s, {l0.ratio:.0f}× the background)" + (f" and {len(lines) - 1} more" if len(lines) > 1 else ""))
+        parts.append(
+            f"spectral line at {l0.frequency_hz:.2f} Hz on {l0.axis} (amplitude {l0.amplitude_rad_s * RAD2DEG:.3g} "
+            f"°/s, {l0.ratio:.0f}× the background)" + (f" and {len(lines) - 1} more" if len(lines) > 1 else "")
+        )
     if corr:
         c0 = corr[0]
         parts.append(f"residual {c0.axis} correlates with {c0.channel} (ρ = {c0.rho:.3f}, {c0.z:.1f}σ)"

@@ -37,7 +37,7 @@ from scipy import signal as sp_signal
 from gyrosim.effects import SignalContext
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
-from gyrosim.rotations import (quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix, quat_to_rotvec)
+from gyrosim.rotations import quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix, quat_to_rotvec
 from gyrosim.simulate import EARTH_FIELD_ENU_UT
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0
@@ -227,8 +227,10 @@ def optical_reference(rec: Recording, holdout_s: float, exclude: np.ndarray, blo
     if bad.any():  # the attitude of the regressors (Earth rate) only: hold the last good one
         idx = np.maximum.accumulate(np.where(~bad, np.arange(q.shape[0]), 0))
         q_fill = q[idx]
-    notes = [f"optical rate from consecutive orientations, block means over {block} samples ({block / fs * 1e3:.0f} ms)",
-             f"regressors use the optical rate low-passed at {smooth_hz:g} Hz (zero-phase)"]
+    notes = [
+        f"optical rate from consecutive orientations, block means over {block} samples ({block / fs * 1e3:.0f} ms)",
+        f"regressors use the optical rate low-passed at {smooth_hz:g} Hz (zero-phase)",
+    ]
     return _rate_reference("optical", "optical orientation (opt_quat) differentiated", rec,
                            _context(rec, smooth, q_fill), block, bref, ok & ~exclude, holdout_s, notes)
 
@@ -237,9 +239,17 @@ def static_reference(rec: Recording, holdout_s: float, exclude: np.ndarray, bloc
     fs = 1.0 / float(np.median(np.diff(rec.t_s)))
     block = max(1, int(round(block_s * fs)))
     zero = np.zeros_like(rec.gyro_rad_s)
-    return _rate_reference("static", "at rest: zero rate (the Earth rate is a candidate)", rec, _context(rec, zero, None),
-                           block, np.zeros((rec.t_s.size // block, 3)), ~exclude, holdout_s,
-                           [f"block means over {block} samples ({block_s:g} s)"])
+    return _rate_reference(
+        "static",
+        "at rest: zero rate (the Earth rate is a candidate)",
+        rec,
+        _context(rec, zero, None),
+        block,
+        np.zeros((rec.t_s.size // block, 3)),
+        ~exclude,
+        holdout_s,
+        [f"block means over {block} samples ({block_s:g} s)"],
+    )
 
 
 @dataclass
@@ -280,8 +290,10 @@ class GravityReference(Reference):
         idx = np.arange(residual.size)
         rate = residual[(idx < k) & rows] * self.rest_sigma_rad_s
         tilt = residual[(idx >= k) & rows] * self.tilt_sigma_rad
-        return {"held_out_rest_rate_rms_deg_s": float(np.degrees(np.sqrt(np.mean(rate**2)))) if rate.size else float("nan"),
-                "held_out_tilt_rms_deg": float(np.degrees(np.sqrt(np.mean(tilt**2)))) if tilt.size else float("nan")}
+        return {
+            "held_out_rest_rate_rms_deg_s": float(np.degrees(np.sqrt(np.mean(rate**2)))) if rate.size else float("nan"),
+            "held_out_tilt_rms_deg": float(np.degrees(np.sqrt(np.mean(tilt**2)))) if tilt.size else float("nan"),
+        }
 
     def _moves(self):
         for j in range(len(self.rests) - 1):
@@ -344,7 +356,9 @@ def calibrate_accelerometer_at_rest(means_m_s2: np.ndarray):
         if all(float(d @ e) < math.cos(math.radians(10.0)) for e in distinct):
             distinct.append(d)
     k = len(distinct)
-    before = f"|acc| at rest {mags.min():.3f}–{mags.max():.3f} m/s² over {means_m_s2.shape[0]} rests ({k} distinct poses)"
+    before = (
+        f"|acc| at rest {mags.min():.3f}–{mags.max():.3f} m/s² over {means_m_s2.shape[0]} rests ({k} distinct poses)"
+    )
     n_par = 9 if k >= 12 else 6 if k >= 8 else 0
     if n_par == 0:
         return (lambda f: f), before + " (too few distinct poses to calibrate the accelerometer: used as measured)"
@@ -406,7 +420,8 @@ def gravity_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> 
              acc_note,
              "held-out unit: one rest pose and the move into it"]
     if turns:
-        notes.append(f"{len(turns)} protocol full turns (meta 'segments' *_rot): the integrated rotation must be 0 mod 360°")
+        notes.append(f"{len(turns)} protocol full turns (meta 'segments' *_rot): the integrated rotation must be 0 mod "
+                     "360°")
     gaps = np.diff(t) > 1.5 / fs
     if gaps.any():
         notes.append(f"{int(gaps.sum())} timestamp gap(s) up to {np.diff(t).max() * 1e3:.0f} ms: integrated over the "

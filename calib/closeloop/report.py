@@ -133,7 +133,9 @@ def write_closeloop_report(out: str | Path, rec: Recording, res: CloseloopResult
             for f in res.found:
                 series = res.follows_series.get(f.effect)
                 if series is not None:
-                    plots.append(_plot_vs_regressor(res, res.rows_of, f.effect, series, out / f"residual_vs_{f.effect}.png"))
+                    plots.append(
+                        _plot_vs_regressor(res, res.rows_of, f.effect, series, out / f"residual_vs_{f.effect}.png")
+                    )
     # written for every result: with no reference it opens on the text saying why nothing was analysed
     paths["rrd"] = _write_rrd(res, out / "closeloop.rrd")
     paths["md"] = out / "report.md"
@@ -153,7 +155,9 @@ def mag_markdown(m: MagLoopResult) -> list[str]:
     lines += ["", f"Unexplained structure: {m.unexplained.summary if m.unexplained.analysed else '—'}"]
     lines += [f"- not tested: {k}: {v}" for k, v in m.not_tested.items()]
     lines += [f"- refused: round {r.round}: {r.effect} — {r.why}" for r in m.rejected]
-    lines += [f"- confounded: round {g.round}: {g.chosen} vs {', '.join(g.rivals)} — {g.why}" for g in m.not_distinguished]
+    lines += [
+        f"- confounded: round {g.round}: {g.chosen} vs {', '.join(g.rivals)} — {g.why}" for g in m.not_distinguished
+    ]
     lines += [f"- note: {n}" for n in m.notes]
     return lines
 
@@ -163,10 +167,17 @@ def _fmt_err(e: dict) -> str:
 
 
 def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
-    lines = ["# Close-the-loop report", "",
-             f"Recording: {recinfo['source'] or '(unnamed)'} — {recinfo['samples']} samples, {recinfo['duration_s']:.1f} s.",
-             f"Reference: **{res.reference}** — {res.reference_description}.", "",
-             f"Declared model: {', '.join(res.declared)}.", "", "## What the residual says", ""]
+    lines = [
+        "# Close-the-loop report",
+        "",
+        f"Recording: {recinfo['source'] or '(unnamed)'} — {recinfo['samples']} samples, {recinfo['duration_s']:.1f} s.",
+        f"Reference: **{res.reference}** — {res.reference_description}.",
+        "",
+        f"Declared model: {', '.join(res.declared)}.",
+        "",
+        "## What the residual says",
+        "",
+    ]
     if res.found:
         lines += [f"{i + 1}. {f.trace}" for i, f in enumerate(res.found)]
     elif not res.tested:
@@ -208,7 +219,13 @@ def _markdown(res: CloseloopResult, recinfo: dict, plots: list[Path]) -> str:
                       f"best {m.overlap_with_best:.0%}, contribution correlation {m.contribution_correlation:.2f}"
                       for m in g.members]
     lines += ["", "## Not tested", ""] + [f"- {k}: {v}" for k, v in res.not_tested.items()]
-    lines += ["", "## Candidate scores (round 1)", "", "| effect | held-out gain G | added parameters |", "|---|---|---|"]
+    lines += [
+        "",
+        "## Candidate scores (round 1)",
+        "",
+        "| effect | held-out gain G | added parameters |",
+        "|---|---|---|",
+    ]
     for r in (res.rounds[0].scores if res.rounds else ()):
         lines.append(f"| {r.effect} | {r.gain:.1f} | {r.added_parameters} |" if r.gain is not None
                      else f"| {r.effect} | — | {r.added_parameters} |")

@@ -31,8 +31,18 @@ import rerun.blueprint as rrb
 from scipy import signal as sp_signal
 
 from gyrosim.units import RAD2DEG
-from gyrosim.viewer import (MARK_COLOURS, Span, log_bars, log_marks, log_story, scalar_style, send_series, series_view,
-                            shared_range, story_blueprint)
+from gyrosim.viewer import (
+    MARK_COLOURS,
+    Span,
+    log_bars,
+    log_marks,
+    log_story,
+    scalar_style,
+    send_series,
+    series_view,
+    shared_range,
+    story_blueprint,
+)
 
 from calib.closeloop.loop import CloseloopResult
 
@@ -69,7 +79,9 @@ def _intervals(t: np.ndarray) -> list[tuple[float, float]]:
     return [(float(t[a]), float(t[b])) for a, b in zip(starts, ends)]
 
 
-def _binned(x: np.ndarray, r: np.ndarray, bins: int = 25, min_count: int = 20) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _binned(
+    x: np.ndarray, r: np.ndarray, bins: int = 25, min_count: int = 20
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean of r in equal-width bins of x between its 1 % and 99 % quantiles (bins with fewer than
     ``min_count`` rows dropped: their mean is noise): (bin centres, means, bin widths)."""
     lo, hi = np.quantile(x, [0.01, 0.99])
@@ -123,16 +135,26 @@ def closeloop_story(res: CloseloopResult) -> str:
     lines.append("Unexplained: " + (res.unexplained.summary or "nothing significant") + ".")
     mag = getattr(res, "magnetometer", None)
     if mag is not None:  # the magnetometer's own loop (report.json "magnetometer"): its findings in words
-        lines.append("Magnetometer: " + (" ".join(f"({i + 1}) {_short(f.trace)}." for i, f in enumerate(mag.found))
-                                         or "found nothing beyond the declared model.") +
-                     (f" {len(mag.disturbances)} local disturbance(s) left as unexplained structure." if mag.disturbances
-                      else ""))
+        lines.append(
+            "Magnetometer: "
+            + (
+                " ".join(f"({i + 1}) {_short(f.trace)}." for i, f in enumerate(mag.found))
+                or "found nothing beyond the declared model."
+            )
+            + (
+                f" {len(mag.disturbances)} local disturbance(s) left as unexplained structure."
+                if mag.disturbances
+                else ""
+            )
+        )
     if _is_time_series(res):
         n = len(res.unexplained.spectral_lines)
-        lines.append(f"Right: per found effect, the held-out residual ({unit}) binned against what it follows (grey "
-                     f"wide bars: declared model, coloured narrow bars: after the loop); below, the residual's amplitude "
-                     f"spectrum (°/s/√Hz against Hz), before and after"
-                     f"{f', {n} unexplained line(s) in red' if n else ' (no unexplained line)'}.")
+        lines.append(
+            f"Right: per found effect, the held-out residual ({unit}) binned against what it follows (grey "
+            f"wide bars: declared model, coloured narrow bars: after the loop); below, the residual's amplitude "
+            f"spectrum (°/s/√Hz against Hz), before and after"
+            f"{f', {n} unexplained line(s) in red' if n else ' (no unexplained line)'}."
+        )
     return "\n".join(lines)
 
 
@@ -145,10 +167,18 @@ def closeloop_blueprint(res: CloseloopResult, span: Span, y_range: tuple[float, 
         return story_blueprint(rrb.TextDocumentView(origin="closeloop/notes", name="notes"), story_share=3.0,
                                body_share=1.0)
     _, unit = _scale(res)
-    axes = rrb.Vertical(*[
-        series_view("closeloop", f"residual {a} ({unit}): declared (grey) vs after the loop (blue)", span, y_range=y_range,
-                    contents=[f"closeloop/residual_before/{a}", f"closeloop/residual_after/{a}", f"marks/held_out/{a}"])
-        for a in AXES])
+    axes = rrb.Vertical(
+        *[
+            series_view(
+                "closeloop",
+                f"residual {a} ({unit}): declared (grey) vs after the loop (blue)",
+                span,
+                y_range=y_range,
+                contents=[f"closeloop/residual_before/{a}", f"closeloop/residual_after/{a}", f"marks/held_out/{a}"],
+            )
+            for a in AXES
+        ]
+    )
     right = []
     for effect in regressors:
         right.append(rrb.Horizontal(*[rrb.BarChartView(
@@ -164,7 +194,9 @@ def closeloop_blueprint(res: CloseloopResult, span: Span, y_range: tuple[float, 
                            body_share=4.0)
 
 
-def write_closeloop_rrd(res: CloseloopResult, path: str | Path, application_id: str = "gyrosim_calib_closeloop") -> Path:
+def write_closeloop_rrd(
+    res: CloseloopResult, path: str | Path, application_id: str = "gyrosim_calib_closeloop"
+) -> Path:
     """Write ``closeloop.rrd`` (module docstring) for ``res``; a result with no reference still gets
     its story and a sensible (text) view."""
     path = Path(path)
@@ -191,8 +223,16 @@ def write_closeloop_rrd(res: CloseloopResult, path: str | Path, application_id: 
             send_series(stream, p, res.row_time_s[m], r[m] * scale)
             level = y_range[1] - 0.04 * (y_range[1] - y_range[0])
             if name == "before":
-                log_marks(stream, f"marks/held_out/{AXES[a]}", span, level, intervals=_intervals(res.row_time_s[m & held]),
-                          name="held out", colour=MARK_COLOURS["held_out"], points_per_span=300)
+                log_marks(
+                    stream,
+                    f"marks/held_out/{AXES[a]}",
+                    span,
+                    level,
+                    intervals=_intervals(res.row_time_s[m & held]),
+                    name="held out",
+                    colour=MARK_COLOURS["held_out"],
+                    points_per_span=300,
+                )
     regressors: dict[str, str] = {}
     if res.rows_of is not None:
         for f in res.found:
@@ -221,7 +261,9 @@ def write_closeloop_rrd(res: CloseloopResult, path: str | Path, application_id: 
                 df = float(f[1] - f[0]) if f.size > 1 else 1.0
                 for a in range(3):
                     colour = AXIS_COLOURS[AXES[a]] if name == "after" else BEFORE
-                    log_bars(stream, f"closeloop/spectrum/{AXES[a]}/{name}", f, asd[:, a], np.full(f.size, w * df), colour)
+                    log_bars(
+                        stream, f"closeloop/spectrum/{AXES[a]}/{name}", f, asd[:, a], np.full(f.size, w * df), colour
+                    )
             for a in AXES:  # the unexplained lines, on the spectrum after the loop
                 lines = [l for l in res.unexplained.spectral_lines if l.axis == a]
                 if lines:

@@ -79,7 +79,9 @@ def spectral_lines(r: np.ndarray, fs_hz: float, *, alpha: float = 1e-3, segments
     return lines[:max_lines]
 
 
-def channel_correlations(r: np.ndarray, channels: dict[str, np.ndarray], *, alpha: float = 1e-3) -> list[ChannelCorrelation]:
+def channel_correlations(
+    r: np.ndarray, channels: dict[str, np.ndarray], *, alpha: float = 1e-3
+) -> list[ChannelCorrelation]:
     """Significant correlations of each residual axis (N, 3) with each channel (N,) (see module docstring)."""
     out = []
     tests = max(1, r.shape[1] * len(channels))

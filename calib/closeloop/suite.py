@@ -70,8 +70,21 @@ from calib.closeloop.catalogue import family_for
 from calib.closeloop.loop import DEFAULT_DECLARED, CloseloopResult, run_closeloop
 from calib.closeloop.mag.terms import MAG_TERMS, mag_term
 
-__all__ = ["SUITE", "HARD_SUITE", "MAG_SUITE", "BASE_SENSOR", "WARM_UP", "SuiteCase", "CaseResult", "SuiteRow", "sensor_with",
-           "run_case", "run_suite", "suite_truth", "format_suite"]
+__all__ = [
+    "SUITE",
+    "HARD_SUITE",
+    "MAG_SUITE",
+    "BASE_SENSOR",
+    "WARM_UP",
+    "SuiteCase",
+    "CaseResult",
+    "SuiteRow",
+    "sensor_with",
+    "run_case",
+    "run_suite",
+    "suite_truth",
+    "format_suite",
+]
 
 D = math.pi / 180.0
 MG = 1e-3 * G0
@@ -179,13 +192,23 @@ def _slow_schedule():
     base = load_schedule("zhou2020")
     segs = []
     for s in base.segments:
-        d = {"kind": s.kind, "duration_s": s.duration_s * (2.0 if s.kind == "rest" else 4.0 if s.kind == "rotate" else 2.0)}
+        d = {
+            "kind": s.kind,
+            "duration_s": s.duration_s * (2.0 if s.kind == "rest" else 4.0 if s.kind == "rotate" else 2.0),
+        }
         if s.axis_body is not None:
             d["axis"] = [float(v) for v in s.axis_body]
             d["angle_deg"] = math.degrees(s.angle_rad)
         segs.append(d)
-    return schedule_from_dict({"name": "zhou2020_slow", "description": "zhou2020 rotations at a quarter of the rate",
-                               "initial_quat": [float(v) for v in base.initial_quat_nb], "segments": segs}, "zhou2020_slow")
+    return schedule_from_dict(
+        {
+            "name": "zhou2020_slow",
+            "description": "zhou2020 rotations at a quarter of the rate",
+            "initial_quat": [float(v) for v in base.initial_quat_nb],
+            "segments": segs,
+        },
+        "zhou2020_slow",
+    )
 
 
 @lru_cache(maxsize=4)
@@ -340,9 +363,22 @@ def _mag_case(name: str, case: SuiteCase, rec: Recording, res: CloseloopResult) 
     if case.expected:
         err_correct = run_mag_loop(rec, case.expected, candidates=[]).error_before["held_out_field_residual_rms"]
     key = "held_out_field_residual_rms"
-    return CaseResult(name, found, case.expected, bool(named_first), bool(named_all),
-                      [k for k in found if k in case.forbidden], z, mag.error_before.get(key, math.nan),
-                      mag.error_after.get(key, mag.error_before.get(key, math.nan)), err_correct, res, est_a, tru_a, sig_a)
+    return CaseResult(
+        name,
+        found,
+        case.expected,
+        bool(named_first),
+        bool(named_all),
+        [k for k in found if k in case.forbidden],
+        z,
+        mag.error_before.get(key, math.nan),
+        mag.error_after.get(key, mag.error_before.get(key, math.nan)),
+        err_correct,
+        res,
+        est_a,
+        tru_a,
+        sig_a,
+    )
 
 
 def _quantity(kind: str) -> str:
@@ -381,11 +417,22 @@ def run_suite(cases: Sequence[str], seeds: Sequence[int], progress: Callable[[st
             res.append(run_case(name, None, s, truth_seed=truth_seed, hand=hand))
         z = [r.z_max for r in res if math.isfinite(r.z_max)]
         ratios = [r.ratio_to_correct for r in res if math.isfinite(r.error_correct)]
-        rows.append(SuiteRow(name, case.description, len(res), sum(r.named_all for r in res),
-                             sum(r.named_first for r in res), sum(bool(r.forbidden_added) for r in res),
-                             sum(bool(r.found) for r in res), max(z) if z else math.nan,
-                             float(np.mean([r.error_declared for r in res])), float(np.mean([r.error_loop for r in res])),
-                             max(ratios) if ratios else math.nan, [r.found for r in res]))
+        rows.append(
+            SuiteRow(
+                name,
+                case.description,
+                len(res),
+                sum(r.named_all for r in res),
+                sum(r.named_first for r in res),
+                sum(bool(r.forbidden_added) for r in res),
+                sum(bool(r.found) for r in res),
+                max(z) if z else math.nan,
+                float(np.mean([r.error_declared for r in res])),
+                float(np.mean([r.error_loop for r in res])),
+                max(ratios) if ratios else math.nan,
+                [r.found for r in res],
+            )
+        )
     return rows
 
 
@@ -402,9 +449,18 @@ def format_suite(rows: Sequence[SuiteRow]) -> str:
             out.append(f"| {r.case} | — | — | — | {r.added_anything}/{r.seeds} | — | {r.error_declared:.4f} → "
                        f"{r.error_loop:.4f} | — |")
             continue
-        out.append(f"| {r.case} | {r.named_all}/{r.seeds} | {r.named_first}/{r.seeds} | {r.forbidden_added}/{r.seeds} | "
-                   f"{r.added_anything}/{r.seeds} | {r.z_max:.2f} | {r.error_declared:.4f} → {r.error_loop:.4f} | "
-                   f"{r.ratio_to_correct:.3f} |")
+        out.append(
+            f"| {r.case} | {r.named_all}/{r.seeds} | {r.named_first}/{r.seeds} | {r.forbidden_added}/{r.seeds} | "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            f"{r.added_anything}/{r.seeds} | {r.z_max:.2f} | {r.error_declared:.4f} → {r.error_loop:.4f} | "
+            f"{r.ratio_to_correct:.3f} |"
+        )
     return "\n".join(out)
 
 

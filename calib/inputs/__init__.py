@@ -30,19 +30,88 @@ short              fewer samples or seconds than the method needs               
 =================  ===================================================================  =====================
 """
 
-from calib.inputs.boundary import (MAX_INSERTED_FRACTION, ReadInfo, check_recording, load_recording, open_recording,
-                       prepare_recording, read_recording, repaired_mask)
+from calib.inputs.boundary import (
+                       MAX_INSERTED_FRACTION,
+                       ReadInfo,
+                       check_recording,
+                       load_recording,
+                       open_recording,
+                       prepare_recording,
+                       read_recording,
+                       repaired_mask,
+)
 from calib.inputs.csvfile import CSV_COLUMNS, KNOWN_COLUMNS, resample_temperature
-from calib.inputs.errors import (DegenerateError, FieldError, FormatError, GapError, InputError, MotionError, RateError, SpikeError,
-                     TemperatureTrendError, TimeBaseError, TooShortError, UnitError)
+from calib.inputs.errors import (
+                       DegenerateError,
+                       FieldError,
+                       FormatError,
+                       GapError,
+                       InputError,
+                       MotionError,
+                       RateError,
+                       SpikeError,
+                       TemperatureTrendError,
+                       TimeBaseError,
+                       TooShortError,
+                       UnitError,
+)
 from calib.inputs.plausibility import MAX_PLAUSIBLE_RATE_RAD_S
 from calib.inputs.report import InputCheck, InputReport, Loaded
-from calib.inputs.requirements import ALLAN, CLOSELOOP, GENERIC, INSPECT, KF, MAG, NOISE, NORTHFIND, RATETABLE, TEMPERATURE, TILT, Requirements
+from calib.inputs.requirements import (
+                       ALLAN,
+                       CLOSELOOP,
+                       GENERIC,
+                       INSPECT,
+                       KF,
+                       MAG,
+                       NOISE,
+                       NORTHFIND,
+                       RATETABLE,
+                       TEMPERATURE,
+                       TILT,
+                       Requirements,
+)
 from calib.inputs.saturation import saturated_samples
 
-__all__ = ["open_recording", "load_recording", "prepare_recording", "read_recording", "check_recording", "repaired_mask",
-           "Loaded", "InputReport", "InputCheck", "ReadInfo", "Requirements", "KF", "CLOSELOOP", "ALLAN", "NOISE", "INSPECT", "MAG", "NORTHFIND", "TILT",
-           "TEMPERATURE", "RATETABLE", "GENERIC", "CSV_COLUMNS", "KNOWN_COLUMNS", "MAX_PLAUSIBLE_RATE_RAD_S",
-           "MAX_INSERTED_FRACTION", "resample_temperature", "saturated_samples", "InputError", "FormatError", "FieldError",
-           "TimeBaseError", "GapError", "RateError", "UnitError", "SpikeError", "DegenerateError", "MotionError",
-           "TooShortError", "TemperatureTrendError"]
+__all__ = [
+    "open_recording",
+    "load_recording",
+    "prepare_recording",
+    "read_recording",
+    "check_recording",
+    "repaired_mask",
+    "Loaded",
+    "InputReport",
+    "InputCheck",
+    "ReadInfo",
+    "Requirements",
+    "KF",
+    "CLOSELOOP",
+    "ALLAN",
+    "NOISE",
+    "INSPECT",
+    "MAG",
+    "NORTHFIND",
+    "TILT",
+    "TEMPERATURE",
+    "RATETABLE",
+    "GENERIC",
+    "CSV_COLUMNS",
+    "KNOWN_COLUMNS",
+    "MAX_PLAUSIBLE_RATE_RAD_S",
+    "MAX_INSERTED_FRACTION",
+    "resample_temperature",
+    "saturated_samples",
+    "InputError",
+    "FormatError",
+    "FieldError",
+    "TimeBaseError",
+    "GapError",
+    "RateError",
+    "UnitError",
+    "SpikeError",
+    "DegenerateError",
+    "MotionError",
+    "TooShortError",
+    "TemperatureTrendError",
+]

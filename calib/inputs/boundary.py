@@ -36,8 +36,18 @@ from calib.inputs.csvfile import read_csv_text
 from calib.inputs.decimate import decimate as _decimate
 from calib.inputs.decimate import decimation_factor
 from calib.inputs.degenerate import degenerate_problems
-from calib.inputs.errors import (DegenerateError, FormatError, GapError, InputError, MotionError, RateError, SpikeError,
-                     TimeBaseError, TooShortError, UnitError)
+from calib.inputs.errors import (
+    DegenerateError,
+    FormatError,
+    GapError,
+    InputError,
+    MotionError,
+    RateError,
+    SpikeError,
+    TimeBaseError,
+    TooShortError,
+    UnitError,
+)
 from calib.inputs.gaps import Gaps, bridge_gaps, find_gaps, gaps_warning
 from calib.inputs.hdf5file import read_hdf5
 from calib.inputs.motion import rotation_consistency, summarise_motion
@@ -47,7 +57,14 @@ from calib.inputs.requirements import GENERIC, Requirements
 from calib.inputs.saturation import saturated_samples
 from calib.inputs.sniff import SEPARATOR_NAMES, sniff
 from calib.inputs.spikes import find_spikes, repair_spikes
-from calib.inputs.timebase import AmbiguousTimeUnit, TimeBase, detect_time_unit, normalise_time_unit, time_base, to_seconds
+from calib.inputs.timebase import (
+    AmbiguousTimeUnit,
+    TimeBase,
+    detect_time_unit,
+    normalise_time_unit,
+    time_base,
+    to_seconds,
+)
 
 __all__ = ["read_recording", "prepare_recording", "open_recording", "load_recording", "check_recording",
            "ReadInfo", "repaired_mask", "MAX_INSERTED_FRACTION"]
@@ -236,13 +253,29 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
         spk = find_spikes(rec)
         if spk.stretches:
             ch, a, b = spk.stretches[0]
-            fail(SpikeError(
-                f"{where}: {ch} holds a corrupt stretch of {b - a + 1} samples (t = {rec.t_s[a]:.4f}–{rec.t_s[b]:.4f} s) "
-                f"far outside the rest of its data{f' and {len(spk.stretches) - 1} more' if len(spk.stretches) > 1 else ''}; "
-                "too long to be excluded as spikes: cut that part of the recording"))
+            fail(
+                SpikeError(
+                    f"{where}: {ch} holds a corrupt stretch of {b - a + 1} samples (t = "
+                    f"{rec.t_s[a]:.4f}–{rec.t_s[b]:.4f} s) "
+                    "far outside the rest of its "
+                    f"data{f' and {len(spk.stretches) - 1} more' if len(spk.stretches) > 1 else ''}; "
+                    "too long to be excluded as spikes: cut that part of the recording"
+                )
+            )
         elif spk.count > max(1, req.max_spike_fraction * rec.n):
-            fail(SpikeError(f"{where}: {_describe_spikes(spk, rec.t_s)} — more than {req.max_spike_fraction:.0%} of the "
-                            "samples: the data are corrupt, not occasionally glitched; fix the logger or the export"))
+            fail(
+                SpikeError(
+                    f"{where}: {_describe_spikes(spk, rec.t_s)} — more than {req.max_spike_fraction:.0%} of the "
+                    ""
+                    ""
+                    ""
+                    ""
+                    ""
+                    ""
+                    ""
+                    "samples: the data are corrupt, not occasionally glitched; fix the logger or the export"
+                )
+            )
         elif spk.count:
             rec = repair_spikes(rec, spk)
             repaired |= spk.any_sample
@@ -269,16 +302,21 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
                 f"{rec.t_s[int(np.argmax(inserted))]:.4f} s)")
             gaps = find_gaps(rec.t_s)
         elif small.any():
-            fail(GapError(f"{where}: {int(gaps.missing[small].sum())} samples are missing in {int(small.sum())} short gaps "
+            fail(GapError(f"{where}: {int(gaps.missing[small].sum())} samples are missing in {int(small.sum())} short "
+                          "gaps "
                           f"(more than {MAX_INSERTED_FRACTION:.0%} of the record): a lossy link, not a few dropped "
                           "packets; fix the logging"))
         if gaps.count:
             if req.gaps == "allow":
                 warnings.append(gaps_warning(gaps, rec.t_s))
             else:
-                fail(GapError(f"{where}: {gaps.describe(rec.t_s)}; gaps of up to {req.max_bridged_gap_samples} missing "
-                              "samples are bridged, this one is longer: the strapdown integration cannot cross it; split "
-                              "the recording or fill it"))
+                fail(
+                    GapError(
+                        f"{where}: {gaps.describe(rec.t_s)}; gaps of up to {req.max_bridged_gap_samples} missing "
+                        "samples are bridged, this one is longer: the strapdown integration cannot cross it; split "
+                        "the recording or fill it"
+                    )
+                )
 
     # 5. rate
     n_dec = 1
@@ -292,7 +330,8 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
                 fail(TooShortError(f"{where}: decimating {rec.n} samples by {n_dec} leaves fewer than 2"))
             else:
                 rec, repaired = _decimate(rec, n_dec, repaired)
-                warnings.append(f"decimated by {n_dec} (block means): {measured_rate:.6g} Hz → {measured_rate / n_dec:.6g} Hz")
+                warnings.append(f"decimated by {n_dec} (block means): {measured_rate:.6g} Hz → "
+                                f"{measured_rate / n_dec:.6g} Hz")
     rate = 1.0 / float(np.median(np.diff(rec.t_s)))
     if req.rate_hz is not None:
         lo, hi = req.rate_hz
@@ -303,13 +342,19 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
                 + (f" ({req.why_max_rate})" if req.why_max_rate else "")
                 + f"; pass {req.decimate_option} {n} (or auto) to average blocks of {n} samples → {rate / n:.6g} Hz"))
         elif rate < lo * 0.98:
-            fail(RateError(f"{where}: {rate:.4g} Hz is below the {lo:g} Hz that {req.name} supports (the strapdown "
-                           "integration between samples aliases the hand's motion); record at a higher rate"
-                           + ("; if the time column is not in seconds, pass --time-unit" if tb and tb.unit == "s" else "")))
+            fail(
+                RateError(
+                    f"{where}: {rate:.4g} Hz is below the {lo:g} Hz that {req.name} supports (the strapdown "
+                    "integration between samples aliases the hand's motion); record at a higher rate"
+                    + ("; if the time column is not in seconds, pass --time-unit" if tb and tb.unit == "s" else "")
+                )
+            )
     # 6. length
     duration = float(rec.t_s[-1] - rec.t_s[0])
     if rec.n < req.min_samples or duration < req.min_duration_s:
-        need = " and ".join([f"{req.min_samples} samples"] + ([f"{req.min_duration_s:g} s"] if req.min_duration_s else []))
+        need = " and ".join(
+            [f"{req.min_samples} samples"] + ([f"{req.min_duration_s:g} s"] if req.min_duration_s else [])
+        )
         fail(TooShortError(f"{where}: {rec.n} samples over {duration:.4g} s; {req.name} needs at least {need}"))
 
     # 7. units, 8. motion
@@ -326,15 +371,32 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
             still = motion.longest_still()
             hint = (f"; its longest still stretch is t = {still[0]:.1f}–{still[1]:.1f} s: cut that out"
                     if still and still[1] - still[0] >= 10 * motion.window_s else "")
-            fail(MotionError(
-                f"{where}: the board moves in {motion.moving_fraction:.0%} of its 1-s windows (gravity turns by up to "
-                f"{motion.gravity_swing_deg:.0f}°, the rate departs from its level by up to {motion.peak_rate_rad_s:.2f} "
-                f"rad/s; first at t = {motion.first_motion_s():.1f} s): {req.name} needs a static recording{hint}"))
+            fail(
+                MotionError(
+                    f"{where}: the board moves in {motion.moving_fraction:.0%} of its 1-s windows (gravity turns by up "
+                    "to "
+                    f"{motion.gravity_swing_deg:.0f}°, the rate departs from its level by up to "
+                    f"{motion.peak_rate_rad_s:.2f} "
+                    f"rad/s; first at t = {motion.first_motion_s():.1f} s): {req.name} needs a static recording{hint}"
+                )
+            )
         if req.motion == "required" and motion.gravity_swing_deg < 10.0 and motion.peak_rate_rad_s < 0.2:
-            fail(MotionError(
-                f"{where}: the board never turns (gravity stays within {motion.gravity_swing_deg:.1f}° and the rate within "
-                f"{motion.peak_rate_rad_s:.3f} rad/s of its level): {req.name} estimates scale factors and "
-                "non-orthogonality from rotations; for the noise of a static record use calib allan"))
+            fail(
+                MotionError(
+                    f"{where}: the board never turns (gravity stays within {motion.gravity_swing_deg:.1f}° and the rate "
+                    ""
+                    ""
+                    ""
+                    ""
+                    ""
+                    ""
+                    ""
+                    ""
+                    "within "
+                    f"{motion.peak_rate_rad_s:.3f} rad/s of its level): {req.name} estimates scale factors and "
+                    "non-orthogonality from rotations; for the noise of a static record use calib allan"
+                )
+            )
 
     meta = dict(rec.meta)
     if repaired.any():
@@ -387,23 +449,33 @@ def load_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "
                           decimate=decimate).recording
 
 
-def check_recording(rec: Recording, *, allow_gaps: bool = False, requirements: Requirements | None = None) -> InputCheck:
+def check_recording(
+    rec: Recording, *, allow_gaps: bool = False, requirements: Requirements | None = None
+) -> InputCheck:
     """The check each method runs on the Recording it is given (library calls included).
 
-    Refuses (raises an :class:`InputError` subclass): gaps (unless ``allow_gaps``: listed as a
-    warning), degenerate channels, unrepaired spikes, accelerometer and gyro unit mistakes (peak and
-    rest level), and — with ``requirements`` — too short records, the wrong rate, or a stated
-    ``rate_hz`` that the timestamps contradict.  A recording that passed :func:`prepare_recording`
-    without a problem carries a fingerprint of its signals (``meta['input_checked']``); while the
-    signals still match it, the degenerate, spike and unit checks are not repeated.  Returns the warnings, the saturation mask and the
-    exclusion mask (saturated or repaired samples: no measurement update there)."""
+    Refuses (raises an :class:`InputError` subclass): gaps (unless ``allow_gaps``: listed as a warning), degenerate
+    channels, unrepaired spikes, accelerometer and gyro unit mistakes (peak and rest level), and — with ``requirements``
+    — too short records, the wrong rate, or a stated ``rate_hz`` that the timestamps contradict.  A recording that
+    passed :func:`prepare_recording` without a problem carries a fingerprint of its signals (``meta['input_checked']``);
+    while the signals still match it, the degenerate, spike and unit checks are not repeated.  Returns the warnings, the
+    saturation mask and the exclusion mask (saturated or repaired samples: no measurement update there)."""
     warnings: list[str] = []
     gaps = find_gaps(rec.t_s)
     if gaps.count and allow_gaps:
         warnings.append(gaps_warning(gaps, rec.t_s))
     elif gaps.count:
-        raise GapError(f"{gaps.describe(rec.t_s)}; the strapdown integration cannot cross a gap: split the recording or "
-                       "fill it (calib.inputs.open_recording bridges gaps of a few samples)")
+        raise GapError(
+            f"{gaps.describe(rec.t_s)}; the strapdown integration cannot cross a gap: split the recording or "
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            ""
+            "fill it (calib.inputs.open_recording bridges gaps of a few samples)"
+        )
     checked = rec.meta.get("input_checked")
     if not (isinstance(checked, dict) and checked.get("digest") == _digest(rec)):  # else: passed the boundary as is
         degenerate = degenerate_problems(rec)
@@ -411,9 +483,18 @@ def check_recording(rec: Recording, *, allow_gaps: bool = False, requirements: R
             raise DegenerateError("; ".join(degenerate))
         spk = find_spikes(rec)
         if spk.count or spk.stretches:
-            raise SpikeError(f"{_describe_spikes(spk, rec.t_s) if spk.count else 'a corrupt stretch'} in the recording: "
-                             "load it through calib.inputs.open_recording / prepare_recording, which excludes isolated "
-                             "spikes, or remove them")
+            raise SpikeError(
+                f"{_describe_spikes(spk, rec.t_s) if spk.count else 'a corrupt stretch'} in the recording: "
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                "load it through calib.inputs.open_recording / prepare_recording, which excludes isolated "
+                "spikes, or remove them"
+            )
         msgs = [m for m in (gyro_unit_problem(rec, summarise_motion(rec)), acc_unit_problem(rec)) if m]
         if msgs:
             raise UnitError("; and ".join(msgs))

@@ -134,8 +134,11 @@ def read_csv_text(text: str, path: Path, gyro_unit: str, acc_unit: str) -> CsvRe
     """Parse the decoded text of a CSV recording (see the module docstring)."""
     raw_lines = text.splitlines()
     ends_with_newline = text.endswith(("\n", "\r"))
-    lines = [(i + 1, s) for i, s in enumerate(raw_lines)
-             if s and s[0] != "#" and not ((s[0] in " \t" or s[-1] in " \t") and (not s.strip() or s.lstrip()[0] == "#"))]
+    lines = [
+        (i + 1, s)
+        for i, s in enumerate(raw_lines)
+        if s and s[0] != "#" and not ((s[0] in " \t" or s[-1] in " \t") and (not s.strip() or s.lstrip()[0] == "#"))
+    ]
     if not lines:
         raise FormatError(f"{path} holds no rows (only blank or comment lines): not a recording")
     (header_line, header_text), body = lines[0], lines[1:]
@@ -203,8 +206,10 @@ def read_csv_text(text: str, path: Path, gyro_unit: str, acc_unit: str) -> CsvRe
     if nonfinite.any():
         i, j = np.argwhere(nonfinite)[0]
         raise FieldError(
-            f"{path}: line {body[i][0]}, column {CSV_COLUMNS[j]!r} is {_cells(body[i][1], sep)[core[j]].strip()!r}: NaN/inf is not a "
-            f"measurement ({int(nonfinite.sum())} such value(s)); drop or interpolate those rows")
+            f"{path}: line {body[i][0]}, column {CSV_COLUMNS[j]!r} is {_cells(body[i][1], sep)[core[j]].strip()!r}: "
+            "NaN/inf is not a "
+            f"measurement ({int(nonfinite.sum())} such value(s)); drop or interpolate those rows"
+        )
     t = data[:, col["t"]]
     dt = np.diff(t)
     if np.any(dt <= 0):
@@ -219,8 +224,10 @@ def read_csv_text(text: str, path: Path, gyro_unit: str, acc_unit: str) -> CsvRe
         k = int(np.argmax(dt <= 0))
         what = "repeats" if dt[k] == 0 else "is before"
         raise TimeBaseError(
-            f"{path}: line {body[k + 1][0]} (t = {float(t[k + 1])!r}) {what} line {body[k][0]} (t = {float(t[k])!r}): timestamps must "
-            f"be strictly increasing ({int(np.sum(dt <= 0))} such step(s)); sort or de-duplicate the rows first")
+            f"{path}: line {body[k + 1][0]} (t = {float(t[k + 1])!r}) {what} line {body[k][0]} (t = {float(t[k])!r}): "
+            "timestamps must "
+            f"be strictly increasing ({int(np.sum(dt <= 0))} such step(s)); sort or de-duplicate the rows first"
+        )
     unknown = [h for h in header if h not in CSV_COLUMNS and h not in KNOWN_COLUMNS]
     mag_cols = [c for c in ("mag_x", "mag_y", "mag_z") if c in col]
     if mag_cols and len(mag_cols) < 3:
@@ -239,7 +246,8 @@ def read_csv_text(text: str, path: Path, gyro_unit: str, acc_unit: str) -> CsvRe
         mag = data[:, [col["mag_x"], col["mag_y"], col["mag_z"]]]
         bad_m = ~np.isfinite(mag).all(axis=1)
         if bad_m.any():
-            notes.append(f"the magnetometer has {int(bad_m.sum())} empty/NaN row(s) (first at line {body[int(np.argmax(bad_m))][0]}): "
+            notes.append(f"the magnetometer has {int(bad_m.sum())} empty/NaN row(s) (first at line "
+                         f"{body[int(np.argmax(bad_m))][0]}): "
                          "the mag columns are ignored")
             mag = None
     used = [c for c in header if c not in unknown]

@@ -50,7 +50,14 @@ def decimate(rec: Recording, n: int, excluded: np.ndarray | None = None) -> tupl
     if "rate_hz" in meta:
         meta["rate_hz"] = float(meta["rate_hz"]) / n
     meta["decimated_by"] = n
-    out = Recording(t_s=_blocks(rec.t_s, n, m), gyro_rad_s=_blocks(rec.gyro_rad_s, n, m), acc_m_s2=_blocks(rec.acc_m_s2, n, m),
-                    temp_c=_blocks(rec.temp_c, n, m), mag_ut=_blocks(rec.mag_ut, n, m), truth=truth, meta=meta)
+    out = Recording(
+        t_s=_blocks(rec.t_s, n, m),
+        gyro_rad_s=_blocks(rec.gyro_rad_s, n, m),
+        acc_m_s2=_blocks(rec.acc_m_s2, n, m),
+        temp_c=_blocks(rec.temp_c, n, m),
+        mag_ut=_blocks(rec.mag_ut, n, m),
+        truth=truth,
+        meta=meta,
+    )
     mask = None if excluded is None else np.asarray(excluded, bool)[:m].reshape(-1, n).any(axis=1)
     return out, mask

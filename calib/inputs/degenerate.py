@@ -48,8 +48,17 @@ def degenerate_problems(rec: Recording, sensors: tuple[str, ...] = ("gyro", "acc
         if len(dead) == 3:
             vals = ", ".join(f"{v:.6g}" for v in x[0])
             what = "gyroscope" if name == "gyro" else "accelerometer"
-            out.append(f"the {what} is constant: every one of the {n} samples reads ({vals}); that is a dead sensor, an "
-                       "unconnected channel or the wrong columns, not a measurement")
+            out.append(
+                f"the {what} is constant: every one of the {n} samples reads ({vals}); that is a dead sensor, an "
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                ""
+                "unconnected channel or the wrong columns, not a measurement"
+            )
         elif dead:
             values = ", ".join(f"{x[0, 'xyz'.index(d[-1])]:.6g}" for d in dead)
             out.append(f"{', '.join(dead)} {'is' if len(dead) == 1 else 'are'} constant over all {n} samples "
@@ -60,7 +69,8 @@ def degenerate_problems(rec: Recording, sensors: tuple[str, ...] = ("gyro", "acc
     g_peak = float(np.max(np.abs(g_raw)))
     g_limit = 35.0 if float(to_si(1.0, gyro_unit, "rate")) > 0.5 else 2000.0
     if "gyro" in sensors and g_peak > g_limit and _is_integer(g_raw) and np.unique(g_raw[:, 0]).size > 3:
-        out.append(f"the gyro values are whole numbers up to {g_peak:.0f}, beyond any rate in {gyro_unit}: raw ADC counts "
+        out.append(f"the gyro values are whole numbers up to {g_peak:.0f}, beyond any rate in {gyro_unit}: raw ADC "
+                   "counts "
                    "without a scale; multiply by the datasheet's sensitivity (e.g. 1/131 °/s per count at ±250 °/s for "
                    "an MPU-class part) and pass --gyro-unit deg/s")
     a_raw = _raw(rec.acc_m_s2, acc_unit, "acceleration")

@@ -65,17 +65,22 @@ def gyro_unit_problem(rec: Recording, motion: MotionSummary | None = None,
     if motion is not None and motion.rest_level_rad_s is not None:
         level = float(np.linalg.norm(motion.rest_level_rad_s))
         if level > MAX_REST_LEVEL_RAD_S:
-            return (f"the gyro reads {level:.2f} rad/s ({math.degrees(level):.0f} °/s) where the accelerometer says "
-                    "the board is still: no MEMS gyro has such a bias; the rates are probably in deg/s — pass "
-                    "--gyro-unit deg/s (gyro_unit='deg/s')" if as_rad else
-                    f"the gyro reads {level:.2f} rad/s ({math.degrees(level):.0f} °/s) after the declared {declared} "
-                    "conversion where the accelerometer says the board is still: check --gyro-unit and the gyro columns")
+            return (
+                f"the gyro reads {level:.2f} rad/s ({math.degrees(level):.0f} °/s) where the accelerometer says "
+                "the board is still: no MEMS gyro has such a bias; the rates are probably in deg/s — pass "
+                "--gyro-unit deg/s (gyro_unit='deg/s')"
+                if as_rad
+                else f"the gyro reads {level:.2f} rad/s ({math.degrees(level):.0f} °/s) after the declared {declared} "
+                "conversion where the accelerometer says the board is still: check --gyro-unit and the gyro columns"
+            )
     if consistency is not None:
         k = consistency.verdict()
         if k is not None:
             e1, ek = consistency.errors_deg[1.0], consistency.errors_deg[k]
-            evidence = (f"integrated as declared, the gyro predicts the gravity direction the accelerometer sees "
-                        f"with a median error of {e1:.0f}° over {consistency.pairs} moves; {FACTORS[k]} fits ({ek:.1f}°)")
+            evidence = (
+                f"integrated as declared, the gyro predicts the gravity direction the accelerometer sees "
+                f"with a median error of {e1:.0f}° over {consistency.pairs} moves; {FACTORS[k]} fits ({ek:.1f}°)"
+            )
             if k == math.pi / 180:
                 return f"{evidence}: the rates are in deg/s; pass --gyro-unit deg/s (gyro_unit='deg/s')"
             if k == 180 / math.pi:

@@ -31,8 +31,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-__all__ = ["Requirements", "KF", "CLOSELOOP", "ALLAN", "NOISE", "INSPECT", "TEMPERATURE", "RATETABLE", "MAG", "NORTHFIND", "TILT",
-           "GENERIC"]
+__all__ = [
+    "Requirements",
+    "KF",
+    "CLOSELOOP",
+    "ALLAN",
+    "NOISE",
+    "INSPECT",
+    "TEMPERATURE",
+    "RATETABLE",
+    "MAG",
+    "NORTHFIND",
+    "TILT",
+    "GENERIC",
+]
 
 HANDHELD_PLAUSIBLE_HZ = (0.5, 1e5)   # rates at which the seconds reading of a time column is believed
 STATIC_PLAUSIBLE_HZ = (0.01, 1e5)    # static/chamber records may be logged slowly
@@ -42,7 +54,8 @@ STATIC_PLAUSIBLE_HZ = (0.01, 1e5)    # static/chamber records may be logged slow
 class Requirements:
     """Limits a method puts on its input (SI units in the names).
 
-    Attributes:
+    Attributes
+    ----------
         name: the command or method, for messages ("calib run").
         rate_hz: supported sample-rate range [lo, hi] after decimation; None: any.
         plausible_rate_hz: rates at which a time column is believed to be in seconds; outside it the
@@ -78,7 +91,8 @@ class Requirements:
         return replace(self, **changes)
 
 
-GENERIC = Requirements("calib.inputs.load_recording", strict=False)  # read + repair; each method checks (check_recording)
+# read + repair; each method checks (check_recording)
+GENERIC = Requirements("calib.inputs.load_recording", strict=False)
 KF = Requirements("calib run (Zhou 2020 filter)", rate_hz=(20.0, 1000.0), min_samples=200, min_duration_s=10.0,
                   motion="required",
                   why_max_rate="the filter treats the hand's external acceleration as white noise per sample, so at "

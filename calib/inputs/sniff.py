@@ -81,7 +81,8 @@ def sniff(path: Path) -> Sniffed:
         try:
             text, enc = data.decode("utf-16"), "utf-16"
         except UnicodeDecodeError as exc:
-            raise FormatError(f"{path} starts with a UTF-16 byte-order mark but does not decode as UTF-16 ({exc.reason})") from exc
+            raise FormatError(f"{path} starts with a UTF-16 byte-order mark but does not decode as UTF-16 "
+                              f"({exc.reason})") from exc
         notes.append("the file is UTF-16 text (read as such)")
     else:
         try:
@@ -91,7 +92,8 @@ def sniff(path: Path) -> Sniffed:
             if _looks_binary(text):
                 raise FormatError(
                     f"{path} is neither HDF5 (no HDF5 signature) nor text (its first bytes are {_describe(data)}): "
-                    "not a recording; give a gyrosim HDF5 or a CSV with a header t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z"
+                    "not a recording; give a gyrosim HDF5 or a CSV with a header "
+                    "t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z"
                 ) from None
             notes.append("the file is not UTF-8; read as Latin-1")
     if "\x00" in text[:65536] or _looks_binary(text):

@@ -141,7 +141,9 @@ def repair_spikes(rec: Recording, spikes: Spikes) -> Recording:
     """Replace spike samples by linear interpolation between their good neighbours, per channel."""
     if not spikes.masks:
         return rec
-    arrays = {attr: np.array(getattr(rec, attr), dtype=float) for _, attr in _CHANNELS if getattr(rec, attr) is not None}
+    arrays = {
+        attr: np.array(getattr(rec, attr), dtype=float) for _, attr in _CHANNELS if getattr(rec, attr) is not None
+    }
     t = np.asarray(rec.t_s)
     for key, m in spikes.masks.items():
         name, axis = key.split("_")

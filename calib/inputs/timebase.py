@@ -128,8 +128,10 @@ def detect_time_unit(t: np.ndarray, req: Requirements, declared: str | None = No
             raise AmbiguousTimeUnit(
                 plausible,
                 f"{where}: the time column counts whole units (median step {step:g}), and more than one unit gives a "
-                f"plausible rate for {req.name}: {', '.join(f'{_UNIT_NAME[u]} → {rate[u]:.4g} Hz over {dur[u]:.4g} s' for u in plausible)}; "
-                f"pass --time-unit {' or '.join(plausible)}")
+                f"plausible rate for {req.name}: "
+                f"{', '.join(f'{_UNIT_NAME[u]} → {rate[u]:.4g} Hz over {dur[u]:.4g} s' for u in plausible)}; "
+                f"pass --time-unit {' or '.join(plausible)}",
+            )
     if plausible == ["s"]:
         return base("s", "seconds")
     if len(plausible) == 1:

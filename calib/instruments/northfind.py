@@ -1,6 +1,6 @@
-"""Gyrocompassing: true heading from the horizontal component of the Earth's rotation, the gyro
-bias cancelled by turning the board between positions ("Application of Gyro-Theodolite Orientation in Mine Surveying"; Titterton &
-Weston, *Strapdown Inertial Navigation Technology*, 2nd ed., §10.3 "gyrocompassing").
+"""Gyrocompassing: true heading from the horizontal component of the Earth's rotation, the gyro bias cancelled by
+turning the board between positions ("Application of Gyro-Theodolite Orientation in Mine Surveying"; Titterton & Weston,
+*Strapdown Inertial Navigation Technology*, 2nd ed., §10.3 "gyrocompassing").
 
 **Model.** The board is held still in P positions k, turned between them by α_k about one body
 axis a (a table or tripod head; α from the table's encoder or from the gyro).  A vector fixed in
@@ -59,9 +59,9 @@ from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
 
-from calib.noise.allan import NoiseTerms
 from calib.instruments.holds import fit_hold_noise, still_holds
 from calib.instruments.northfind_design import Design, turning_design
+from calib.noise.allan import NoiseTerms
 
 __all__ = ["NorthFinding", "HoldInfo", "find_north", "Design"]
 
@@ -80,7 +80,12 @@ class HoldInfo:
     excluded: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"start": self.start, "stop": self.stop, "index_angle_deg": self.index_angle_deg, "excluded": self.excluded}
+        return {
+            "start": self.start,
+            "stop": self.stop,
+            "index_angle_deg": self.index_angle_deg,
+            "excluded": self.excluded,
+        }
 
 
 @dataclass(frozen=True)
@@ -294,17 +299,32 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
     dof = 2 * len(used) - 4
     headings = tuple(float((math.degrees(psi - a)) % 360.0) for a in alpha)   # turning by +α about up: ψ − α
     warnings: list[str] = []
-    excluded = [f"hold {i} ({rec.t_s[a]:.0f}–{rec.t_s[b - 1]:.0f} s): {r}" for i, ((a, b), r) in enumerate(zip(ranges, reasons)) if r]
+    excluded = [
+        f"hold {i} ({rec.t_s[a]:.0f}–{rec.t_s[b - 1]:.0f} s): {r}"
+        for i, ((a, b), r) in enumerate(zip(ranges, reasons))
+        if r
+    ]
     if excluded:
         warnings.append("left out: " + "; ".join(excluded))
     # accelerometer: are the positions one turn about one axis? (its noise from the holds)
     acc_noise = fit_hold_noise(rec, [ranges[i] for i in used], "acc")
     *_, chi2_f = _fit_turning(f, alpha, basis, design.sigma_matrix(acc_noise))
-    result = dict(base, heading_deg=float(math.degrees(psi) % 360.0), heading_sigma_deg=math.degrees(sig_psi),
-                  headings_deg=headings, bias_residual_sigma_deg_h=sig_res * DEG_H, horizontal_rate_deg_h=w_mag * DEG_H,
-                  horizontal_rate_expected_deg_h=omega_h * DEG_H, horizontal_rate_sigma_deg_h=sig_rad * DEG_H,
-                  chi2=chi2, dof=dof, table_tilt_deg=tilt_deg, holds=holds, noise_source=noise_source,
-                  noise={k: [getattr(n, k) for n in noise_terms] for k in ("arw", "bias_instability", "rate_random_walk")})
+    result = dict(
+        base,
+        heading_deg=float(math.degrees(psi) % 360.0),
+        heading_sigma_deg=math.degrees(sig_psi),
+        headings_deg=headings,
+        bias_residual_sigma_deg_h=sig_res * DEG_H,
+        horizontal_rate_deg_h=w_mag * DEG_H,
+        horizontal_rate_expected_deg_h=omega_h * DEG_H,
+        horizontal_rate_sigma_deg_h=sig_rad * DEG_H,
+        chi2=chi2,
+        dof=dof,
+        table_tilt_deg=tilt_deg,
+        holds=holds,
+        noise_source=noise_source,
+        noise={k: [getattr(n, k) for n in noise_terms] for k in ("arw", "bias_instability", "rate_random_walk")},
+    )
     if accuracy_deg is not None:
         ratio = sig_res / (EARTH_RATE_RAD_S * math.radians(accuracy_deg))
         result["max_latitude_deg"] = float(math.degrees(math.acos(ratio))) if ratio < 1 else None
@@ -315,24 +335,42 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
         where = (f"; to {need_acc:g}° this gyro reaches only up to latitude {result.get('max_latitude_deg'):.1f}°"
                  if result.get("max_latitude_deg") is not None else "")
         status = "refused"
-        reason = (f"the limit of this record is σ_ψ = {math.degrees(sig_psi):.3g}° at latitude {latitude_deg:g}° "
-                  f"(bias residual {sig_res * DEG_H:.3g} °/h against a horizontal Earth rate of {omega_h * DEG_H:.3g} °/h)"
-                  + (f", worse than the requested {accuracy_deg:g}°" if accuracy_deg is not None else
-                     ": the gyro cannot see the Earth's rotation here") + where)
+        reason = (
+            f"the limit of this record is σ_ψ = {math.degrees(sig_psi):.3g}° at latitude {latitude_deg:g}° "
+            f"(bias residual {sig_res * DEG_H:.3g} °/h against a horizontal Earth rate of {omega_h * DEG_H:.3g} °/h)"
+            + (
+                f", worse than the requested {accuracy_deg:g}°"
+                if accuracy_deg is not None
+                else ": the gyro cannot see the Earth's rotation here"
+            )
+            + where
+        )
         result.update(rest_time_needed_s=need, rest_time_note=note)
     elif dof > 0 and stats.chi2.sf(chi2_f, dof) < P_CHECK:
         status, reason = "refused", (
             f"the accelerometer says the positions are not one turn about one axis (χ² = {chi2_f:.3g} on {dof} dof): "
             "the board moved between or during the holds; hold it on a fixture that only turns")
     elif abs(w_mag - omega_h) > stats.norm.isf(P_CHECK / 2) * sig_rad:
-        status, reason = "inconsistent", (
-            f"the horizontal rate that turns with the board is {w_mag * DEG_H:.4g} ± {sig_rad * DEG_H:.2g} °/h but the "
-            f"Earth's at {latitude_deg:g}° is {omega_h * DEG_H:.4g} °/h: wrong latitude, a gyro scale error, motion, or a "
-            "world-fixed disturbance (e.g. the magnetic sensitivity of an unshielded FOG coil); the heading is not trusted")
+        status, reason = (
+            "inconsistent",
+            (
+                f"the horizontal rate that turns with the board is {w_mag * DEG_H:.4g} ± {sig_rad * DEG_H:.2g} °/h but "
+                "the "
+                f"Earth's at {latitude_deg:g}° is {omega_h * DEG_H:.4g} °/h: wrong latitude, a gyro scale error, "
+                "motion, or a "
+                "world-fixed disturbance (e.g. the magnetic sensitivity of an unshielded FOG coil); the heading is not "
+                "trusted"
+            ),
+        )
     elif dof > 0 and stats.chi2.sf(chi2, dof) < P_CHECK:
-        status, reason = "inconsistent", (
-            f"the hold means do not fit one bias plus the turning Earth rate (χ² = {chi2:.3g} on {dof} dof, p < {P_CHECK:g}): "
-            "the noise model or the index angles are wrong, or the bias jumped")
+        status, reason = (
+            "inconsistent",
+            (
+                f"the hold means do not fit one bias plus the turning Earth rate (χ² = {chi2:.3g} on {dof} dof, p < "
+                f"{P_CHECK:g}): "
+                "the noise model or the index angles are wrong, or the bias jumped"
+            ),
+        )
     return NorthFinding(status, reason, warnings=tuple(warnings), **result), design
 
 

@@ -24,8 +24,8 @@ import numpy as np
 
 from gyrosim.effects import EARTH_RATE_RAD_S
 
-from calib.noise.allan import NoiseTerms
 from calib.instruments.northfind_design import Design, turning_design
+from calib.noise.allan import NoiseTerms
 
 __all__ = ["procedure_sigma_res", "limit_sigma_deg", "rest_time_needed", "max_latitude_deg", "latitude_curve",
            "plot_latitude_curve"]
@@ -33,7 +33,9 @@ __all__ = ["procedure_sigma_res", "limit_sigma_deg", "rest_time_needed", "max_la
 HOLD_GRID_S = np.logspace(0.0, 5.0, 41)    # 1 s … 28 h per position
 
 
-def procedure_sigma_res(noise: tuple[NoiseTerms, ...], hold_s: float, positions: int = 4, move_s: float = 10.0) -> float:
+def procedure_sigma_res(
+    noise: tuple[NoiseTerms, ...], hold_s: float, positions: int = 4, move_s: float = 10.0
+) -> float:
     """σ_res (rad/s, heading-averaged) of P equally spaced positions held ``hold_s`` each on a
     level table (body z up), the moves ``move_s`` long.  Evaluated at a planning rate of
     min(1 Hz, 400/hold_s) (at least 4 samples a hold): the white term N²/τ does not depend on
@@ -76,7 +78,8 @@ def rest_time_needed(noise: tuple[NoiseTerms, ...], latitude_deg: float, accurac
     best = int(np.argmin(sig))
     best_deg = math.degrees(sig[best] / (EARTH_RATE_RAD_S * math.cos(math.radians(latitude_deg))))
     if sig[best] > target:
-        return None, (f"no rest time reaches {accuracy_deg:g}° at latitude {latitude_deg:g}° with this gyro: the best within "
+        return None, (f"no rest time reaches {accuracy_deg:g}° at latitude {latitude_deg:g}° with this gyro: the best "
+                      "within "
                       f"{positions} positions × ≤ {HOLD_GRID_S[-1] / 3600:.0f} h is {best_deg:.3g}° "
                       f"({positions} × {HOLD_GRID_S[best]:.0f} s); a better gyro is needed")
     k = int(np.argmax(sig <= target))
@@ -102,9 +105,14 @@ def latitude_curve(noise: tuple[NoiseTerms, ...], latitudes_deg: np.ndarray, hol
     return np.degrees(sr / (EARTH_RATE_RAD_S * np.cos(np.radians(latitudes_deg))))
 
 
-def plot_latitude_curve(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: str | Path, *,
-                        accuracy_deg: float | None = None, points: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
-                        title: str = "North-finding limit against latitude") -> Path:
+def plot_latitude_curve(
+    curves: dict[str, tuple[np.ndarray, np.ndarray]],
+    path: str | Path,
+    *,
+    accuracy_deg: float | None = None,
+    points: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    title: str = "North-finding limit against latitude",
+) -> Path:
     """Log plot of σ_ψ (°) against latitude per sensor, the requested accuracy as a line, and
     Monte Carlo RMS errors as points (same colour as their curve)."""
     import matplotlib
@@ -119,7 +127,9 @@ def plot_latitude_curve(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: 
         colours[name] = line.get_color()
     for name, (lat, rms) in (points or {}).items():
         key = next((k for k in colours if k.startswith(name)), None)
-        ax.semilogy(lat, rms, "o", color=colours.get(key, "k"), ms=6, mfc="none", label=f"{name}: Monte Carlo RMS error")
+        ax.semilogy(
+            lat, rms, "o", color=colours.get(key, "k"), ms=6, mfc="none", label=f"{name}: Monte Carlo RMS error"
+        )
     if accuracy_deg is not None:
         ax.axhline(accuracy_deg, color="k", ls="--", lw=1, label=f"requested accuracy {accuracy_deg:g}°")
     ax.axhline(math.degrees(1 / 3), color="0.5", ls=":", lw=1, label="19°: the gyro cannot see North")

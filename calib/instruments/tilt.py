@@ -43,8 +43,8 @@ from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.units import G0
 
-from calib.noise.allan import NoiseTerms, fit_allan_variance, paired_allan_deviation
 from calib.instruments.holds import fit_hold_noise, still_holds
+from calib.noise.allan import NoiseTerms, fit_allan_variance, paired_allan_deviation
 from calib.noise.window_means import sample_variance_moments, window_mean_covariance
 
 __all__ = ["TiltHold", "AxisFigures", "TiltTest", "tilt_test", "holds_from_meta", "allan_minimum", "plot_tilt"]
@@ -185,10 +185,13 @@ def tilt_test(rec: Recording, holds: list[TiltHold] | None = None, *, noise: tup
     motion = still_holds(rec, [(h.start, h.stop) for h in holds], channels="acc")
     holds = [TiltHold(h.sweep, h.kind, h.angle_deg, h.start, h.stop, h.excluded or m) for h, m in zip(holds, motion)]
     used = [h for h in holds if not h.excluded]
-    warnings = [f"left out: {h.sweep} {h.kind} {h.angle_deg:g}° (t = {rec.t_s[h.start]:.0f}–{rec.t_s[h.stop - 1]:.0f} s): "
+    warnings = [f"left out: {h.sweep} {h.kind} {h.angle_deg:g}° (t = {rec.t_s[h.start]:.0f}–{rec.t_s[h.stop - 1]:.0f} "
+                "s): "
                 f"{h.excluded}" for h in holds if h.excluded]
     if not used:
-        return TiltTest("refused", "no still hold: the board moved in every hold", holds=tuple(holds), warnings=tuple(warnings))
+        return TiltTest(
+            "refused", "no still hold: the board moved in every hold", holds=tuple(holds), warnings=tuple(warnings)
+        )
     noise = noise if noise is not None else fit_hold_noise(rec, [(h.start, h.stop) for h in used], "acc",
                                                            keep_random_walk=True)
     windows = np.array([(h.start, h.stop) for h in used])
@@ -201,8 +204,11 @@ def tilt_test(rec: Recording, holds: list[TiltHold] | None = None, *, noise: tup
     index = {id(h): k for k, h in enumerate(used)}
     result = {s: _axis_figures(rec, s, [o for o in axes if o != s], used, index, means, cov, noise) for s in axes}
     missing = [f"{s}: {m}" for s, f in result.items() for m in f.missing]
-    status = "ok" if not missing and not warnings else ("refused" if all(f.scale_factor is None for f in result.values())
-                                                         else "incomplete")
+    status = (
+        "ok"
+        if not missing and not warnings
+        else ("refused" if all(f.scale_factor is None for f in result.values()) else "incomplete")
+    )
     reason = ("all figures measured" if status == "ok" else
               "; ".join(missing + ([f"{len(warnings)} hold(s) left out for motion"] if warnings else [])))
     nz = {"white_ug_per_sqrt_hz": noise[0].arw / UG, "flicker_ug": noise[0].bias_instability / UG,
@@ -229,7 +235,9 @@ def _axis_figures(rec: Recording, s: str, others: list[str], used: list[TiltHold
         c_sz, c_sz_var = (y0 - y1) / (2 * G0), var_d / (2 * G0) ** 2
         f["zero_offset_ug"], f["zero_offset_ug_sigma"] = 0.5 * (y0 + y1) / UG, 0.5 * math.sqrt(var_s) / UG
     else:
-        missing.append("no still 0°/180° pair: mechanical zero, zero offset and the vertical cross-axis term unmeasured")
+        missing.append(
+            "no still 0°/180° pair: mechanical zero, zero offset and the vertical cross-axis term unmeasured"
+        )
     # 2. sensitivity and linearity
     if len(steps) >= MIN_STEPS:
         ks = [index[id(h)] for h in steps]
@@ -244,13 +252,25 @@ def _axis_figures(rec: Recording, s: str, others: list[str], used: list[TiltHold
                 theta0 = math.asin(max(-1.0, min(1.0, c_sz / p[0])))
         span = abs(p[0]) * G0 * (np.sin(th[-1] + theta0) - np.sin(th[0] + theta0))
         j = int(np.argmax(np.abs(r)))
-        f.update(scale_factor=float(p[0]), scale_factor_sigma=math.sqrt(p_cov[0, 0]), full_scale_g=float(span / G0),
-                 nonlinearity_pct_fs=float(abs(r[j]) / span * 100), nonlinearity_pct_fs_sigma=math.sqrt(r_cov[j, j]) / span * 100,
-                 nonlinearity_deg=float(np.degrees(np.max(np.abs(r) / (abs(p[0]) * G0 * np.cos(th + theta0))))))
-        f["linearity_table"] = tuple({"angle_deg": float(h.angle_deg), "input_g": float(aa / G0), "output_g": float(yy / G0),
-                                      "fit_g": float((yy - rr) / G0), "residual_ug": float(rr / UG),
-                                      "residual_deg": float(np.degrees(rr / (p[0] * G0 * math.cos(t + theta0))))}
-                                     for h, aa, yy, rr, t in zip(steps, a[:, 0], y, r, th))
+        f.update(
+            scale_factor=float(p[0]),
+            scale_factor_sigma=math.sqrt(p_cov[0, 0]),
+            full_scale_g=float(span / G0),
+            nonlinearity_pct_fs=float(abs(r[j]) / span * 100),
+            nonlinearity_pct_fs_sigma=math.sqrt(r_cov[j, j]) / span * 100,
+            nonlinearity_deg=float(np.degrees(np.max(np.abs(r) / (abs(p[0]) * G0 * np.cos(th + theta0))))),
+        )
+        f["linearity_table"] = tuple(
+            {
+                "angle_deg": float(h.angle_deg),
+                "input_g": float(aa / G0),
+                "output_g": float(yy / G0),
+                "fit_g": float((yy - rr) / G0),
+                "residual_ug": float(rr / UG),
+                "residual_deg": float(np.degrees(rr / (p[0] * G0 * math.cos(t + theta0)))),
+            }
+            for h, aa, yy, rr, t in zip(steps, a[:, 0], y, r, th)
+        )
         if c_sz is not None:
             sf = p[0]
             f["mechanical_zero_deg"] = math.degrees(theta0)
@@ -258,13 +278,16 @@ def _axis_figures(rec: Recording, s: str, others: list[str], used: list[TiltHold
             f["cross_axis_vertical_pct"] = 100 * c_sz / sf
             f["cross_axis_vertical_pct_sigma"] = 100 * math.sqrt(c_sz_var) / abs(sf)
     else:
-        missing.append(f"sweep {s} has {len(steps)} still step(s), fewer than {MIN_STEPS}: sensitivity and linearity unmeasured")
+        missing.append(f"sweep {s} has {len(steps)} still step(s), fewer than {MIN_STEPS}: sensitivity and linearity "
+                       "unmeasured")
     # 3. cross-axis: axis s against the other sweep's input
     rows = []
     for o in others:
         osteps = sorted([h for h in used if h.sweep == o and h.kind == "step"], key=lambda h: h.angle_deg)
         if len(osteps) < 3 or f.get("scale_factor") is None:
-            missing.append(f"the cross-axis term of {s} needs sweep {o} with ≥ 3 still steps and the sensitivity of {s}")
+            missing.append(
+                f"the cross-axis term of {s} needs sweep {o} with ≥ 3 still steps and the sensitivity of {s}"
+            )
             continue
         ks = [index[id(h)] for h in osteps]
         th = np.radians([h.angle_deg for h in osteps])
@@ -279,10 +302,14 @@ def _axis_figures(rec: Recording, s: str, others: list[str], used: list[TiltHold
             co, cz = p[0], c_sz
             tsr = math.hypot(co, cz)
             f["cross_axis_pct"] = 100 * tsr / sf
-            f["cross_axis_pct_sigma"] = 100 * math.sqrt((co / tsr) ** 2 * p_cov[0, 0] + (cz / tsr) ** 2 * c_sz_var) / abs(sf) if tsr else None
+            f["cross_axis_pct_sigma"] = (
+                100 * math.sqrt((co / tsr) ** 2 * p_cov[0, 0] + (cz / tsr) ** 2 * c_sz_var) / abs(sf) if tsr else None
+            )
     f["cross_axis_table"] = tuple(rows)
     # 4. zero stability: Allan minimum over the still holds, and the readings' spread over the long level hold
-    curves = [paired_allan_deviation(rec.acc_m_s2[h.start : h.stop, i], rec.rate_hz) for h in used if h.stop - h.start >= 20]
+    curves = [
+        paired_allan_deviation(rec.acc_m_s2[h.start : h.stop, i], rec.rate_hz) for h in used if h.stop - h.start >= 20
+    ]
     curves = [c for c in curves if c.tau_s.size >= 2]
     if curves:
         amin, amin_sd, tau, span = allan_minimum(curves)
@@ -297,7 +324,8 @@ def _axis_figures(rec: Recording, s: str, others: list[str], used: list[TiltHold
         f.update(zero_std_ug=sd / UG, zero_std_ug_sigma=math.sqrt(var_s2) / (2 * sd) / UG if sd > 0 else None,
                  zero_std_hold_s=(level.stop - level.start) / rec.rate_hz)
     else:
-        missing.append("no still long level hold: the zero stability by seed formula 4.7 (std of the readings) unmeasured")
+        missing.append("no still long level hold: the zero stability by seed formula 4.7 (std of the readings) "
+                       "unmeasured")
     return AxisFigures(missing=tuple(missing), **f)
 
 

@@ -113,8 +113,15 @@ def _jackknife_check(core: CoreFit, rate_hz: float, structured: bool) -> tuple[C
     ok = d_s > 0
     ratio = d_j[ok] / d_s[ok]
     inflate = max(1.0, float(np.median(ratio))) if structured else 1.0
-    out = {"test": "jackknife", "clusters": g, "cluster_s": JACKKNIFE_S, "median_variance_ratio": float(np.median(ratio)),
-           "max_variance_ratio": float(np.max(ratio)), "residual_structured": structured, "inflation": inflate}
+    out = {
+        "test": "jackknife",
+        "clusters": g,
+        "cluster_s": JACKKNIFE_S,
+        "median_variance_ratio": float(np.median(ratio)),
+        "max_variance_ratio": float(np.max(ratio)),
+        "residual_structured": structured,
+        "inflation": inflate,
+    }
     return replace(core, cov=core.cov * inflate), out
 
 
@@ -313,7 +320,10 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
         consistency.update(residual_rms_uT=resid_rms, white_noise_uT=noise)
         # (with a white residual the model fits and the sandwich is right; the jackknife's leverage bias
         # — deleting 10 s of a session removes whole poses — reads up to ~20× then, measured)
-        if structured and consistency.get("max_variance_ratio", 0.0) / consistency.get("inflation", 1.0) > INCONSISTENT_RATIO:
+        if (
+            structured
+            and consistency.get("max_variance_ratio", 0.0) / consistency.get("inflation", 1.0) > INCONSISTENT_RATIO
+        ):
             status = "inconsistent"
             warnings.append(
                 f"inconsistent: a parameter's error over {JACKKNIFE_S:g} s stretches is "
@@ -322,7 +332,9 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
                 "(a field that varies with position, a time-varying hard iron): σ is not honest")
     if found and disturbed.sum() > 0.5 * inp.valid.sum():
         status = "disturbed"
-        warnings.append("more than half of the session is magnetically disturbed: the calibration rests on the minority")
+        warnings.append(
+            "more than half of the session is magnetically disturbed: the calibration rests on the minority"
+        )
 
     y, cy = propagate(core, field_ut)
     sd = np.sqrt(np.clip(np.diag(cy), 0, None))
@@ -347,11 +359,21 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
     else:
         ref = "det A = 1 (field_uT in the sensor's own average scale)"
         f_val, f_sd = float(y[12]), float(sd[12])
-    diagnostics.update(residual_field_rms_uT=resid_rms, white_noise_uT=noise,
-                       sigma_correlation_ratio=core.correlation_ratio, sphere_radius_uT=state["f"], field_estimated_uT=f_est)
+    diagnostics.update(
+        residual_field_rms_uT=resid_rms,
+        white_noise_uT=noise,
+        sigma_correlation_ratio=core.correlation_ratio,
+        sphere_radius_uT=state["f"],
+        field_estimated_uT=f_est,
+    )
     if math.isfinite(core.sigma_inclination):
         diagnostics["residual_inclination_rms_uT"] = core.sigma_inclination * f_est
-    samples = {"total": rec.n, "saturated": inp.saturated_samples, "used": int(used.sum()), "disturbed": int(disturbed.sum())}
+    samples = {
+        "total": rec.n,
+        "saturated": inp.saturated_samples,
+        "used": int(used.sum()),
+        "disturbed": int(disturbed.sum()),
+    }
     return MagCalibration(
         method=method, status=status, hard_iron_ut=y[:3], soft_iron=y[3:12].reshape(3, 3), field_ut=f_val,
         inclination_deg=incl, misalignment_deg=mis, hard_iron_std_ut=sd[:3], soft_iron_std=sd[3:12].reshape(3, 3),

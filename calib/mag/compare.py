@@ -22,11 +22,11 @@ import numpy as np
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_from_rotvec, quat_multiply
 
-from calib.noise.allan import allan_deviation
 from calib.mag.filters import HEADING_FILTERS, FilterSettings
 from calib.mag.gravity import GravityReference, gravity_reference
 from calib.mag.heading import compass_quaternion, twist_heading_rad, wrap_pi
 from calib.mag.result import MagCalibration
+from calib.noise.allan import allan_deviation
 
 __all__ = ["compass_heading", "gyro_heading_increments", "CompensationRow", "compare_compensation",
            "plot_heading_allan", "comparison_table", "simulated_comparison", "SimulatedComparison"]
@@ -110,7 +110,9 @@ def compare_compensation(rec: Recording, calibration: MagCalibration, psi_ref: n
     d2 = np.diff(np.unwrap(psi_cal), n=2)
     r_meas = float((1.4826 * np.median(np.abs(d2 - np.median(d2)))) ** 2 / 6.0)
     for process in ("seed", "gyro"):
-        dpsi = gyro_heading_increments(q_hi, rec.gyro_rad_s, rec.t_s, grav.gyro_bias_rad_s) if process == "gyro" else None
+        dpsi = (
+            gyro_heading_increments(q_hi, rec.gyro_rad_s, rec.t_s, grav.gyro_bias_rad_s) if process == "gyro" else None
+        )
         s = FilterSettings(max(r_meas, 1e-8), process, arw_rad_s_sqrt_hz=gyro_arw_rad_s_sqrt_hz)
         for name in filters:
             flt = HEADING_FILTERS[name]()
@@ -118,7 +120,9 @@ def compare_compensation(rec: Recording, calibration: MagCalibration, psi_ref: n
             psi = flt.run(psi_hi, dpsi, dt, s, rng=rng)
             rows.append(_row(f"hard iron only + {name.upper()} ({process})", psi, psi_ref, valid, rate,
                              time.perf_counter() - t0, offset))
-    rows.append(_row(f"calibrated ({calibration.method}: hard + soft iron)", psi_cal, psi_ref, valid, rate, 0.0, offset))
+    rows.append(
+        _row(f"calibrated ({calibration.method}: hard + soft iron)", psi_cal, psi_ref, valid, rate, 0.0, offset)
+    )
     dpsi = gyro_heading_increments(q_cal, rec.gyro_rad_s, rec.t_s, grav.gyro_bias_rad_s)
     s = FilterSettings(max(r_meas, 1e-8), "gyro", arw_rad_s_sqrt_hz=gyro_arw_rad_s_sqrt_hz)
     t0 = time.perf_counter()
@@ -137,7 +141,8 @@ def comparison_table(rows: list[CompensationRow]) -> str:
 
 
 def plot_heading_allan(rows: list[CompensationRow], path: str | Path, title: str = "") -> Path:
-    """Allan deviation of the heading error of each row ("Soft Magnetic Error Compensation Method of Electronic Compass", Figs 14–15, as one plot)."""
+    """Allan deviation of the heading error of each row ("Soft Magnetic Error Compensation Method of Electronic
+    Compass", Figs 14–15, as one plot)."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -1,6 +1,6 @@
-"""Seed 001's in-motion compensation of the compass heading: Kalman filter, Sage–Husa adaptive
-Kalman filter and particle filter ("Soft Magnetic Error Compensation Method of Electronic Compass", §2.1–2.3), each one class, discovered through
-:data:`HEADING_FILTERS`.
+"""Seed 001's in-motion compensation of the compass heading: Kalman filter, Sage–Husa adaptive Kalman filter and
+particle filter ("Soft Magnetic Error Compensation Method of Electronic Compass", §2.1–2.3), each one class, discovered
+through :data:`HEADING_FILTERS`.
 
 Seed 001 treats the soft-iron error as random noise on the compass output and smooths it.  Two
 process models, the same for all three filters:
@@ -170,4 +170,6 @@ class ParticleHeading(HeadingFilter):
         return out
 
 
-HEADING_FILTERS: dict[str, type[HeadingFilter]] = {cls.name: cls for cls in (KalmanHeading, SageHusaHeading, ParticleHeading)}
+HEADING_FILTERS: dict[str, type[HeadingFilter]] = {
+    cls.name: cls for cls in (KalmanHeading, SageHusaHeading, ParticleHeading)
+}

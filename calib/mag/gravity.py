@@ -86,7 +86,9 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([o, -z, y], -1), np.stack([z, o, -x], -1), np.stack([-y, x, o], -1)], axis=-2)
 
 
-def _acc_lever_fit(f: np.ndarray, k: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _acc_lever_fit(
+    f: np.ndarray, k: np.ndarray, blocks: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """|L (f − b) − K ρ| = g over (L symmetric, b m/s², ρ m): returns (L, b, ρ, covariance (12×12))."""
     from calib.mag.ellipsoid import SYM_IDX, sym
     from calib.mag.lsq import levenberg_marquardt, sandwich_covariance

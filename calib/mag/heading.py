@@ -26,10 +26,17 @@ import math
 
 import numpy as np
 
-from gyrosim.rotations import quat_multiply, quat_conjugate, quat_to_rotvec
+from gyrosim.rotations import quat_conjugate, quat_multiply, quat_to_rotvec
 
-__all__ = ["compass_quaternion", "twist_heading_rad", "heading_error_rad", "magnetic_reference", "heading_noise_floor_rad",
-           "up_from_quat", "wrap_pi"]
+__all__ = [
+    "compass_quaternion",
+    "twist_heading_rad",
+    "heading_error_rad",
+    "magnetic_reference",
+    "heading_noise_floor_rad",
+    "up_from_quat",
+    "wrap_pi",
+]
 
 
 def wrap_pi(a: np.ndarray) -> np.ndarray:
@@ -55,7 +62,9 @@ def _quat_from_matrix(c: np.ndarray) -> np.ndarray:
         m = c[s]
         if k == 0:
             r = np.sqrt(1 + tr[s]) * 2
-            q[s] = np.stack([r / 4, (m[:, 2, 1] - m[:, 1, 2]) / r, (m[:, 0, 2] - m[:, 2, 0]) / r, (m[:, 1, 0] - m[:, 0, 1]) / r], 1)
+            q[s] = np.stack(
+                [r / 4, (m[:, 2, 1] - m[:, 1, 2]) / r, (m[:, 0, 2] - m[:, 2, 0]) / r, (m[:, 1, 0] - m[:, 0, 1]) / r], 1
+            )
         else:
             i = k - 1
             j, kk = (i + 1) % 3, (i + 2) % 3

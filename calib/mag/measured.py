@@ -97,9 +97,16 @@ def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
             win = np.zeros(rec.n, dtype=bool)
             for d in res.disturbances:
                 win |= (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
-            rows.append(_row(name, rec, replace(res, disturbances=()), win,
-                             " + ".join(f"{d.t_start_s:.0f}–{d.t_end_s:.0f} s" for d in res.disturbances) + " (disturbed)",
-                             "reported as a local disturbance, not calibrated"))
+            rows.append(
+                _row(
+                    name,
+                    rec,
+                    replace(res, disturbances=()),
+                    win,
+                    " + ".join(f"{d.t_start_s:.0f}–{d.t_end_s:.0f} s" for d in res.disturbances) + " (disturbed)",
+                    "reported as a local disturbance, not calibrated",
+                )
+            )
         if res.disturbances and "attached" in name:
             # the attached magnet turns with the board: a hard iron on the stretch it is there
             d = max(res.disturbances, key=lambda x: x.samples)

@@ -129,7 +129,9 @@ class AidedMethod(MagMethod):
     sees_misalignment = True
 
     def fit(self, m, blocks, gravity, used, start=None):
-        e = fit_ellipsoid(m[used], blocks[used], start=None if start is None else (0.5 * (start[0] + start[0].T), start[1]))
+        e = fit_ellipsoid(
+            m[used], blocks[used], start=None if start is None else (0.5 * (start[0] + start[0].T), start[1])
+        )
         static = gravity.quasi_static[used]
         if static.sum() < 50:
             raise MisalignmentUnobservable(
@@ -140,8 +142,11 @@ class AidedMethod(MagMethod):
         if spread[1] < MIN_POSE_SPREAD:
             raise MisalignmentUnobservable(
                 f"gravity was seen in one pose only (the quasi-static 'up' directions span {spread[1]:.3f} beyond one "
-                f"direction; needs ≥ {MIN_POSE_SPREAD}): a rotation about that vertical leaves the inclination unchanged. "
-                "Hold the board still for a few seconds in ≥ 3 different orientations (e.g. flat, on its side, on its end)")
+                f"direction; needs ≥ {MIN_POSE_SPREAD}): a rotation about that vertical leaves the inclination "
+                "unchanged. "
+                "Hold the board still for a few seconds in ≥ 3 different orientations (e.g. flat, on its side, on its "
+                "end)"
+            )
         a = fit_aided(m[used], gravity.up_body[used], static, blocks[used], e.l_matrix, e.centre)
 
         def unpack(theta):

@@ -21,8 +21,15 @@ from pathlib import Path
 import allantools
 import numpy as np
 
-__all__ = ["AllanCurve", "NoiseTerms", "allan_deviation", "paired_allan_deviation", "fit_noise_terms", "fit_allan_variance",
-           "plot_allan"]
+__all__ = [
+    "AllanCurve",
+    "NoiseTerms",
+    "allan_deviation",
+    "paired_allan_deviation",
+    "fit_noise_terms",
+    "fit_allan_variance",
+    "plot_allan",
+]
 
 FLICKER = math.sqrt(2 * math.log(2) / math.pi)  # 0.664
 
@@ -53,14 +60,18 @@ class NoiseTerms:
     rate_random_walk_std: float
 
     def model(self, tau_s: np.ndarray) -> np.ndarray:
-        return np.sqrt(self.arw**2 / tau_s + (FLICKER * self.bias_instability) ** 2 + self.rate_random_walk**2 * tau_s / 3)
+        return np.sqrt(
+            self.arw**2 / tau_s + (FLICKER * self.bias_instability) ** 2 + self.rate_random_walk**2 * tau_s / 3
+        )
 
 
 def allan_deviation(x: np.ndarray, rate_hz: float, taus_per_decade: int = 8) -> AllanCurve:
     """Overlapping Allan deviation of a rate signal x (N,), log-spaced τ up to T/5."""
     x = np.asarray(x, dtype=float)
     T = x.size / rate_hz
-    taus = np.logspace(math.log10(2.0 / rate_hz), math.log10(T / 5.0), int(taus_per_decade * math.log10(T * rate_hz / 10)))
+    taus = np.logspace(
+        math.log10(2.0 / rate_hz), math.log10(T / 5.0), int(taus_per_decade * math.log10(T * rate_hz / 10))
+    )
     t2, ad, _, _ = allantools.oadev(x, rate=rate_hz, data_type="freq", taus=taus)
     return AllanCurve(np.asarray(t2), np.asarray(ad), T / np.asarray(t2))
 

@@ -39,8 +39,19 @@ from gyrosim.effects import EFFECTS, Effect
 
 from calib.noise.wavelet import WaveletVariance, wv_covariance
 
-__all__ = ["NOISE_TERMS", "canonical_order", "WaveletModel", "sandwich_covariance", "ModelFit", "candidate_models", "fit_model", "identify_axis", "AxisSelection",
-           "model_name", "parse_model"]
+__all__ = [
+    "NOISE_TERMS",
+    "canonical_order",
+    "WaveletModel",
+    "sandwich_covariance",
+    "ModelFit",
+    "candidate_models",
+    "fit_model",
+    "identify_axis",
+    "AxisSelection",
+    "model_name",
+    "parse_model",
+]
 
 # the vocabulary's noise terms, discovered (each effect says which of its fields a fit estimates)
 NOISE_TERMS: dict[str, type[Effect]] = {k: c for k, c in EFFECTS.items() if c.noise_parameters}
@@ -63,7 +74,8 @@ def parse_model(text: str) -> tuple[str, ...]:
             count, part = int(part[0]), part[1:]
         kind = LONG.get(part, part)
         if kind not in NOISE_TERMS:
-            raise ValueError(f"unknown noise term {part!r}; use {', '.join(SHORT.values())} (e.g. white+flicker+rw, white+2gm)")
+            raise ValueError(f"unknown noise term {part!r}; use {', '.join(SHORT.values())} (e.g. white+flicker+rw, "
+                             "white+2gm)")
         out += [kind] * count
     return canonical_order(tuple(out))
 
@@ -133,8 +145,10 @@ class WaveletModel:
                 up, dn = logp[sl].copy(), logp[sl].copy()
                 up[1] += h
                 dn[1] -= h
-                out[:, sl.start + 1] = (self.effect(j, np.exp(up)).haar_wavelet_variance(self.m, self.dt)[0]
-                                        - self.effect(j, np.exp(dn)).haar_wavelet_variance(self.m, self.dt)[0]) / (2 * h)
+                out[:, sl.start + 1] = (
+                    self.effect(j, np.exp(up)).haar_wavelet_variance(self.m, self.dt)[0]
+                    - self.effect(j, np.exp(dn)).haar_wavelet_variance(self.m, self.dt)[0]
+                ) / (2 * h)
         return out
 
     def psd(self, logp: np.ndarray):
@@ -246,7 +260,9 @@ def fit_model(kinds: tuple[str, ...], wv: WaveletVariance, sd: np.ndarray) -> Mo
                     nu2_model=None if degenerate else model.nu(logp), degenerate=degenerate)
 
 
-def sandwich_covariance(kinds: tuple[str, ...], wv: WaveletVariance, logp: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, float]:
+def sandwich_covariance(
+    kinds: tuple[str, ...], wv: WaveletVariance, logp: np.ndarray, sigma: np.ndarray
+) -> tuple[np.ndarray, float]:
     """(Cov(log θ̂), optimism) for Ω = diag(Σ)⁻¹; see the module docstring."""
     model = WaveletModel(kinds, wv.m, wv.dt_s)
     d = model.jac(logp)

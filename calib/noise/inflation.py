@@ -55,7 +55,11 @@ def inflation_table(axes, rate_hz: float, assumed: dict[str, float] | None = Non
                 sel_tau = tau_allan <= h
                 if sel_tau.any() and h <= tau_allan[-1] * 2:
                     i = int(np.argmax(np.where(sel_tau, f, -np.inf)))
-                    horizon[str(h)] = {"factor": float(f[i]), "sigma": float(f[i] * rel[i]), "at_tau_s": float(tau_allan[i])}
+                    horizon[str(h)] = {
+                        "factor": float(f[i]),
+                        "sigma": float(f[i] * rel[i]),
+                        "at_tau_s": float(tau_allan[i]),
+                    }
             rows[label] = {"factor": f.tolist(), "sigma": (f * rel).tolist(), "max_over_horizon": horizon}
         out["axes"].append({"axis": a.axis, "allan_tau_s": tau_allan.tolist(), "assumed": {"white_noise": n_,
                             "random_walk": k_}, **rows})

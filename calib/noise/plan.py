@@ -19,7 +19,7 @@ import numpy as np
 
 from gyrosim.effects import Effect
 
-from calib.noise.gmwm import NOISE_TERMS, canonical_order, WaveletModel, sandwich_covariance
+from calib.noise.gmwm import NOISE_TERMS, WaveletModel, canonical_order, sandwich_covariance
 from calib.noise.wavelet import WaveletVariance, scales_for, wv_covariance
 
 __all__ = ["noise_terms_of", "predicted_relative_sigma", "record_length", "schedule_repetitions", "PlanRow"]

@@ -24,8 +24,10 @@ def summary_lines(res: NoiseIdentification) -> list[str]:
         for p in a.parameters:
             u = datasheet_unit(p.kind, p.field, triad)
             conv = [representations(p.kind, p.field, v, res.rate_hz, triad)[u] for v in (p.value,) + p.ci95]
-            out.append(f"    {p.kind}.{p.field}{'' if p.index == 0 else f'[{p.index}]'} = {conv[0]:.4g} {u} "
-                       f"(95 %: {conv[1]:.4g} … {conv[2]:.4g}; ±{100 * p.rel_sigma:.1f} % 1σ)  = {p.value:.4g} {p.unit}")
+            out.append(
+                f"    {p.kind}.{p.field}{'' if p.index == 0 else f'[{p.index}]'} = {conv[0]:.4g} {u} "
+                f"(95 %: {conv[1]:.4g} … {conv[2]:.4g}; ±{100 * p.rel_sigma:.1f} % 1σ)  = {p.value:.4g} {p.unit}"
+            )
     return out
 
 

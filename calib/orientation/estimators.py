@@ -241,7 +241,8 @@ class Fusion:
         for key, value in wanted.items():
             setattr(settings, key, value)
             if not math.isclose(float(getattr(settings, key)), float(value), rel_tol=1e-6):
-                raise RuntimeError(f"imufusion did not take the setting {key} = {value} (reads {getattr(settings, key)})")
+                raise RuntimeError(f"imufusion did not take the setting {key} = {value} (reads "
+                                   f"{getattr(settings, key)})")
         ahrs.set_settings(settings)
         ahrs.set_sample_period(dt)
         bias = None

@@ -1,5 +1,5 @@
-"""Monte Carlo of the static instruments (north-finding, the tilt-sensor test) against their limits (the score floor: uses
-gyrosim to simulate and calib to estimate; nothing below imports it).
+"""Monte Carlo of the static instruments (north-finding, the tilt-sensor test) against their limits (the score floor:
+uses gyrosim to simulate and calib to estimate; nothing below imports it).
 
 * North-finding: one truth per latitude (:func:`gyrosim.northfind.simulate_northfind_truth`),
   many drawn devices; per run the error of ψ̂ against the true heading (wrapped to ±180°), the
@@ -21,8 +21,8 @@ import numpy as np
 from gyrosim.northfind import NorthFindSequence, simulate_northfind, simulate_northfind_truth
 from gyrosim.sensor_model import SensorModel, stored_sensor_model
 
-from calib.noise.window_means import noise_terms_from_model
 from calib.instruments.northfind import find_north
+from calib.noise.window_means import noise_terms_from_model
 
 __all__ = ["NorthFindRow", "northfind_monte_carlo"]
 
@@ -72,10 +72,20 @@ def northfind_monte_carlo(sensor: SensorModel, latitudes_deg: list[float], seeds
         e, s_, li = np.array(err), np.array(sig), np.array(lim)
         rms = float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
         limit = float(np.sqrt(np.mean(li**2))) if li.size else float("nan")
-        rows.append(NorthFindRow(sensor.name, float(lat), seeds, rms, limit, rms / limit, float(e.mean()) if e.size else float("nan"),
-                                 float(s_.mean()) if s_.size else float("nan"),
-                                 float(np.sqrt(np.mean((e / s_) ** 2))) if e.size else float("nan"),
-                                 {k: st.count(k) for k in sorted(set(st))}))
+        rows.append(
+            NorthFindRow(
+                sensor.name,
+                float(lat),
+                seeds,
+                rms,
+                limit,
+                rms / limit,
+                float(e.mean()) if e.size else float("nan"),
+                float(s_.mean()) if s_.size else float("nan"),
+                float(np.sqrt(np.mean((e / s_) ** 2))) if e.size else float("nan"),
+                {k: st.count(k) for k in sorted(set(st))},
+            )
+        )
     return rows
 
 
@@ -114,14 +124,16 @@ def device_tilt_figures(truth, device: SensorModel, tau_range: dict[str, tuple[f
 
     from gyrosim.simulate import apply_sensor
 
+    from calib.instruments.tilt import UG, tilt_test
     from calib.noise.allan import FLICKER
     from calib.noise.window_means import expected_sample_variance
-    from calib.instruments.tilt import UG, tilt_test
 
     det = replace(device, gyro=(), accelerometer=tuple(e for e in device.accelerometer
                                                        if not e.stochastic and e.stage == "error"))
     clean = apply_sensor(truth, det, np.random.default_rng(0), realize=False)
-    clean = clean.with_signals(acc_m_s2=clean.acc_m_s2 + 1e-12 * np.random.default_rng(1).standard_normal(clean.acc_m_s2.shape))
+    clean = clean.with_signals(
+        acc_m_s2=clean.acc_m_s2 + 1e-12 * np.random.default_rng(1).standard_normal(clean.acc_m_s2.shape)
+    )
     res = tilt_test(clean)
     terms = noise_terms_from_model(device, "accelerometer")
     out = {}

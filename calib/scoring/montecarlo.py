@@ -58,10 +58,22 @@ from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
 from gyrosim.strapdown import integrate_gyro
 
-from calib.session.paper import METHODS, calibrate, prepare
-from calib.session.kernel import crlb_joint, run_filter
 from calib.session.hand.filter import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature
-from calib.session.model import ACC_DELAY_BLOCKS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND, HAND_BIAS, HAND_JOINT, JOINT, PAPER, FilterConfig, StateLayout, initial_covariance
+from calib.session.kernel import crlb_joint, run_filter
+from calib.session.model import (
+    ACC_DELAY_BLOCKS,
+    EXT_ACC_EXTRA_BLOCKS,
+    G_SENS_BLOCKS,
+    HAND,
+    HAND_BIAS,
+    HAND_JOINT,
+    JOINT,
+    PAPER,
+    FilterConfig,
+    StateLayout,
+    initial_covariance,
+)
+from calib.session.paper import METHODS, calibrate, prepare
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -126,40 +138,54 @@ class MonteCarloResult:
 
     def table(self) -> str:
         """A plain-text table (gyro bias in °/s, accelerometer bias in mg)."""
-        scale = np.array([180 / math.pi] * 3 + [1.0] * 6 + ([1000 / 9.80665] * 3 + [1.0] * 6 if len(self.names) > 9 else []))
+        scale = np.array(
+            [180 / math.pi] * 3 + [1.0] * 6 + ([1000 / 9.80665] * 3 + [1.0] * 6 if len(self.names) > 9 else [])
+        )
         hand = self.sqrt_crlb_hand.size > 0
         head = f"{'param':<9} {'true':>9} {'√CRLB':>9} " + (f"{'√CRLB hand':>10} " if hand else "") + " ".join(
             f"{m + ' mean err':>13} {m + ' RMSE':>10} {m + ' eff.':>8} " + (f"{m + ' eff.h':>9} " if hand else "")
             + f"{m + ' z RMS':>9}" for m in self.methods) + f" {'paper |err|':>11}"
-        rows = [f"Monte Carlo: {self.schedule}, hand {self.hand}, sensor {self.sensor}, accelerometer {self.accelerometer}, "
+        rows = [f"Monte Carlo: {self.schedule}, hand {self.hand}, sensor {self.sensor}, accelerometer "
+                f"{self.accelerometer}, "
                 f"{self.seeds} seeds (gyro bias °/s, accelerometer bias mg; efficiency = RMSE/√CRLB; z = err/σ)", head]
         for i, name in enumerate(self.names):
             cells = [f"{name:<9} {self.truth_mean[i] * scale[i]:>9.5f} {self.sqrt_crlb[i] * scale[i]:>9.5f}"
                      + (f" {self.sqrt_crlb_hand[i] * scale[i]:>10.5f}" if hand else "")]
             for st in self.methods.values():
-                cells.append(f"{st.mean_error[i] * scale[i]:>13.5f} {st.rmse[i] * scale[i]:>10.5f} {st.efficiency[i]:>8.2f} "
+                cells.append(f"{st.mean_error[i] * scale[i]:>13.5f} {st.rmse[i] * scale[i]:>10.5f} "
+                             f"{st.efficiency[i]:>8.2f} "
                              + (f"{st.efficiency_hand[i]:>9.2f} " if hand else "") + f"{st.z_rms[i]:>9.2f}")
             cells.append(f"{PAPER_ABS_ERROR[i] * scale[i]:>11.5f}" if i < 9 else f"{'':>11}")
             rows.append(" ".join(cells))
         for m, st in self.methods.items():
-            rows.append(f"NEES ({m}, 6 gyro filter parameters): mean {st.nees_mean:.2f}, 95 % band "
-                        f"[{st.nees_band[0]:.2f}, {st.nees_band[1]:.2f}]; all {len(self.names)} parameters: mean "
-                        f"{st.nees_all_mean:.2f}, band [{st.nees_all_band[0]:.2f}, {st.nees_all_band[1]:.2f}]; "
-                        + (f"{len(self.names) - 3} without the gyro bias: mean {st.nees_filter_mean:.2f}, band "
-                           f"[{st.nees_filter_band[0]:.2f}, {st.nees_filter_band[1]:.2f}]; " if len(self.names) > 9 else "")
-                        + "status "
-                        + ", ".join(f"{k} {v}" for k, v in sorted(st.statuses.items()))
-                        + f" (ok with NEES(6) above χ²₆ 99.9 %: {st.ok_wrong})")
+            rows.append(
+                f"NEES ({m}, 6 gyro filter parameters): mean {st.nees_mean:.2f}, 95 % band "
+                f"[{st.nees_band[0]:.2f}, {st.nees_band[1]:.2f}]; all {len(self.names)} parameters: mean "
+                f"{st.nees_all_mean:.2f}, band [{st.nees_all_band[0]:.2f}, {st.nees_all_band[1]:.2f}]; "
+                + (
+                    f"{len(self.names) - 3} without the gyro bias: mean {st.nees_filter_mean:.2f}, band "
+                    f"[{st.nees_filter_band[0]:.2f}, {st.nees_filter_band[1]:.2f}]; "
+                    if len(self.names) > 9
+                    else ""
+                )
+                + "status "
+                + ", ".join(f"{k} {v}" for k, v in sorted(st.statuses.items()))
+                + f" (ok with NEES(6) above χ²₆ 99.9 %: {st.ok_wrong})"
+            )
         if hand:
-            rows.append(f"hand-aware bound: lever arm as nuisance, slow external acceleration σ_s "
-                        f"{self.hand_psd.get('rms_m_s2', float('nan')):.4f} m/s², τ {self.hand_psd.get('tau_s', float('nan')):.2f} s "
-                        "(kf_hand's estimate, median over seeds)")
+            rows.append(
+                f"hand-aware bound: lever arm as nuisance, slow external acceleration σ_s "
+                f"{self.hand_psd.get('rms_m_s2', float('nan')):.4f} m/s², τ "
+                f"{self.hand_psd.get('tau_s', float('nan')):.2f} s "
+                "(kf_hand's estimate, median over seeds)"
+            )
             for m, v in self.sqrt_crlb_hand_by_method.items():
                 if not np.array_equal(v, self.sqrt_crlb_hand):
-                    rows.append(f"{m}'s eff.h uses the bound of S at the oracle's reference temperature "
-                                f"{self.hand_psd.get('oracle_reference_temperature_c', float('nan')):.2f} °C, where it is "
-                                f"scored (it states no temperature): √CRLB hand S "
-                                + ", ".join(f"{x:.5f}" for x in v[3:6]))
+                    rows.append(
+                        f"{m}'s eff.h uses the bound of S at the oracle's reference temperature "
+                        f"{self.hand_psd.get('oracle_reference_temperature_c', float('nan')):.2f} °C, where it is "
+                        f"scored (it states no temperature): √CRLB hand S " + ", ".join(f"{x:.5f}" for x in v[3:6])
+                    )
         return "\n".join(rows)
 
     def to_dict(self) -> dict:
@@ -200,28 +226,33 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
               temperature_rel_c: np.ndarray | None = None, g_sensitivity: bool = False,
               estimate_accelerometer: bool = False, band_hz: tuple[float, float] | None = None,
               band_rms_m_s2: float = 0.0, band_order: int = 2, delay: bool = True) -> np.ndarray:
-    """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.session.model.HAND` states (module
-    docstring): the Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true
-    rate, a vague prior on S, G and r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated,
-    tremor-free measurement of :mod:`calib.session.hand.filter` (every D-th sample, R = σ_f²/D); with
-    ``bias_rw_rad_s_sqrt_s`` > 0 the gyro bias is a random-walk state as in ``kf_hand`` (prior: the rest
-    average's σ in ``config``); with ``temperature_rel_c`` (N,), T − T₀ (°C), the scale factor's temperature
-    coefficient s_T is three more nuisance states with a vague prior, S_i(T) = S_i(T₀) + s_T,i (T − T₀), as in
-    ``kf_hand`` on a session whose temperature moved (:func:`calib.session.hand.filter.scale_at_temperature` maps the result to
-    S at the temperatures the session determined it); ``g_sensitivity``: the gyro's g-sensitivity (diagonal,
-    b_g,i = b_i + k_i f_i with f the true specific force) is three more nuisance states with a vague prior, as in
-    ``kf_hand``.  ``estimate_accelerometer``: ``kf_hand_joint``'s model — the
-    :data:`calib.session.model.HAND_JOINT` states, the accelerometer's nine with a vague prior, the true device's
-    accelerometer reading M_a f + b_a and all three measurement rows (no g-sensitivity block, which ``kf_hand_joint``
-    does not carry; with ``temperature_rel_c`` its temperature blocks, :func:`calib.session.hand.filter.joint_layout`: the
-    accelerometer bias's c_a and the gyro scale's s_T as nuisance states with vague priors).  ``band_hz`` (f₁, f₂):
-    kf_hand's band-limited sway — a_e is then the Gauss–Markov floor (``sigma_s_m_s2``, ``tau_s``) plus a
-    Butterworth band-pass of ``band_order`` poles per edge with RMS ``band_rms_m_s2``
-    (:meth:`calib.session.model.FilterConfig.ext_acc_model`), the same model the filter fitted.  S, G are rows 3:9 of the
-    result either way (S at T₀).  ``delay``: the accelerometer's delay behind the gyro is one more nuisance state
-    (as in ``kf_hand``: one δ for the triad, prior σ 10 ms; regressor ḟ of the true specific force).  The layout is
-    :func:`hand_crlb_layout`'s."""
-    from calib.session.hand.filter import _common_delay_prior, _g_sensitivity_prior, _variance_ratio, lever_jacobian, lever_regressor
+    """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.session.model.HAND` states (module docstring): the
+    Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true rate, a vague prior on S, G and
+    r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated, tremor-free measurement of
+    :mod:`calib.session.hand.filter` (every D-th sample, R = σ_f²/D); with ``bias_rw_rad_s_sqrt_s`` > 0 the gyro bias is
+    a random-walk state as in ``kf_hand`` (prior: the rest average's σ in ``config``); with ``temperature_rel_c`` (N,),
+    T − T₀ (°C), the scale factor's temperature coefficient s_T is three more nuisance states with a vague prior, S_i(T)
+    = S_i(T₀) + s_T,i (T − T₀), as in ``kf_hand`` on a session whose temperature moved
+    (:func:`calib.session.hand.filter.scale_at_temperature` maps the result to S at the temperatures the session
+    determined it); ``g_sensitivity``: the gyro's g-sensitivity (diagonal, b_g,i = b_i + k_i f_i with f the true
+    specific force) is three more nuisance states with a vague prior, as in ``kf_hand``.  ``estimate_accelerometer``:
+    ``kf_hand_joint``'s model — the :data:`calib.session.model.HAND_JOINT` states, the accelerometer's nine with a vague
+    prior, the true device's accelerometer reading M_a f + b_a and all three measurement rows (no g-sensitivity block,
+    which ``kf_hand_joint`` does not carry; with ``temperature_rel_c`` its temperature blocks,
+    :func:`calib.session.hand.filter.joint_layout`: the accelerometer bias's c_a and the gyro scale's s_T as nuisance
+    states with vague priors).  ``band_hz`` (f₁, f₂): kf_hand's band-limited sway — a_e is then the Gauss–Markov floor
+    (``sigma_s_m_s2``, ``tau_s``) plus a Butterworth band-pass of ``band_order`` poles per edge with RMS
+    ``band_rms_m_s2`` (:meth:`calib.session.model.FilterConfig.ext_acc_model`), the same model the filter fitted.  S, G
+    are rows 3:9 of the result either way (S at T₀).  ``delay``: the accelerometer's delay behind the gyro is one more
+    nuisance state (as in ``kf_hand``: one δ for the triad, prior σ 10 ms; regressor ḟ of the true specific force).  The
+    layout is :func:`hand_crlb_layout`'s."""
+    from calib.session.hand.filter import (
+        _common_delay_prior,
+        _g_sensitivity_prior,
+        _variance_ratio,
+        lever_jacobian,
+        lever_regressor,
+    )
 
     th = np.asarray(theta_true, float)
     m = np.eye(3) + np.diag(th[0:3]) + np.array([[0, th[5], th[4]], [th[5], 0, th[3]], [th[4], th[3], 0]])
@@ -230,13 +261,26 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
     n = t_s.size
     upd = np.zeros(n, bool)
     upd[::dec] = True
-    cfg = replace(config, external_acc_allowance_m_s2=0.0, ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9), ext_acc_tau_s=tau_s,
-                  ext_acc_highpass_tau_s=highpass_tau_s, ext_acc_highpass_order=int(highpass_order),
-                  gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s,
-                  ext_acc_band_hz=None if band_hz is None else (float(band_hz[0]), float(band_hz[1])),
-                  ext_acc_band_rms_m_s2=float(band_rms_m_s2), ext_acc_band_order=int(band_order))
-    layout = hand_crlb_layout(bias_rw_rad_s_sqrt_s > 0, temperature_rel_c is not None, g_sensitivity, estimate_accelerometer,
-                              2 * int(band_order) - 2 if band_hz is not None else 0, delay)
+    cfg = replace(
+        config,
+        external_acc_allowance_m_s2=0.0,
+        ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9),
+        ext_acc_tau_s=tau_s,
+        ext_acc_highpass_tau_s=highpass_tau_s,
+        ext_acc_highpass_order=int(highpass_order),
+        gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s,
+        ext_acc_band_hz=None if band_hz is None else (float(band_hz[0]), float(band_hz[1])),
+        ext_acc_band_rms_m_s2=float(band_rms_m_s2),
+        ext_acc_band_order=int(band_order),
+    )
+    layout = hand_crlb_layout(
+        bias_rw_rad_s_sqrt_s > 0,
+        temperature_rel_c is not None,
+        g_sensitivity,
+        estimate_accelerometer,
+        2 * int(band_order) - 2 if band_hz is not None else 0,
+        delay,
+    )
     p0 = initial_covariance(layout, cfg)
     _common_delay_prior(p0, layout)
     p0[3:9, 3:9] = np.eye(6) * vague**2
@@ -273,25 +317,31 @@ def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, qua
 def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, estimate_accelerometer: bool,
                      band_states: int = 0, delay: bool = True) -> StateLayout:
     """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.session.hand.filter.hand_layout`; ``band_states`` extra
-    shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.session.hand.filter.joint_layout`) on a
-    session whose temperature moved (``temperature``) or not; ``delay``: with the accelerometer's delay δ.  The
-    gyro bias's temperature coefficient c_b (kf_hand's since this round, :data:`calib.session.hand.filter.GYRO_TEMP_BIAS`) is
-    in neither: the bound's bias is the random walk of the truth's own end-to-end drift, as before."""
+    shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.session.hand.filter.joint_layout`)
+    on a session whose temperature moved (``temperature``) or not; ``delay``: with the accelerometer's delay δ.  The
+    gyro bias's temperature coefficient c_b (kf_hand's since this round,
+    :data:`calib.session.hand.filter.GYRO_TEMP_BIAS`) is in neither: the bound's bias is the random walk of the truth's
+    own end-to-end drift, as before."""
     if estimate_accelerometer:
         return joint_layout(temperature, delay=delay, gyro_temp_bias=False)
     base = HAND_BIAS if bias_rw else HAND
-    return StateLayout(base.blocks + (("gyro_temp_scale",) if temperature else ()) + (G_SENS_BLOCKS if g_sensitivity else ())
-                       + EXT_ACC_EXTRA_BLOCKS[:band_states] + (ACC_DELAY_BLOCKS if delay else ()))
+    return StateLayout(
+        base.blocks
+        + (("gyro_temp_scale",) if temperature else ())
+        + (G_SENS_BLOCKS if g_sensitivity else ())
+        + EXT_ACC_EXTRA_BLOCKS[:band_states]
+        + (ACC_DELAY_BLOCKS if delay else ())
+    )
 
 
 def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
-    """The simulated device's gyro scale factor change (3,) at the temperatures ``t_c`` (°C, one per axis)
-    relative to the oracle's S: Σ ∂δ_i/∂x_i at x = 0 of its deterministic, non-affine error effects (a
-    temperature-dependent scale — the MPU-9250's ``temperature_scale`` — contributes its polynomial in
-    T − T_ref; a nonlinearity k x|x| or a bias-like term nothing), evaluated at T_i (scoring only: it reads the
-    truth).  A calibration that says at which temperature its S holds (``diagnostics["temperature"]``,
-    :func:`calib.session.hand.filter.scale_at_temperature`) is scored against the device's S at that temperature; the oracle's
-    S (:func:`gyrosim.calibration.truth_calibration`) is the one at the preset's reference."""
+    """The simulated device's gyro scale factor change (3,) at the temperatures ``t_c`` (°C, one per axis) relative to
+    the oracle's S: Σ ∂δ_i/∂x_i at x = 0 of its deterministic, non-affine error effects (a temperature-dependent scale —
+    the MPU-9250's ``temperature_scale`` — contributes its polynomial in T − T_ref; a nonlinearity k x|x| or a bias-like
+    term nothing), evaluated at T_i (scoring only: it reads the truth).  A calibration that says at which temperature
+    its S holds (``diagnostics["temperature"]``, :func:`calib.session.hand.filter.scale_at_temperature`) is scored
+    against the device's S at that temperature; the oracle's S (:func:`gyrosim.calibration.truth_calibration`) is the
+    one at the preset's reference."""
     from gyrosim.sensor_model import stored_sensor_model
 
     return _scale_change(stored_sensor_model(rec.meta or {}), t_c)
@@ -343,12 +393,11 @@ def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
 
 def truth_gyro_scale_at_rate(rec, rate_rad_s: np.ndarray, t_c: np.ndarray) -> np.ndarray:
     """The simulated device's gyro scale factor change (3,) at the rates a calibration states its S for
-    (``diagnostics["scale_reference_rate"]``, :func:`calib.session.hand.filter.scale_reference_rate`): axis i's chord slope over
-    ±m_i, (δ_i(+m_i e_i) − δ_i(−m_i e_i)) / 2m_i, minus its slope at 0 rad/s (which
-    :func:`truth_scale_at_temperature` already counts), of the deterministic, non-affine, pointwise error effects at
-    the temperature T_i (scoring only: it reads the truth).  A nonlinearity k ω|ω| reads k m_i; a temperature-
-    dependent scale, linear in the rate, nothing — the accelerometer's counterpart is
-    :func:`truth_acc_scale_at_gravity`."""
+    (``diagnostics["scale_reference_rate"]``, :func:`calib.session.hand.filter.scale_reference_rate`): axis i's chord
+    slope over ±m_i, (δ_i(+m_i e_i) − δ_i(−m_i e_i)) / 2m_i, minus its slope at 0 rad/s (which
+    :func:`truth_scale_at_temperature` already counts), of the deterministic, non-affine, pointwise error effects at the
+    temperature T_i (scoring only: it reads the truth).  A nonlinearity k ω|ω| reads k m_i; a temperature- dependent
+    scale, linear in the rate, nothing — the accelerometer's counterpart is :func:`truth_acc_scale_at_gravity`."""
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
@@ -376,12 +425,13 @@ def _chord_slope(e, ctx, i: int, amplitude: float) -> float | None:
 
 
 def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
-    """The simulated device's accelerometer bias change (3,) at the temperatures ``t_c`` (°C, one per axis)
-    relative to the oracle's bias: the value at zero input of its deterministic, non-affine, pointwise error
-    effects (the MPU-9250's ``temperature_bias``: its polynomial in T − T_ref; a nonlinearity k x|x| gives 0),
-    axis i at T_i (scoring only: it reads the truth).  A calibration that states the temperature its b_a holds at
-    (``diagnostics["temperature"]["acc_bias_reference_temperature_c"]``, :func:`calib.session.hand.filter.acc_bias_at_temperature`)
-    is scored against the device's bias there, as S is by :func:`truth_scale_at_temperature`."""
+    """The simulated device's accelerometer bias change (3,) at the temperatures ``t_c`` (°C, one per axis) relative to
+    the oracle's bias: the value at zero input of its deterministic, non-affine, pointwise error effects (the MPU-9250's
+    ``temperature_bias``: its polynomial in T − T_ref; a nonlinearity k x|x| gives 0), axis i at T_i (scoring only: it
+    reads the truth).  A calibration that states the temperature its b_a holds at
+    (``diagnostics["temperature"]["acc_bias_reference_temperature_c"]``,
+    :func:`calib.session.hand.filter.acc_bias_at_temperature`) is scored against the device's bias there, as S is by
+    :func:`truth_scale_at_temperature`."""
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
@@ -472,8 +522,9 @@ def _oracle_reference_temperature_c(rec) -> float | None:
     if rec.temp_c is None or not np.all(np.isfinite(rec.temp_c)):
         return None
     lo, hi = float(np.min(rec.temp_c)), float(np.max(rec.temp_c))
-    if not np.any(np.abs(truth_scale_at_temperature(rec, np.full(3, hi)) - truth_scale_at_temperature(rec, np.full(3, lo)))
-                  > 0.0):
+    if not np.any(
+        np.abs(truth_scale_at_temperature(rec, np.full(3, hi)) - truth_scale_at_temperature(rec, np.full(3, lo))) > 0.0
+    ):
         return None
     from gyrosim.sensor_model import stored_sensor_model
 
@@ -576,7 +627,8 @@ def monte_carlo(
     est = {m: [] for m in methods}
     cov = {m: [] for m in methods}
     status = {m: [] for m in methods}
-    refused: dict[str, list[str]] = {m: [] for m in methods}   # seeds a method refused (calib run's exit 2): counted, not scored
+    # seeds a method refused (calib run's exit 2): counted, not scored
+    refused: dict[str, list[str]] = {m: [] for m in methods}
     truths = []
     truth_m = {m: [] for m in methods}          # per method: S at the temperature its calibration states, if it does
     t_ref_m = {m: [] for m in methods}
@@ -604,7 +656,11 @@ def monte_carlo(
                 drift.append(c.diagnostics["gyro_bias_drift"]["rate_random_walk_rad_s_sqrt_s"])
             items = [("gyro", "bias"), ("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
             if estimate:
-                items += [("accelerometer", "bias"), ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")]
+                items += [
+                    ("accelerometer", "bias"),
+                    ("accelerometer", "scale_factor"),
+                    ("accelerometer", "nonorthogonality"),
+                ]
             block = c.block_covariance(items)
             if estimate and k == 0 and not np.all(np.diag(block)[len(GYRO_PARAMS):] > 0):
                 raise GyrosimError(_GYRO_ONLY.format(repr(m)))
@@ -620,10 +676,13 @@ def monte_carlo(
                     temp.get("modelled") and "scale_reference_temperature_c" in temp) else np.full(3, t_session)
                 tm[3:6] += truth_gyro_scale_at_rate(rec, np.asarray(srate["rate_rad_s"], float), t_s)
             gb = c.diagnostics.get("gyro_bias", {})
-            if "rest_index_range" in gb:   # the bias at the rest it states (calib.session.rest_bias), not at T_ref, f = 0
+            # the bias at the rest it states (calib.session.rest_bias), not at T_ref, f = 0
+            if "rest_index_range" in gb:
                 rng_ = tuple(gb["rest_index_range"])
                 if rng_ not in slow_cache:
-                    slow_cache[rng_] = truth_bias_at_reference(rec, rng_, slow_gyro_bias(rec, truth, model, 10_000 + seed, rng_))
+                    slow_cache[rng_] = truth_bias_at_reference(
+                        rec, rng_, slow_gyro_bias(rec, truth, model, 10_000 + seed, rng_)
+                    )
                 tm[0:3] += slow_cache[rng_]
             t_acc = np.full(3, t_session)
             if estimate and temp.get("modelled") and "acc_bias_reference_temperature_c" in temp:
@@ -631,7 +690,8 @@ def monte_carlo(
                 t_acc = np.asarray(temp["acc_bias_reference_temperature_c"], float)
                 tm[9:12] += truth_acc_bias_at_temperature(rec, t_acc)
                 t_ref_a_m[m].append(t_acc)
-            if estimate:   # the accelerometer's scale where a gravity calibration measures it: at ±g, or at the specific
+            # the accelerometer's scale where a gravity calibration measures it: at ±g, or at the specific
+            if estimate:
                 # force the method states (kf_hand_joint), at the stated temperature (else the session's mean)
                 fref = c.diagnostics.get("acc_scale_reference_force", {}).get("specific_force_m_s2")
                 tm[12:15] += truth_acc_scale_at_gravity(rec, t_acc, force_m_s2=fref)
@@ -690,7 +750,8 @@ def monte_carlo(
                         "highpass_order": int(round(float(np.median([d.get("highpass_order", 1) for d in psd])))),
                         "bias_rw_rad_s_sqrt_s": float(np.median(drift)) if drift else 0.0}
             bands = [d for d in psd if d.get("band_hz")]
-            if bands and len(bands) * 2 > len(psd):   # kf_hand's band-limited sway in most seeds: the bound's a_e is its median
+            # kf_hand's band-limited sway in most seeds: the bound's a_e is its median
+            if bands and len(bands) * 2 > len(psd):
                 hand_psd.update({"psd_model": bands[0].get("psd_model"),
                                  "band_hz": [float(np.median([d["band_hz"][i] for d in bands])) for i in (0, 1)],
                                  "band_rms_m_s2": float(np.median([d["band_rms_m_s2"] for d in bands])),
@@ -702,8 +763,11 @@ def monte_carlo(
         # S at the temperatures the session determined it: the bound is that of the same quantity, with s_T nuisance
         # — and, for a method that states none, that of S at the oracle's reference temperature, where it is scored
         t_oracle = None if estimate else _oracle_reference_temperature_c(rec0)
-        thermal = session_temperature(rec0.temp_c[start:], rate_hz) if (
-            rec0.temp_c is not None and (any(t_ref_m[m] or t_ref_a_m[m] for m in methods) or t_oracle is not None)) else None
+        thermal = (
+            session_temperature(rec0.temp_c[start:], rate_hz)
+            if (rec0.temp_c is not None and (any(t_ref_m[m] or t_ref_a_m[m] for m in methods) or t_oracle is not None))
+            else None
+        )
         # and its g-sensitivity, when a method estimated it (kf_hand): three nuisance states of the same model
         g_sens = any(gs_m[m] for m in methods)
         ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
@@ -727,14 +791,19 @@ def monte_carlo(
                 o = lay_t.offset("gyro_temp_scale")
                 j_or[0:3, o:o + 3] = np.eye(3) * (t_oracle - thermal[1])
                 t_all = rec0.temp_c[start:]
-                p_pop = _with_population_prior(ph, o, config.prior_gyro_temp_scale_per_c, _scale_temperature_sigma_per_c(
-                    model, float(np.min(t_all)), float(np.max(t_all))))
+                p_pop = _with_population_prior(
+                    ph,
+                    o,
+                    config.prior_gyro_temp_scale_per_c,
+                    _scale_temperature_sigma_per_c(model, float(np.min(t_all)), float(np.max(t_all))),
+                )
                 sd_sg_oracle = np.sqrt(np.diag(j_or @ p_pop @ j_or.T))
                 hand_psd["oracle_reference_temperature_c"] = t_oracle
                 # for a file of methods that state no temperature to borrow (benchmarks/hand_campaign.py)
                 hand_psd["sqrt_crlb_hand_sg_at_oracle_reference"] = sd_sg_oracle.tolist()
             if any(t_ref_m[m] for m in methods):
-                hand_psd["scale_reference_temperature_c"] = t_r.tolist()      # the bound's; the estimates' median beside it
+                # the bound's; the estimates' median beside it
+                hand_psd["scale_reference_temperature_c"] = t_r.tolist()
                 hand_psd["scale_reference_temperature_c_estimates"] = np.median(
                     np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
             else:
@@ -755,10 +824,22 @@ def monte_carlo(
             if not all(t_ref_a_m[m] for m in methods):
                 # a joint method that states no temperature (kf_session) keeps the bound of the model without the
                 # temperature blocks, as before them (one more recursion, ~1 s)
-                pp = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
-                               hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
-                               bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"],
-                               highpass_order=hand_psd["highpass_order"], g_sensitivity=g_sens, estimate_accelerometer=True)
+                pp = hand_crlb(
+                    tr.omega_body_rad_s[start:],
+                    f_g,
+                    q_int,
+                    rec0.t_s[start:],
+                    th,
+                    config,
+                    rate_hz,
+                    hand_psd["rms_m_s2"],
+                    hand_psd["tau_s"],
+                    highpass_tau_s=hand_psd["highpass_tau_s"],
+                    bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"],
+                    highpass_order=hand_psd["highpass_order"],
+                    g_sensitivity=g_sens,
+                    estimate_accelerometer=True,
+                )
                 sdp = np.sqrt(np.diag(pp))
                 sd_plain_joint = np.concatenate([bias_crlb, sdp[3:9], sdp[oa:oa + 9]])
         if not math.isfinite(hand_psd["highpass_tau_s"]):

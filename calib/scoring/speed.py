@@ -35,11 +35,11 @@ __all__ = ["run_bench", "ClosedLoopTiming", "closeloop_bench"]
 def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[str, float, float]]:
     from gyrosim.simulate import simulate
 
-    from calib.session.paper import _run, calibrate, prepare
-    from calib.session.registry import _run as _paper
     from calib.session.hand.filter import kf_hand
     from calib.session.kernel import run_filter
     from calib.session.model import JOINT
+    from calib.session.paper import _run, calibrate, prepare
+    from calib.session.registry import _run as _paper
 
     rec = simulate("zhou2020", "ideal", "mpu9250", 100.0, seed=seed)
     prep = prepare(rec, accelerometer="estimate")
@@ -47,8 +47,9 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
     n = rec.n - a
     calibrate(rec, "kf_session")  # compile and warm every path once
     cases = {
-        "kf_session_r (9 states, filterpy)": lambda: calibrate(rec, "kf_session", accelerometer="calibrated", engine="filterpy",
-                                                                 hand_check=False),
+        "kf_session_r (9 states, filterpy)": lambda: calibrate(
+            rec, "kf_session", accelerometer="calibrated", engine="filterpy", hand_check=False
+        ),
         "calib run (21 states, compiled)": lambda: calibrate(rec, "kf_session"),
         "calib run --method iterated_session": lambda: calibrate(rec, "iterated_session"),
         "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session", accelerometer="calibrated"),
@@ -111,13 +112,17 @@ def closeloop_bench() -> list[ClosedLoopTiming]:
     from gyrosim.loaders import available_datasets, load_dataset
     from gyrosim.simulate import simulate
 
-    from calib.session.paper import calibrate
     from calib.closeloop import run_closeloop
     from calib.closeloop.suite import BASE_SENSOR
+    from calib.session.paper import calibrate
 
-    cases = [("zhou2020, typical hand, 100 Hz (simulated)", simulate("zhou2020", "typical", BASE_SENSOR, 100.0, seed=0))]
+    cases = [
+        ("zhou2020, typical hand, 100 Hz (simulated)", simulate("zhou2020", "typical", BASE_SENSOR, 100.0, seed=0))
+    ]
     if "broad/07_undisturbed_fast_rotation_B" in available_datasets():
-        cases.append(("BROAD 07 fast rotation, 285.7 Hz (measured)", load_dataset("broad/07_undisturbed_fast_rotation_B")))
+        cases.append(
+            ("BROAD 07 fast rotation, 285.7 Hz (measured)", load_dataset("broad/07_undisturbed_fast_rotation_B"))
+        )
     out = []
     for name, rec in cases:
         run_closeloop(rec)

@@ -29,10 +29,10 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.strapdown import integrate_gyro
 
-from calib.session.paper import Prepared, rest_mask
-from calib.session.kernel import run_filter
 from calib.session.hand.filter import _lowpass
+from calib.session.kernel import run_filter
 from calib.session.model import PAPER, initial_covariance, m_matrix
+from calib.session.paper import Prepared, rest_mask
 
 __all__ = ["Coaching", "coach"]
 
@@ -64,11 +64,14 @@ class Coaching:
 
     def lines(self) -> list[str]:
         c = self.cost
-        out = [f"the hand: external acceleration {self.external_acc_rms_m_s2:.3f} m/s² RMS "
-               f"(tremor band {self.tremor_band_rms_m_s2:.3f}, slow {self.slow_rms_m_s2:.3f})",
-               f"σ of S, G reached {np.array2string(self.sigma_reached, precision=1, formatter={'float': '{:.1e}'.format})}"
-               f" vs an ideal hand's {np.array2string(self.sigma_ideal_hand, formatter={'float': '{:.1e}'.format})}: "
-               f"×{float(np.median(c)):.1f} (median; worst ×{float(np.max(c)):.1f} on {SG[int(np.argmax(c))]})"]
+        out = [
+            f"the hand: external acceleration {self.external_acc_rms_m_s2:.3f} m/s² RMS "
+            f"(tremor band {self.tremor_band_rms_m_s2:.3f}, slow {self.slow_rms_m_s2:.3f})",
+            "σ of S, G reached "
+            f"{np.array2string(self.sigma_reached, precision=1, formatter={'float': '{:.1e}'.format})}"
+            f" vs an ideal hand's {np.array2string(self.sigma_ideal_hand, formatter={'float': '{:.1e}'.format})}: "
+            f"×{float(np.median(c)):.1f} (median; worst ×{float(np.max(c)):.1f} on {SG[int(np.argmax(c))]})",
+        ]
         if self.worst_segments:
             out.append("segments that hurt most (slow external acceleration): " + "; ".join(
                 f"{s['t_s'][0]:.0f}–{s['t_s'][1]:.0f} s ({s['slow_external_acc_rms_m_s2']:.3f} m/s²)"

@@ -132,10 +132,15 @@ class RestGravity:
         return float(stats.chi2.sf(self.chi2, self.dof)) if self.dof > 0 else 1.0
 
     def to_dict(self) -> dict:
-        return {"segments": [{"t_s": list(t), "residual_m_s2": float(r), "std_m_s2": float(s),
-                              "gravity_direction_body": d.tolist()}
-                             for t, r, s, d in zip(self.times_s, self.residual_m_s2, self.std_m_s2, self.direction_body)],
-                "chi2": self.chi2, "dof": self.dof, "p_value": self.p_value}
+        return {
+            "segments": [
+                {"t_s": list(t), "residual_m_s2": float(r), "std_m_s2": float(s), "gravity_direction_body": d.tolist()}
+                for t, r, s, d in zip(self.times_s, self.residual_m_s2, self.std_m_s2, self.direction_body)
+            ],
+            "chi2": self.chi2,
+            "dof": self.dof,
+            "p_value": self.p_value,
+        }
 
 
 def rest_gravity(f_hat: np.ndarray, t_s: np.ndarray, ranges: tuple[tuple[int, int], ...], gravity_m_s2: float,
@@ -177,9 +182,16 @@ class Inflation:
         return float(np.sqrt(self.factor))
 
     def to_dict(self) -> dict:
-        return {"long_run_variance": self.kappa, "dof": self.dof, "threshold_95": self.threshold,
-                "covariance_factor": self.factor, "sigma_factor": self.sigma_factor, "block_s": INFLATION_BLOCK_S,
-                "fixed_parameters_accounted": self.nuisance, "long_run_variance_ignoring_fixed": self.kappa_ignoring_fixed}
+        return {
+            "long_run_variance": self.kappa,
+            "dof": self.dof,
+            "threshold_95": self.threshold,
+            "covariance_factor": self.factor,
+            "sigma_factor": self.sigma_factor,
+            "block_s": INFLATION_BLOCK_S,
+            "fixed_parameters_accounted": self.nuisance,
+            "long_run_variance_ignoring_fixed": self.kappa_ignoring_fixed,
+        }
 
     def warning(self, hand_aware: bool = False) -> str | None:
         """The inflation's warning; ``hand_aware``: for a filter that already models the hand (``kf_hand``),
@@ -187,10 +199,12 @@ class Inflation:
         if self.factor <= 1.0:
             return None
         if hand_aware:
-            return (f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
-                    "low-frequency power kf_hand's model (a fixed lever arm and a stationary slow external acceleration "
-                    f"fitted to this session) expects, so its own σ understated the error ~{self.sigma_factor:.1f}×: "
-                    f"{HAND_AWARE_CAUSES}")
+            return (
+                f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
+                "low-frequency power kf_hand's model (a fixed lever arm and a stationary slow external acceleration "
+                f"fitted to this session) expects, so its own σ understated the error ~{self.sigma_factor:.1f}×: "
+                f"{HAND_AWARE_CAUSES}"
+            )
         return (f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
                 "low-frequency power the filter's white-noise model expects (a hand's slow external acceleration or "
                 f"an unmodelled lever arm), so the filter's own σ understated the error ~{self.sigma_factor:.1f}×; "
@@ -200,12 +214,15 @@ class Inflation:
 # What a hand-aware filter's (kf_hand's) failed innovation test means and what the user can do: it already models
 # the lever arm and the hand's slow acceleration, so a larger --external-acc or a hand-blind method
 # (iterated_session) is no remedy; what is left is motion outside its model or a sensor effect it lacks.
-HAND_AWARE_CAUSES = ("the hand did something its model lacks — bursts or jerks (its slow-acceleration model is "
-                     "stationary over the session), taps, or a pivot that moved (the lever arm is one constant) — or "
-                     "the sensor has an effect the model lacks (a raw accelerometer, a gyro–accelerometer time offset, "
-                     "g-sensitivity, a gyro bias that moves with temperature). Record again turning the device smoothly at the wrist without moving the arm; "
-                     "with a raw accelerometer use calib run --method hand (it estimates the accelerometer too); "
-                     "calib closeloop traces a sensor effect")
+HAND_AWARE_CAUSES = (
+    "the hand did something its model lacks — bursts or jerks (its slow-acceleration model is "
+    "stationary over the session), taps, or a pivot that moved (the lever arm is one constant) — or "
+    "the sensor has an effect the model lacks (a raw accelerometer, a gyro–accelerometer time offset, "
+    "g-sensitivity, a gyro bias that moves with temperature). Record again turning the device smoothly at the wrist "
+    "without moving the arm; "
+    "with a raw accelerometer use calib run --method hand (it estimates the accelerometer too); "
+    "calib closeloop traces a sensor effect"
+)
 
 
 INFLATION_INCONSISTENT_SIGMA = 1.5

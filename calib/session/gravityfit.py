@@ -142,5 +142,10 @@ def fit_gravity(f: np.ndarray, f_reg: np.ndarray, r_var: np.ndarray | float, noi
     fh = compensate_acc(f, theta)
     r = np.linalg.norm(fh, axis=1) - gravity_m_s2 - offset
     used = huber > 0.999
-    return GravityFit(theta, 0.5 * (cov + cov.T), float(math.sqrt(np.mean(r[used] ** 2))) if used.any() else float("nan"),
-                      int(used.sum()), np.asarray(prior_sigma, float))
+    return GravityFit(
+        theta,
+        0.5 * (cov + cov.T),
+        float(math.sqrt(np.mean(r[used] ** 2))) if used.any() else float("nan"),
+        int(used.sum()),
+        np.asarray(prior_sigma, float),
+    )

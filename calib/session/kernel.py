@@ -30,7 +30,16 @@ from numba import njit
 
 from gyrosim.rotations import quat_to_matrix
 
-from calib.session.model import EXT_ACC_BLOCKS, PAPER, SENSOR_EXTRA_BLOCKS, FilterConfig, StateLayout, initial_covariance, leave_out_means, theta_slice
+from calib.session.model import (
+    EXT_ACC_BLOCKS,
+    PAPER,
+    SENSOR_EXTRA_BLOCKS,
+    FilterConfig,
+    StateLayout,
+    initial_covariance,
+    leave_out_means,
+    theta_slice,
+)
 
 # the update's H, its non-zero columns at most: φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27 + the lever
 # arm term's gyro columns (S, G, b, c_b, s_T, k) 18
@@ -194,9 +203,12 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     B, N = g.shape[0], g.shape[1]
     n = P0.shape[1]
     theta = theta0.copy()
-    hand = hand0.copy()                                        # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
-    #                                                            (general shaping filter, lti_d > 0: component i of axis j at 3 + 3i + j)
-    sens = sens0.copy()                                        # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15): calib.session.model.SENSOR_EXTRA_BLOCKS
+    # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
+    hand = hand0.copy()
+    # (general shaping filter, lti_d > 0: component i of axis j at 3 + 3i + j)
+    # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15):
+    # calib.session.model.SENSOR_EXTRA_BLOCKS
+    sens = sens0.copy()
     P = P0.copy()
     qout = np.zeros((B, 4))
     nis_out = np.full((B, N - 1), np.nan)
@@ -249,7 +261,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
             Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
             bg = th[6:9] + sx[0:3] * dtm
             fm = np.zeros(3)
-            if o_gs >= 0:                                      # g-sensitivity: b_g,i += k_i f_i (f the specific force, body)
+            # g-sensitivity: b_g,i += k_i f_i (f the specific force, body)
+            if o_gs >= 0:
                 fm = 0.5 * (freg[b, k - 1] + freg[b, k])
                 bg = bg + sx[6:9] * fm
             wp = Mi @ (g[b, k - 1] - bg)
@@ -301,7 +314,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                         Pb[r, c] *= al
                         Pb[c, r] *= al
                     Pb[c, c] += gm_var * (1.0 - al * al)
-            if lti_d > 0:                                      # a_e's shaping filter per nav axis: x ← Φ x, P ← Φ P Φᵀ + Q_d
+            # a_e's shaping filter per nav axis: x ← Φ x, P ← Φ P Φᵀ + Q_d
+            if lti_d > 0:
                 u = phi_idx[k]
                 for j in range(3):
                     for i in range(lti_d):                     # nominal and error-state mean
@@ -342,7 +356,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                     for i in range(lti_d):
                         for l in range(lti_d):
                             Pb[offs_ae[i] + j, offs_ae[l] + j] += lti_q[u, i, l]
-            if rec_on and b == 0:                              # the linear error model of this step (calib.session.spectral)
+            # the linear error model of this step (calib.session.spectral)
+            if rec_on and b == 0:
                 rNe[k] = ne
                 for e in range(ne):
                     rEc[k, e] = ecols[e]
@@ -397,7 +412,8 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
                 if o_ta >= 0:                                  # the accelerometer bias at this sample's temperature
                     ba = ba + sx[9:12] * dtemp[b, k]
                 fh = Mia @ (a[b, k] - ba)
-                if o_dl >= 0:                                  # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t), per axis
+                # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t), per axis
+                if o_dl >= 0:
                     for i in range(3):
                         fh[i] += sx[12 + i] * dreg[b, k, i]
                 fr = np.empty(3)                               # regressor: gravity predicted in the body frame
@@ -688,7 +704,8 @@ def _ext_acc_discrete(layout: StateLayout, config: FilterConfig, t_s: np.ndarray
     if d > nb:
         raise ValueError(f"the external acceleration's model has {d} states per axis, at most {nb}")
     if any(not layout.has(b) for b in EXT_ACC_BLOCKS[:d]):
-        raise ValueError(f"the external acceleration's model has {d} states per axis: the layout needs {EXT_ACC_BLOCKS[:d]}")
+        raise ValueError(f"the external acceleration's model has {d} states per axis: the layout needs "
+                         f"{EXT_ACC_BLOCKS[:d]}")
     dts = np.diff(t_s, prepend=t_s[0] - (t_s[1] - t_s[0] if t_s.size > 1 else 0.0))
     uniq, idx = np.unique(np.round(dts, 9), return_inverse=True)
     phi, q = ext_acc_discrete(a, qc, uniq)
@@ -713,38 +730,34 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
                lever_jacobian: "LeverJacobian | None" = None, record: bool = False) -> FilterRun:
     """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
 
-    ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even
-    when the layout does not estimate it), ``p0`` (n, n) or (B, n, n), ``quat0`` (B, 4) body→ENU.
-    ``r_var_per_sample``: measurement variance per sample (N,) or (B, N) instead of the config's
-    constant; ``update_mask`` (N,) or (B, N): False skips the update of that sample (saturated);
-    ``gate_nis`` > 0 skips every update whose NIS exceeds it; ``rest_mask`` (N,): samples known to
-    be at rest, where the rate regressor is zero (:mod:`calib.session.model`, "Regressors"); ``x0`` (n,) or
-    (B, n): the prior mean as an error state, θ_prior − θ̂₀ (zero: the prior is centred on the nominal);
-    ``rows`` = 3 adds the vertical row (the |f| = g information) — for bounds computed at the truth
-    (:func:`crlb_joint`), not for estimation, where the gravity fit carries it.
-    ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] + [ω×]² per sample (body), needed by a
-    layout with ``lever_arm``; ``hand0`` (≤ 30,) or (B, ≤ 30): the nominal lever arm, external acceleration
-    x and its low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the Gauss–Markov σ, τ and
-    the high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` … (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`)
-    runs a_e as the general shaping filter of :meth:`calib.session.model.FilterConfig.ext_acc_model` (the band-limited
-    sway, or the same Gauss–Markov family), discretised exactly per step (:func:`ext_acc_discrete`).  ``sensor0``
-    (≤ 15,) or (B, ≤ 15): the nominal c_b, s_T, k of the gyro's extra blocks and c_a, δ of the accelerometer's
-    (default 0; missing ones 0).
-    ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), the sensor temperature relative to the filter's
-    reference, needed by a layout with ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then
-    ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T − T₀) + ε (:mod:`calib.session.model`, ``THERMAL_BLOCKS``), and with
-    ``acc_temp_bias`` f̃ = M_a f + b_a + c_a (T − T₀) + v (``ACC_THERMAL_BLOCKS``; T at the update's sample);
-    ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²), needed by a layout with ``gyro_g_sens``:
-    b_g,i += k_i f_i (:data:`calib.session.model.G_SENS_BLOCKS`).
+    ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even when the layout does
+    not estimate it), ``p0`` (n, n) or (B, n, n), ``quat0`` (B, 4) body→ENU. ``r_var_per_sample``: measurement variance
+    per sample (N,) or (B, N) instead of the config's constant; ``update_mask`` (N,) or (B, N): False skips the update
+    of that sample (saturated); ``gate_nis`` > 0 skips every update whose NIS exceeds it; ``rest_mask`` (N,): samples
+    known to be at rest, where the rate regressor is zero (:mod:`calib.session.model`, "Regressors"); ``x0`` (n,) or (B,
+    n): the prior mean as an error state, θ_prior − θ̂₀ (zero: the prior is centred on the nominal); ``rows`` = 3 adds
+    the vertical row (the |f| = g information) — for bounds computed at the truth (:func:`crlb_joint`), not for
+    estimation, where the gravity fit carries it. ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] +
+    [ω×]² per sample (body), needed by a layout with ``lever_arm``; ``hand0`` (≤ 30,) or (B, ≤ 30): the nominal lever
+    arm, external acceleration x and its low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the
+    Gauss–Markov σ, τ and the high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` …
+    (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`) runs a_e as the general shaping filter of
+    :meth:`calib.session.model.FilterConfig.ext_acc_model` (the band-limited sway, or the same Gauss–Markov family),
+    discretised exactly per step (:func:`ext_acc_discrete`).  ``sensor0`` (≤ 15,) or (B, ≤ 15): the nominal c_b, s_T, k
+    of the gyro's extra blocks and c_a, δ of the accelerometer's (default 0; missing ones 0). ``temperature_rel_c`` (N,)
+    or (B, N): T − T₀ (°C), the sensor temperature relative to the filter's reference, needed by a layout with
+    ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T −
+    T₀) + ε (:mod:`calib.session.model`, ``THERMAL_BLOCKS``), and with ``acc_temp_bias`` f̃ = M_a f + b_a + c_a (T − T₀)
+    + v (``ACC_THERMAL_BLOCKS``; T at the update's sample); ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²),
+    needed by a layout with ``gyro_g_sens``: b_g,i += k_i f_i (:data:`calib.session.model.G_SENS_BLOCKS`).
     ``acc_rate_m_s3`` (N, 3) or (B, N, 3): ḟ̃, the time derivative of the (compensated) specific force (body, m/s³),
-    needed by a layout with ``acc_delay``: the accelerometer samples f̃_i(t) = f_i(t − δ_i), so the update uses
-    f̃ + diag(δ̂) ḟ̃ and H's δ block is −Ĉ diag(ḟ̃) (first order in δ; :data:`calib.session.model.ACC_DELAY_BLOCKS`).
+    needed by a layout with ``acc_delay``: the accelerometer samples f̃_i(t) = f_i(t − δ_i), so the update uses f̃ +
+    diag(δ̂) ḟ̃ and H's δ block is −Ĉ diag(ḟ̃) (first order in δ; :data:`calib.session.model.ACC_DELAY_BLOCKS`).
     ``lever_jacobian`` (:class:`LeverJacobian`, (N, …) or (B, N, …)): how ``lever_regressor``'s K r̂ moves with the
-    gyro's S, G, b — K was computed from the rate compensated at ``theta0``, so the update subtracts
-    K r̂ + J (θ̂ − θ₀) and H gets Ĉ J on those states (and on c_b, s_T, k through them).  Without it K r̂ is taken as
-    exact: right when S, G are already well determined, but a session that pins S, G only weakly leaves K's error
-    in the innovations, correlated with the motion, and σ of S, G optimistic (docs/hand.md, "The lever arm term's
-    Jacobian").
+    gyro's S, G, b — K was computed from the rate compensated at ``theta0``, so the update subtracts K r̂ + J (θ̂ − θ₀)
+    and H gets Ĉ J on those states (and on c_b, s_T, k through them).  Without it K r̂ is taken as exact: right when S,
+    G are already well determined, but a session that pins S, G only weakly leaves K's error in the innovations,
+    correlated with the motion, and σ of S, G optimistic (docs/hand.md, "The lever arm term's Jacobian").
     """
     if rows not in (2, 3):
         raise ValueError(f"rows must be 2 or 3, got {rows}")
@@ -827,10 +840,20 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
         int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti, dreg, jw, jd, jdd, bool(record),
         *rec_arrays)
-    return FilterRun(layout, theta, p, q, nis, inn, hsd if keep_history else None, hth if keep_history else None,
-                     hand if layout.models_hand else None, wht,
-                     sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None,
-                     FilterRecord(*rec_arrays, rows=m_rows) if record else None)
+    return FilterRun(
+        layout,
+        theta,
+        p,
+        q,
+        nis,
+        inn,
+        hsd if keep_history else None,
+        hth if keep_history else None,
+        hand if layout.models_hand else None,
+        wht,
+        sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None,
+        FilterRecord(*rec_arrays, rows=m_rows) if record else None,
+    )
 
 
 @dataclass(frozen=True)

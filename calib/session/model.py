@@ -78,28 +78,49 @@ from filterpy.kalman import KalmanFilter
 from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
-__all__ = ["FilterConfig", "FilterHistory", "ZhouFilter", "STATE_NAMES", "StateLayout", "PAPER", "JOINT", "HAND", "HAND_BIAS",
-           "HAND_JOINT", "HAND_BLOCKS", "THERMAL_BLOCKS", "G_SENS_BLOCKS", "ACC_THERMAL_BLOCKS", "SENSOR_EXTRA_BLOCKS",
-           "EXT_ACC_BLOCKS", "EXT_ACC_EXTRA_BLOCKS", "HAND_BIAS_TS", "ACC_DELAY_BLOCKS",
-           "HAND_BIAS_THERMAL",
-           "BLOCKS", "THETA", "jacobian_nonorthogonality", "initial_covariance", "leave_out_means",
-           "m_matrix", "BLOCK_LABELS"]
+__all__ = [
+    "FilterConfig",
+    "FilterHistory",
+    "ZhouFilter",
+    "STATE_NAMES",
+    "StateLayout",
+    "PAPER",
+    "JOINT",
+    "HAND",
+    "HAND_BIAS",
+    "HAND_JOINT",
+    "HAND_BLOCKS",
+    "THERMAL_BLOCKS",
+    "G_SENS_BLOCKS",
+    "ACC_THERMAL_BLOCKS",
+    "SENSOR_EXTRA_BLOCKS",
+    "EXT_ACC_BLOCKS",
+    "EXT_ACC_EXTRA_BLOCKS",
+    "HAND_BIAS_TS",
+    "ACC_DELAY_BLOCKS",
+    "HAND_BIAS_THERMAL",
+    "BLOCKS",
+    "THETA",
+    "jacobian_nonorthogonality",
+    "initial_covariance",
+    "leave_out_means",
+    "m_matrix",
+    "BLOCK_LABELS",
+]
 
 STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_z")
 
-# error-state blocks (3 states each) in their fixed order; θ (the nominal parameters) has one
-# 3-vector per block after "phi"
-# after them the hand's blocks (compiled filter only, :mod:`calib.session.hand.filter`): the lever arm r
-# (body, m; a constant) and the external acceleration a_e = x − z (nav, m/s²): x a first-order
-# Gauss–Markov process ("ext_acc"), z its own first-order low-pass ("ext_acc_lp"), so that a_e's PSD
-# falls to zero at 0 Hz as a bounded hand translation's does (z ≡ 0 when the high-pass time constant is
-# infinite: the plain Gauss–Markov a_e); a second-order high-pass adds z₂, the low-pass of x − z
-# ("ext_acc_lp2"), a_e = x − z − z₂ (z₂ ≡ 0 for the first order); their nominals live beside θ, not in it (θ keeps its 18 sensor
-# parameters)
-# then the gyro's temperature blocks (compiled filter only, :mod:`calib.session.hand.filter`): the bias's and the scale
-# factor's temperature coefficients, b_g(T) = b_g + c_b (T − T₀), S(T) = S + s_T (T − T₀), with T the
-# recording's own temperature channel and T₀ the filter's reference (random constants; nominals beside θ);
-# last the accelerometer bias's temperature coefficient, b_a(T) = b_a + c_a (T − T₀) ("acc_temp_bias", kf_hand_joint)
+# error-state blocks (3 states each) in their fixed order; θ (the nominal parameters) has one 3-vector per block after
+# "phi" after them the hand's blocks (compiled filter only, :mod:`calib.session.hand.filter`): the lever arm r (body, m;
+# a constant) and the external acceleration a_e = x − z (nav, m/s²): x a first-order Gauss–Markov process ("ext_acc"), z
+# its own first-order low-pass ("ext_acc_lp"), so that a_e's PSD falls to zero at 0 Hz as a bounded hand translation's
+# does (z ≡ 0 when the high-pass time constant is infinite: the plain Gauss–Markov a_e); a second-order high-pass adds
+# z₂, the low-pass of x − z ("ext_acc_lp2"), a_e = x − z − z₂ (z₂ ≡ 0 for the first order); their nominals live beside
+# θ, not in it (θ keeps its 18 sensor parameters) then the gyro's temperature blocks (compiled filter only,
+# :mod:`calib.session.hand.filter`): the bias's and the scale factor's temperature coefficients, b_g(T) = b_g + c_b (T −
+# T₀), S(T) = S + s_T (T − T₀), with T the recording's own temperature channel and T₀ the filter's reference (random
+# constants; nominals beside θ); last the accelerometer bias's temperature coefficient, b_a(T) = b_a + c_a (T − T₀)
+# ("acc_temp_bias", kf_hand_joint)
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
           "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2", "gyro_temp_bias", "gyro_temp_scale",
           "gyro_g_sens", "ext_acc_s3", "ext_acc_s4", "ext_acc_s5", "ext_acc_s6", "ext_acc_s7", "ext_acc_s8",
@@ -113,7 +134,8 @@ G_SENS_BLOCKS = BLOCKS[13:14]   # the gyro's g-sensitivity, diagonal K = diag(k)
 EXT_ACC_EXTRA_BLOCKS = tuple(f"ext_acc_s{i}" for i in range(3, 9))     # by name: blocks added to BLOCKS later keep it
 EXT_ACC_BLOCKS = ("ext_acc", "ext_acc_lp", "ext_acc_lp2") + EXT_ACC_EXTRA_BLOCKS
 assert all(b in BLOCKS for b in EXT_ACC_BLOCKS)
-ACC_THERMAL_BLOCKS = ("acc_temp_bias",)   # the accelerometer bias's temperature coefficient c_a (m/s²/°C): b_a += c_a (T − T₀)
+# the accelerometer bias's temperature coefficient c_a (m/s²/°C): b_a += c_a (T − T₀)
+ACC_THERMAL_BLOCKS = ("acc_temp_bias",)
 assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
 # the accelerometer's delay behind the gyro, one state per axis, δ_i (s): f̃_i(t) = f_i(t − δ_i), to first order
 # f_i(t) = f̃_i(t) + δ_i ḟ̃_i(t) — two sensors' anti-alias filters of different bandwidth (MPU-9250: 41 Hz gyro,
@@ -123,10 +145,25 @@ ACC_DELAY_BLOCKS = ("acc_delay",)
 assert all(b in BLOCKS for b in ACC_DELAY_BLOCKS)
 # their nominals: calib.session.kernel.FilterRun.sensor_extra (c_b, s_T, k, c_a, δ)
 SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS + ACC_THERMAL_BLOCKS + ACC_DELAY_BLOCKS
-_SHORT = {"phi": "phi", "gyro_scale": "S", "gyro_nonorth": "G", "gyro_bias": "bg", "acc_bias": "ba",
-          "acc_scale": "Sa", "acc_nonorth": "Ga", "lever_arm": "r", "ext_acc": "ae", "ext_acc_lp": "ael",
-          "ext_acc_lp2": "ael2", "gyro_temp_bias": "cb", "gyro_temp_scale": "sT",
-          "gyro_g_sens": "kg", **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)}, "acc_temp_bias": "ca", "acc_delay": "dt"}
+_SHORT = {
+    "phi": "phi",
+    "gyro_scale": "S",
+    "gyro_nonorth": "G",
+    "gyro_bias": "bg",
+    "acc_bias": "ba",
+    "acc_scale": "Sa",
+    "acc_nonorth": "Ga",
+    "lever_arm": "r",
+    "ext_acc": "ae",
+    "ext_acc_lp": "ael",
+    "ext_acc_lp2": "ael2",
+    "gyro_temp_bias": "cb",
+    "gyro_temp_scale": "sT",
+    "gyro_g_sens": "kg",
+    **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)},
+    "acc_temp_bias": "ca",
+    "acc_delay": "dt",
+}
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
                 "acc_nonorth": "accelerometer non-orthogonality", "lever_arm": "lever arm",

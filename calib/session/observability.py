@@ -111,12 +111,16 @@ def parameter_gram(omega_body_rad_s: np.ndarray, gravity_body: np.ndarray) -> np
     """
     w = np.asarray(omega_body_rad_s, float)
     gb = np.asarray(gravity_body, float)
-    x = np.concatenate([np.einsum("ij,nj->nij", np.eye(3), w), np.stack([jacobian_nonorthogonality(v) for v in w])], axis=2)
+    x = np.concatenate(
+        [np.einsum("ij,nj->nij", np.eye(3), w), np.stack([jacobian_nonorthogonality(v) for v in w])], axis=2
+    )
     rows = np.einsum("nij,njk->nik", skew(gb), x)  # (n, 3, 6)
     return np.einsum("nij,nik->jk", rows, rows) / w.shape[0]
 
 
-def unobservable_parameters(gram: np.ndarray, gravity_m_s2: float = G0, rel_tol: float = 1e-2, share: float = 0.5) -> list[str]:
+def unobservable_parameters(
+    gram: np.ndarray, gravity_m_s2: float = G0, rel_tol: float = 1e-2, share: float = 0.5
+) -> list[str]:
     """Filter parameters (S_*, G_*) mostly in the null space of ``gram``: eigenvalues below
     (rel_tol · g)², i.e. less excitation than a rotation of rel_tol rad/s gives."""
     vals, vecs = np.linalg.eigh(gram)

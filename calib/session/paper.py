@@ -58,8 +58,8 @@ spellings ``calibrate(rec, "kf")`` / ``"iterated"`` still work and warn (Depreca
 from __future__ import annotations
 
 import math
-from warnings import warn
 from dataclasses import dataclass, replace
+from warnings import warn
 
 import numpy as np
 
@@ -70,17 +70,36 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_from_two_vectors
 from gyrosim.units import G0
 
-from calib.session.consistency import (FixedParameterEffect, apply_inflation, check_estimate, check_innovations,
-                          fixed_parameter_effect, innovation_inflation, rest_gravity, verdict)
-from calib.session.kernel import FilterRun, regressor_half_window, run_filter
-from calib.session.gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows
 from calib.inputs import KF, check_recording
-from calib.session.model import (BLOCK_LABELS, JOINT, PAPER, FilterConfig, FilterHistory, StateLayout, ZhouFilter,
-                     initial_covariance, leave_out_means, m_matrix, theta_slice)
-from calib.session.rest_bias import RestBias, rest_bias
+from calib.session.consistency import (
+    FixedParameterEffect,
+    apply_inflation,
+    check_estimate,
+    check_innovations,
+    fixed_parameter_effect,
+    innovation_inflation,
+    rest_gravity,
+    verdict,
+)
+from calib.session.gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows
+from calib.session.kernel import FilterRun, regressor_half_window, run_filter
+from calib.session.model import (
+    BLOCK_LABELS,
+    JOINT,
+    PAPER,
+    FilterConfig,
+    FilterHistory,
+    StateLayout,
+    ZhouFilter,
+    initial_covariance,
+    leave_out_means,
+    m_matrix,
+    theta_slice,
+)
 from calib.session.noiselevels import NoiseLevels, estimate_noise
 from calib.session.observability import JointObservability, joint_observability, missing_poses
 from calib.session.rest import BiasEstimate, RestSegments, detect_rest, static_bias
+from calib.session.rest_bias import RestBias, rest_bias
 
 __all__ = ["calibrate", "prepare", "Prepared", "METHODS", "ACCELEROMETER_MODES", "REGISTERED_NAME", "resolve_method",
            "true_gyro_parameters"]
@@ -93,8 +112,12 @@ ENGINES = ("compiled", "filterpy")
 DEPRECATED_METHODS = {"kf": "kf_session", "iterated": "iterated_session"}
 # the registered estimator name (``gyrosim.estimators``) of each (method, accelerometer) pair: the
 # label a result carries, the same in ``calib run``, a campaign and a Monte Carlo
-REGISTERED_NAME = {("kf_session", "estimate"): "kf_joint", ("iterated_session", "estimate"): "iterated_joint",
-                   ("kf_session", "calibrated"): "kf_session_r", ("iterated_session", "calibrated"): "iterated_session_r"}
+REGISTERED_NAME = {
+    ("kf_session", "estimate"): "kf_joint",
+    ("iterated_session", "estimate"): "iterated_joint",
+    ("kf_session", "calibrated"): "kf_session_r",
+    ("iterated_session", "calibrated"): "iterated_session_r",
+}
 
 
 def resolve_method(method: str, *, stacklevel: int = 3) -> str:
@@ -129,8 +152,8 @@ class Prepared:
     windows_f_hat: np.ndarray | None
     bias_std_rad_s: np.ndarray
     rest_range: tuple[int, int] = (0, 0)
-    # the first rest's mean at its stated reference with σ = white noise ⊕ the hand's rotation (calib.session.rest_bias);
-    # bias_std_rad_s is its σ
+    # the first rest's mean at its stated reference with σ = white noise ⊕ the hand's rotation
+    # (calib.session.rest_bias); bias_std_rad_s is its σ
     rest_bias: RestBias | None = None
     bias_batch_std_rad_s: np.ndarray | None = None
 
@@ -363,7 +386,8 @@ def calibrate(
     if not prep.layout.has("gyro_bias") and run.whitened is not None:
         # the static bias is held fixed (the paper's 9 states): its error is part of the model, in the
         # innovation test and in σ of S, G (calib.session.consistency, "Parameters the filter holds fixed")
-        def rerun(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:   # compiled either engine: equal to 1e-9, ×40 faster
+        # compiled either engine: equal to 1e-9, ×40 faster
+        def rerun(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             r = _run(prep, rec, th, q0, p0, "compiled", False)
             return r.whitened[0], r.theta[0][0:6]
 
@@ -378,10 +402,12 @@ def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list
     if acc_names:
         poses = missing_poses(acc_names, prep.windows_f_hat)
         raise RecordingError(
-            f"this session cannot separate the accelerometer from the gyro errors: {', '.join(_label(n) for n in acc_names)} "
+            "this session cannot separate the accelerometer from the gyro errors: "
+            f"{', '.join(_label(n) for n in acc_names)} "
             "stay undetermined (posterior σ above half the prior). Add rest poses of ≥ 2 s with gravity along: "
             f"{'; '.join(poses) if poses else 'more distinct directions (Tedaldi 2014: ≥ 9, well spread)'} — or slow "
-            "rotations through them — or pass --accelerometer calibrated if the accelerometer is calibrated already")
+            "rotations through them — or pass --accelerometer calibrated if the accelerometer is calibrated already"
+        )
     gyro_unobs = [n for n in obs.unobservable if n.split("_")[0] in ("S", "G")]
     gyro_weak = [n for n in obs.weak if n.split("_")[0] in ("S", "G")]
     if gyro_unobs:
@@ -415,11 +441,22 @@ def bias_drift_note(rec: Recording, prep: Prepared) -> str | None:
             "bias as a random walk fitted to the rests")
 
 
-def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservability | None, warnings: list[str],
-            method: str, passes: int, hand_check: bool = False, fixed: FixedParameterEffect | None = None) -> Calibration:
+def _result(
+    prep: Prepared,
+    rec: Recording,
+    run: FilterRun,
+    obs: JointObservability | None,
+    warnings: list[str],
+    method: str,
+    passes: int,
+    hand_check: bool = False,
+    fixed: FixedParameterEffect | None = None,
+) -> Calibration:
     lay, cfg = prep.layout, prep.config
     estimate = lay.estimates_accelerometer
-    blocks = ["gyro_bias", "gyro_scale", "gyro_nonorth"] + (["acc_bias", "acc_scale", "acc_nonorth"] if estimate else [])
+    blocks = ["gyro_bias", "gyro_scale", "gyro_nonorth"] + (
+        ["acc_bias", "acc_scale", "acc_nonorth"] if estimate else []
+    )
     n = 3 * len(blocks)
     cov = np.zeros((n, n))
     p = run.p[0]
@@ -522,13 +559,13 @@ def true_gyro_parameters(rec: Recording) -> dict[str, np.ndarray] | None:
 
 
 def refuse_if_nothing_observed(rec: Recording, bias_rad_s: np.ndarray, ra: int, rb: int, start: int) -> None:
-    """Every gyro S, G unobservable from the motion after ``start`` (:func:`motion_unobservable`, the parameter Gram
-    of Zhou §4): the filter, which starts at the rest that gave the bias (the first one ≥ 2 s), would see
-    no rotation that determines them — a session whose early rests came out shorter (a hand that never held still
-    2 s before turning; rests cut by correlated noise, as an output low-pass did before :func:`calib.session.rest.detect_rest`
-    scaled its test) or that does not turn.  Its S, G would be the prior, 0 ± 5 %, with status "ok" (kf_hand, the last
-    rest ending the file: a crash in its low-pass): refused instead, saying where the filter starts and how much
-    rotation comes before it."""
+    """Every gyro S, G unobservable from the motion after ``start`` (:func:`motion_unobservable`, the parameter Gram of
+    Zhou §4): the filter, which starts at the rest that gave the bias (the first one ≥ 2 s), would see no rotation that
+    determines them — a session whose early rests came out shorter (a hand that never held still 2 s before turning;
+    rests cut by correlated noise, as an output low-pass did before :func:`calib.session.rest.detect_rest` scaled its
+    test) or that does not turn.  Its S, G would be the prior, 0 ± 5 %, with status "ok" (kf_hand, the last rest ending
+    the file: a crash in its low-pass): refused instead, saying where the filter starts and how much rotation comes
+    before it."""
     names = {f"{b}_{ax}" for b in "SG" for ax in "xyz"}
     enough = rec.n - start >= int(2.0 * rec.rate_hz) + 32
     if enough and not names <= set(motion_unobservable(rec, bias_rad_s, start)):
@@ -537,9 +574,11 @@ def refuse_if_nothing_observed(rec: Recording, bias_rad_s: np.ndarray, ra: int, 
     before = float(np.sum(w2[:start]) / max(float(np.sum(w2)), 1e-300))
     raise RecordingError(
         f"no gyro scale factor or non-orthogonality is determined by this session: the filter starts at the first rest "
-        f"of ≥ 2 s (t = {rec.t_s[ra]:.2f}–{rec.t_s[rb - 1]:.2f} s, which gives the bias) and {100 * before:.0f} % of the "
+        f"of ≥ 2 s (t = {rec.t_s[ra]:.2f}–{rec.t_s[rb - 1]:.2f} s, which gives the bias) and {100 * before:.0f} % of "
+        "the "
         "session's rotation comes before it. Hold the sensor still for ≥ 2 s before the turns, then turn about each "
-        "axis (Zhou 2020 Table 5); if the rests are there, check the rest segments calib reports")
+        "axis (Zhou 2020 Table 5); if the rests are there, check the rest segments calib reports"
+    )
 
 
 def motion_unobservable(rec: Recording, bias_rad_s: np.ndarray, start: int) -> list[str]:

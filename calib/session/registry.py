@@ -1,14 +1,13 @@
 """Our estimators behind the :mod:`gyrosim.estimator` interface, for campaigns.
 
-Each returns a :class:`gyrosim.calibration.Calibration` (effects, covariance, status, warnings).
-``kf_joint`` is ``calib run``'s default: the gyro and the accelerometer from one session
-(:func:`calib.session.paper.calibrate`, 21 states, session allowance); ``iterated_joint`` its
-re-linearised form.  ``kf_session_r`` and ``iterated_session_r`` are what ``calib run
---accelerometer calibrated`` runs (the same filter and verdict as :func:`calib.session.paper.calibrate`;
-a test holds them equal), so a name means one algorithm wherever it is used.  The others run Zhou 2020's 9-state filter (the compiled kernel
-:func:`calib.session.kernel.run_batch`, equal to the filterpy filter to rounding) after the static bias
-(§3.2), assuming a calibrated accelerometer; they differ only in how the accelerometer's gravity
-measurement is trusted when the hand adds external acceleration a_e:
+Each returns a :class:`gyrosim.calibration.Calibration` (effects, covariance, status, warnings). ``kf_joint`` is ``calib
+run``'s default: the gyro and the accelerometer from one session (:func:`calib.session.paper.calibrate`, 21 states,
+session allowance); ``iterated_joint`` its re-linearised form.  ``kf_session_r`` and ``iterated_session_r`` are what
+``calib run --accelerometer calibrated`` runs (the same filter and verdict as :func:`calib.session.paper.calibrate`; a
+test holds them equal), so a name means one algorithm wherever it is used.  The others run Zhou 2020's 9-state filter
+(the compiled kernel :func:`calib.session.kernel.run_batch`, equal to the filterpy filter to rounding) after the static
+bias (§3.2), assuming a calibrated accelerometer; they differ only in how the accelerometer's gravity measurement is
+trusted when the hand adds external acceleration a_e:
 
 | name | measurement variance R per axis (m/s²)² | gating |
 |---|---|---|
@@ -32,11 +31,11 @@ result whose σ had to grow more than ×1.5 is ``inconsistent``, and an ``ok`` r
 ``kf_hand`` beyond both σ becomes ``inconsistent`` with the factor its σ is understated by
 (:func:`calib.session.consistency.innovation_inflation`, :func:`calib.session.hand.filter.hand_cross_check`).
 
-``iterated`` (formerly ``smoother``, still accepted with a DeprecationWarning: it is the same
-three-pass algorithm as ``calib run --method iterated_session``, not a smoother): the parameters are constants, so a Rauch–Tung–Striebel pass leaves their final
-filtered estimate unchanged (the smoothed estimate of a constant state equals the filtered one at
-the last sample); what a smoother can still improve is the linearisation, which these passes do
-(an iterated-linearisation smoother in the parameters).
+``iterated`` (formerly ``smoother``, still accepted with a DeprecationWarning: it is the same three-pass algorithm as
+``calib run --method iterated_session``, not a smoother): the parameters are constants, so a Rauch–Tung–Striebel pass
+leaves their final filtered estimate unchanged (the smoothed estimate of a constant state equals the filtered one at the
+last sample); what a smoother can still improve is the linearisation, which these passes do (an iterated-linearisation
+smoother in the parameters).
 """
 
 from __future__ import annotations
@@ -50,15 +49,34 @@ from scipy import stats
 from gyrosim.calibration import Calibration
 from gyrosim.recording import Recording
 
-from calib.session.paper import Prepared, bias_drift_note, calibrate, prepare, rest_mask
-from calib.session.consistency import (apply_inflation, check_estimate, check_innovations, fixed_parameter_effect,
-                          innovation_inflation, verdict)
-from calib.session.kernel import run_filter
+from calib.session.consistency import (
+    apply_inflation,
+    check_estimate,
+    check_innovations,
+    fixed_parameter_effect,
+    innovation_inflation,
+    verdict,
+)
 from calib.session.hand.filter import kf_hand  # noqa: F401  (registered: the hand-aware method)
+from calib.session.kernel import run_filter
 from calib.session.model import PAPER, initial_covariance, theta_slice
+from calib.session.paper import Prepared, bias_drift_note, calibrate, prepare, rest_mask
 
-__all__ = ["kf", "iterated", "smoother", "kf_session_r", "iterated_session_r", "kf_adaptive", "kf_gated", "kf_adaptive_gated", "kf_lever_arm",
-           "kf_joint", "iterated_joint", "kf_hand", "kf_hand_joint"]
+__all__ = [
+    "kf",
+    "iterated",
+    "smoother",
+    "kf_session_r",
+    "iterated_session_r",
+    "kf_adaptive",
+    "kf_gated",
+    "kf_adaptive_gated",
+    "kf_lever_arm",
+    "kf_joint",
+    "iterated_joint",
+    "kf_hand",
+    "kf_hand_joint",
+]
 
 GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
@@ -116,7 +134,8 @@ def _run(rec: Recording, *, session_r: bool = False, adaptive: bool = False, gat
     if infl.factor > 1 and (note := bias_drift_note(rec, prep)) is not None:
         notes.append(note)
     diag: dict = {"consistency": {"sigma_inflation": infl.to_dict()}}
-    if prep.rest_bias is not None:   # the reported bias is the first rest's mean, at its reference (calib.session.rest_bias)
+    # the reported bias is the first rest's mean, at its reference (calib.session.rest_bias)
+    if prep.rest_bias is not None:
         diag["gyro_bias"] = prep.rest_bias.to_dict()
     if check_hand and status == "ok" and not prep.noise.noise_free:   # noise-free: methods differ by discretisation
         status, diag["consistency"]["hand_cross_check"] = _hand_check(rec, theta[0:6], cov[3:, 3:], notes, status)
@@ -194,9 +213,9 @@ def iterated_joint(rec: Recording) -> Calibration:
 
 
 def kf_hand_joint(rec: Recording) -> Calibration:
-    """``kf_hand`` with the accelerometer estimated jointly (36 states, 42 on a warming session: + its bias, scale factor and
-    non-orthogonality; :func:`calib.session.hand.filter.kf_hand` with ``accelerometer="estimate"``) — for a raw
-    accelerometer, as ``calib run`` has by default."""
+    """``kf_hand`` with the accelerometer estimated jointly (36 states, 42 on a warming session: + its bias, scale
+    factor and non-orthogonality; :func:`calib.session.hand.filter.kf_hand` with ``accelerometer="estimate"``) — for a
+    raw accelerometer, as ``calib run`` has by default."""
     return kf_hand(rec, accelerometer="estimate")
 
 
@@ -246,7 +265,8 @@ def lever_arm_two_pass(rec: Recording) -> Calibration:
     from gyrosim.rotations import quat_conjugate, quat_rotate, skew
     from gyrosim.strapdown import integrate_gyro
 
-    prep = prepare(rec, accelerometer="calibrated")  # the session-R preparation of pass 1, used again for the rest attitude
+    # the session-R preparation of pass 1, used again for the rest attitude
+    prep = prepare(rec, accelerometer="calibrated")
     first = _run(rec, session_r=True, prep=prep, name="lever_arm_two_pass", check_hand=False)
     a, fs = prep.start, rec.rate_hz
     m = np.eye(3) + np.diag(first.scale_factor) + nonortho_matrix(first.nonorthogonality)
@@ -296,10 +316,15 @@ def lever_arm_two_pass(rec: Recording) -> Calibration:
                              status=status, method="lever_arm_two_pass", warnings=second.warnings + tuple(notes),
                              diagnostics={**second.diagnostics, "consistency": {
                                  **second.diagnostics.get("consistency", {}), "hand_cross_check": chk}})
-    return Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=second.covariance,
-                       status=second.status, method="lever_arm_two_pass",
-                       warnings=second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",),
-                       diagnostics={**second.diagnostics, "hand": {"lever_arm_m": r.tolist()}})
+    return Calibration(
+        gyro=second.gyro,
+        accelerometer=second.accelerometer,
+        covariance=second.covariance,
+        status=second.status,
+        method="lever_arm_two_pass",
+        warnings=second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",),
+        diagnostics={**second.diagnostics, "hand": {"lever_arm_m": r.tolist()}},
+    )
 
 
 # What each estimator estimates (gyrosim.estimator.estimated_triads): calib montecarlo --accelerometer

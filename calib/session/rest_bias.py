@@ -25,14 +25,14 @@ spread.  Sources: the mean of a derivative is the end-point difference over T; B
 952-1997 Annex C's ARW.  A slow turn during the rest (a ramp in attitude over ≳ T) looks like bias to this
 estimate and to any gyro-only one.
 
-**Reference.** The bias moves during a session: with temperature (the MPU-9250's ±0.24 °/s/°C ZRO) and with the
-specific force (a gyro's g-sensitivity, 0.1 °/s/g: at a level rest the z axis reads b_z + k_z g) and by its own
-instability.  The rest's mean is the bias *during that rest*: at time t_r (its middle), temperature T_r (its
-mean temperature, when the recording has a temperature channel) and body specific force f_r (the
-accelerometer's mean over it, m/s², compensated when the accelerometer is estimated).  That is what
-:class:`RestBias` reports and what a Monte Carlo must score it against (:func:`calib.scoring.montecarlo.truth_bias_at_reference`):
-measured on the MPU-9250 (steady hand, 20 seeds) the oracle's bias at 25 °C and zero specific force differs from
-it by k_z g on z (err/σ RMS 9.3 on z; 1.06 against the device's bias at (T_r, f_r)).
+**Reference.** The bias moves during a session: with temperature (the MPU-9250's ±0.24 °/s/°C ZRO) and with the specific
+force (a gyro's g-sensitivity, 0.1 °/s/g: at a level rest the z axis reads b_z + k_z g) and by its own instability.  The
+rest's mean is the bias *during that rest*: at time t_r (its middle), temperature T_r (its mean temperature, when the
+recording has a temperature channel) and body specific force f_r (the accelerometer's mean over it, m/s², compensated
+when the accelerometer is estimated).  That is what :class:`RestBias` reports and what a Monte Carlo must score it
+against (:func:`calib.scoring.montecarlo.truth_bias_at_reference`): measured on the MPU-9250 (steady hand, 20 seeds) the
+oracle's bias at 25 °C and zero specific force differs from it by k_z g on z (err/σ RMS 9.3 on z; 1.06 against the
+device's bias at (T_r, f_r)).
 """
 from __future__ import annotations
 

@@ -1,11 +1,11 @@
 """The covariance of a filter's estimate under the disturbance spectrum the data show, not the one it modelled.
 
-A Kalman filter's P is the covariance of its estimate only when its noise model is right.  ``kf_hand`` models
-the hand's slow acceleration a_e (nav frame ENU, after the tremor low-pass) as a high-passed first-order
-Gauss–Markov process fitted to the data (:func:`calib.session.hand.filter._gm_from_residual`); a real hand's spectrum has
-another shape (gyrosim's sway is flat over 0.2–1 Hz and ~30 dB lower outside, which no first-order family
-follows), and then P is not the estimate's covariance — with gyrosim's shaky hand σ of S, G was 1.2–1.4× too
-large (NEES(6) 3.2 against [5.08, 7.00]).
+A Kalman filter's P is the covariance of its estimate only when its noise model is right.  ``kf_hand`` models the hand's
+slow acceleration a_e (nav frame ENU, after the tremor low-pass) as a high-passed first-order Gauss–Markov process
+fitted to the data (:func:`calib.session.hand.filter._gm_from_residual`); a real hand's spectrum has another shape
+(gyrosim's sway is flat over 0.2–1 Hz and ~30 dB lower outside, which no first-order family follows), and then P is not
+the estimate's covariance — with gyrosim's shaky hand σ of S, G was 1.2–1.4× too large (NEES(6) 3.2 against [5.08,
+7.00]).
 
 The filter is linear in its measurements (the error-state form at the last pass's linearisation), so its final
 estimate of the parameters β (p of them) is
@@ -65,8 +65,10 @@ from calib.session.model import EXT_ACC_EXTRA_BLOCKS, StateLayout
 
 __all__ = ["update_weights", "SpectralCorrection", "spectral_correction", "gauss_markov_psd"]
 
-WELCH_SEGMENT_S = 40.0     # e's spectrum: the segments of the a_e fit's own (calib.session.hand.filter._gm_from_residual)
-BAND_TEST = 0.95           # an octave band's S_D/S_M replaces the model's there when outside Welch's own scatter at this level
+# e's spectrum: the segments of the a_e fit's own (calib.session.hand.filter._gm_from_residual)
+WELCH_SEGMENT_S = 40.0
+# an octave band's S_D/S_M replaces the model's there when outside Welch's own scatter at this level
+BAND_TEST = 0.95
 
 
 @njit(cache=True)
@@ -106,7 +108,8 @@ def _adjoint(sel, K, H, hcols, nh, E, ecols, ne, decay, updated, m, o_ea, o_el, 
                 for i in range(3):
                     s += tmp[a, i] * E[k, i, e]
                 lam[a, c] += s
-        if o_ea >= 0:                                         # Λ ← Λ Φ_ae (x ← αx; z ← βz + (1−β)x; z₂ ← βz₂ + (1−β)(x − z))
+        # Λ ← Λ Φ_ae (x ← αx; z ← βz + (1−β)x; z₂ ← βz₂ + (1−β)(x − z))
+        if o_ea >= 0:
             al = decay[k, 0]
             be = decay[k, 1]
             for j in range(3):
@@ -129,7 +132,8 @@ def update_weights(record: FilterRecord, layout: StateLayout, states: np.ndarray
     final estimate of the error states ``states`` (p indices of ``layout``); zero where no update was made.
     ``highpass_order``: the Gauss–Markov a_e's (the kernel propagates z₂ for order 2 only)."""
     if any(layout.has(b) for b in EXT_ACC_EXTRA_BLOCKS):
-        raise ValueError("the adjoint follows the Gauss–Markov a_e (x, z, z₂); the general shaping filter is not supported")
+        raise ValueError("the adjoint follows the Gauss–Markov a_e (x, z, z₂); the general shaping filter is not "
+                         "supported")
     o_ea = layout.offset("ext_acc") if layout.has("ext_acc") else -1
     o_el = layout.offset("ext_acc_lp") if layout.has("ext_acc_lp") else -1
     o_e2 = layout.offset("ext_acc_lp2") if layout.has("ext_acc_lp2") and highpass_order >= 2 else -1
@@ -138,7 +142,9 @@ def update_weights(record: FilterRecord, layout: StateLayout, states: np.ndarray
                     int(r.rows), o_ea, o_el, o_e2)[0]
 
 
-def gauss_markov_psd(f_hz: np.ndarray, rms_m_s2: float, tau_s: float, highpass_tau_s: float, highpass_order: int) -> np.ndarray:
+def gauss_markov_psd(
+    f_hz: np.ndarray, rms_m_s2: float, tau_s: float, highpass_tau_s: float, highpass_order: int
+) -> np.ndarray:
     """One-sided PSD of the high-passed Gauss–Markov a_e, (m/s²)²/Hz:
     4σ²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m (:func:`calib.session.hand.filter._gm_from_residual`)."""
     w2 = (2 * np.pi * np.asarray(f_hz, float)) ** 2
@@ -205,17 +211,18 @@ def _band_ratio(f: np.ndarray, data: np.ndarray, model: np.ndarray, segments: in
 def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2: np.ndarray, rate_hz: float,
                         every: int, model_psd, r_var_m2_s4: float, residual_jacobian: np.ndarray | None = None,
                         jacobian_cov: np.ndarray | None = None, prefilter_gain2=None) -> SpectralCorrection:
-    """ΔP (module docstring) from the update weights ``weights`` (N, p, rows; :func:`update_weights`: nav E, N and,
-    with the vertical row, U — every axis with the same spectrum, a_e isotropic as its fit assumes) at the samples ``updated`` (N,), the slow residual ``residual_m_s2`` (N,) (e = |f_lp − K r̂| − g, at
-    every sample, ``rate_hz``), the updates' spacing ``every`` samples, the model's continuous one-sided PSD
-    ``model_psd(f_hz)`` and its white measurement variance per update ``r_var_m2_s4``.  ``residual_jacobian``
-    (N, q) ∂e/∂β of states β the filter estimates (the lever arm; the accelerometer's b, S, G) with their
-    covariance ``jacobian_cov`` (q, q): e is computed at their estimates, so their error is in it, and the filter's
-    P already carries it — its expected Welch PSD Σ_ij C_ij Re CSD(J_i, J_j) is removed from e's before the test
-    (without it a session with no hand read the accelerometer's estimation error, stepping with each attitude, as a
-    disturbance ×1.6–2.4 its white level at 0.03–0.2 Hz).  ``prefilter_gain2(f_hz)``: |H(f)|² of the zero-phase
-    pre-filter the data passed before the updates (periodic in ``rate_hz``; None: no pre-filter) — the reference
-    spectrum is then the model as the data can carry it (module docstring)."""
+    """ΔP (module docstring) from the update weights ``weights`` (N, p, rows; :func:`update_weights`: nav E, N and, with
+    the vertical row, U — every axis with the same spectrum, a_e isotropic as its fit assumes) at the samples
+    ``updated`` (N,), the slow residual ``residual_m_s2`` (N,) (e = |f_lp − K r̂| − g, at every sample, ``rate_hz``),
+    the updates' spacing ``every`` samples, the model's continuous one-sided PSD ``model_psd(f_hz)`` and its white
+    measurement variance per update ``r_var_m2_s4``.  ``residual_jacobian`` (N, q) ∂e/∂β of states β the filter
+    estimates (the lever arm; the accelerometer's b, S, G) with their covariance ``jacobian_cov`` (q, q): e is computed
+    at their estimates, so their error is in it, and the filter's P already carries it — its expected Welch PSD Σ_ij
+    C_ij Re CSD(J_i, J_j) is removed from e's before the test (without it a session with no hand read the
+    accelerometer's estimation error, stepping with each attitude, as a disturbance ×1.6–2.4 its white level at 0.03–0.2
+    Hz).  ``prefilter_gain2(f_hz)``: |H(f)|² of the zero-phase pre-filter the data passed before the updates (periodic
+    in ``rate_hz``; None: no pre-filter) — the reference spectrum is then the model as the data can carry it (module
+    docstring)."""
     fs = float(rate_hz)
     dt_u = every / fs
     f_rep = 1.0 / dt_u
@@ -236,8 +243,10 @@ def spectral_correction(weights: np.ndarray, updated: np.ndarray, residual_m_s2:
     # (aliases beyond the table's 10 f_s add zero: fold only those inside it)
     n_alias = int(math.ceil(10 * fs / f_rep)) + 1
     s_fine = model_psd(f_fine)
-    model = _fold(f_fine, s_fine, f, f_rep, n_alias) + 2.0 * r_var_m2_s4 * dt_u            # S_M: what the filter assumed
-    reference = model                                                                        # S_M': what the data can carry
+    # S_M: what the filter assumed
+    model = _fold(f_fine, s_fine, f, f_rep, n_alias) + 2.0 * r_var_m2_s4 * dt_u
+    # S_M': what the data can carry
+    reference = model
     if prefilter_gain2 is not None:
         reference = _fold(f_fine, s_fine * prefilter_gain2(f_fine), f, f_rep, n_alias) + 2.0 * r_var_m2_s4 * dt_u
     # the data's: e's Welch PSD (one-sided, at fs; the record's mean removed once, not each segment's, which

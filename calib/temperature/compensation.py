@@ -18,10 +18,11 @@ rate, solved by least squares on 10 s block means (the temperature moves ≤ 0.0
 Metrics on the held-out record (residual r = y − b̂):
 
 * held-out residual RMS (°/s);
-* bias stability BS (°/h): the standard deviation of the 10 s means of r (the "zero-bias
-  stability" of GJB 2426A / IEEE 952 practice that "Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros" reports, before/after compensation);
-* Allan deviation of r: its minimum over τ (the bias-instability floor, °/h) and its value at
-  τ = 1000 s, where an uncompensated temperature drift dominates.
+* bias stability BS (°/h): the standard deviation of the 10 s means of r (the "zero-bias stability" of GJB 2426A / IEEE
+  952 practice that "Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros" reports,
+  before/after compensation);
+* Allan deviation of r: its minimum over τ (the bias-instability floor, °/h) and its value at τ = 1000 s, where an
+  uncompensated temperature drift dominates.
 """
 
 from __future__ import annotations
@@ -40,7 +41,15 @@ from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
 
 from calib.temperature.timeblocks import block_means, time_block_index
 
-__all__ = ["METHODS", "ThermalCompensation", "fit_compensation", "fit_methods", "evaluate", "compare_methods", "split_cycles"]
+__all__ = [
+    "METHODS",
+    "ThermalCompensation",
+    "fit_compensation",
+    "fit_methods",
+    "evaluate",
+    "compare_methods",
+    "split_cycles",
+]
 
 METHODS = ("none", "polynomial", "piecewise_linear", "rbf", "polynomial+dT/dt")
 BLOCK_S = 10.0
@@ -90,8 +99,12 @@ def _check_temperature(rec: Recording) -> np.ndarray:
 def _ctx(rec: Recording) -> SignalContext:
     temp = _check_temperature(rec)
     n = rec.t_s.size
-    return SignalContext(t_s=rec.t_s, omega_true_rad_s=np.zeros((n, 3)), specific_force_true_m_s2=np.asarray(rec.acc_m_s2),
-                         temperature_c=temp)
+    return SignalContext(
+        t_s=rec.t_s,
+        omega_true_rad_s=np.zeros((n, 3)),
+        specific_force_true_m_s2=np.asarray(rec.acc_m_s2),
+        temperature_c=temp,
+    )
 
 
 def _blocks(rec: Recording, block_s: float = BLOCK_S) -> tuple[np.ndarray, np.ndarray]:
@@ -150,11 +163,21 @@ def split_cycles(rec: Recording) -> list[Recording]:
 
 def _cut(rec: Recording, m: np.ndarray) -> Recording:
     tr = rec.truth
-    return Recording(t_s=rec.t_s[m], gyro_rad_s=rec.gyro_rad_s[m], acc_m_s2=rec.acc_m_s2[m],
-                     temp_c=None if rec.temp_c is None else rec.temp_c[m], meta=rec.meta,
-                     truth=None if tr is None else type(tr)(**{k: (None if getattr(tr, k) is None else getattr(tr, k)[m])
-                                                               for k in ("omega_body_rad_s", "specific_force_body_m_s2",
-                                                                         "quat_nb", "position_nav_m")}))
+    return Recording(
+        t_s=rec.t_s[m],
+        gyro_rad_s=rec.gyro_rad_s[m],
+        acc_m_s2=rec.acc_m_s2[m],
+        temp_c=None if rec.temp_c is None else rec.temp_c[m],
+        meta=rec.meta,
+        truth=None
+        if tr is None
+        else type(tr)(
+            **{
+                k: (None if getattr(tr, k) is None else getattr(tr, k)[m])
+                for k in ("omega_body_rad_s", "specific_force_body_m_s2", "quat_nb", "position_nav_m")
+            }
+        ),
+    )
 
 
 def _concat(recs: list[Recording]) -> Recording:
@@ -224,7 +247,9 @@ def fit_compensation(train: Recording | list[Recording], method: str, *, pwl_ste
         pts = np.append(pts, hi) if hi - pts[-1] > 1e-6 else pts
         k = pts.size
         protos = [E.TemperaturePiecewise(points_c=pts, bias=np.zeros((3, k)), scale=np.zeros((3, k)))]
-        detail = f"{k} points every {pwl_step_c:g} °C over {lo:.1f}…{hi:.1f} °C (scale columns: no rate, not identifiable)"
+        detail = (
+            f"{k} points every {pwl_step_c:g} °C over {lo:.1f}…{hi:.1f} °C (scale columns: no rate, not identifiable)"
+        )
     else:  # rbf
         centres = np.linspace(lo, hi, rbf_centres)
         protos = [E.Bias(), E.TemperatureRBF(centres_c=centres, width_c=float(centres[1] - centres[0]), t_ref_c=t_ref,

@@ -1,4 +1,5 @@
-"""Rate-table calibration at temperature points ("Measurement Error and Calibration of FOG IMU": tri-axis ±rate / one-position).
+"""Rate-table calibration at temperature points ("Measurement Error and Calibration of FOG IMU": tri-axis ±rate /
+one-position).
 
 For each calibration temperature (hold h) and gyro axis i, the faces that put axis i up (s = +1)
 and down (s = −1) give steady windows at table rates +Ω, −Ω and 0 (one position).  The mean of

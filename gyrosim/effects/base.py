@@ -165,7 +165,9 @@ class Effect:
         """Flat parameter vector θ (SI), in ``param_fields`` order."""
         if not self.param_fields:
             return np.zeros(0)
-        return np.concatenate([np.atleast_1d(np.asarray(getattr(self, f), dtype=float)).ravel() for f in self.param_fields])
+        return np.concatenate(
+            [np.atleast_1d(np.asarray(getattr(self, f), dtype=float)).ravel() for f in self.param_fields]
+        )
 
     def param_names(self) -> list[str]:
         names = []

@@ -150,15 +150,24 @@ class WhiteNoise(Effect):
     noise_short_name: ClassVar[str] = "white"
     noise_rank: ClassVar[int] = 0
     noise_si_units: ClassVar[dict[str, str]] = {"gyro": "rad/s/sqrt(Hz)", "accelerometer": "m/s^2/sqrt(Hz)"}
-    noise_datasheet_units: ClassVar[dict[str, str]] = {"gyro": "deg/sqrt(h)", "accelerometer": "ug/sqrt(Hz) (two-sided)"}
+    noise_datasheet_units: ClassVar[dict[str, str]] = {
+        "gyro": "deg/sqrt(h)",
+        "accelerometer": "ug/sqrt(Hz) (two-sided)",
+    }
 
     @classmethod
     def noise_units(cls, field, value, rate_hz, triad):
         # two-sided PSD N² (Kalibr noise_density), one-sided 2N², per sample σ = N √f_s; 1 °/s/√Hz = 60 °/√h
         out = {"continuous_two_sided (Kalibr noise_density)": value, "one_sided": math.sqrt(2) * value,
                "discrete_sigma_per_sample": value * math.sqrt(rate_hz)}
-        out.update({"deg/sqrt(h)": value / DEG * 60.0} if triad == "gyro" else
-                   {"ug/sqrt(Hz) (two-sided)": value / G0 * 1e6, "ug/sqrt(Hz) (one-sided)": math.sqrt(2) * value / G0 * 1e6})
+        out.update(
+            {"deg/sqrt(h)": value / DEG * 60.0}
+            if triad == "gyro"
+            else {
+                "ug/sqrt(Hz) (two-sided)": value / G0 * 1e6,
+                "ug/sqrt(Hz) (one-sided)": math.sqrt(2) * value / G0 * 1e6,
+            }
+        )
         return out
 
     def haar_wavelet_variance(self, m, dt_s):
@@ -322,8 +331,13 @@ class RandomWalk(Effect):
     @classmethod
     def noise_units(cls, field, value, rate_hz, triad):
         # two-sided PSD K² of the bias derivative (Kalibr random_walk), per sample σ = K √Δt
-        out = {"continuous_two_sided (Kalibr random_walk)": value, "discrete_sigma_per_sample": value * math.sqrt(1.0 / rate_hz)}
-        out.update({"deg/h/sqrt(h)": value / DEG * 3600 * 60} if triad == "gyro" else {"ug/sqrt(h)": value / G0 * 1e6 * 60})
+        out = {
+            "continuous_two_sided (Kalibr random_walk)": value,
+            "discrete_sigma_per_sample": value * math.sqrt(1.0 / rate_hz),
+        }
+        out.update(
+            {"deg/h/sqrt(h)": value / DEG * 3600 * 60} if triad == "gyro" else {"ug/sqrt(h)": value / G0 * 1e6 * 60}
+        )
         return out
 
     def haar_wavelet_variance(self, m, dt_s):

@@ -158,10 +158,10 @@ def _hats(temp: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class TemperaturePiecewise(Effect):
-    """Bias and scale factor interpolated linearly between calibration temperatures ("Measurement Error and Calibration of FOG IMU", §4,
-    piecewise-linear interpolation compensation): δ_i = b_i(T) + s_i(T) x_i, with b_i, s_i the
-    values at ``points_c`` (°C, increasing) joined linearly and held beyond the end points.
-    ``bias`` (3, K) in rad/s or m/s², ``scale`` (3, K) fraction (SI in presets too)."""
+    """Bias and scale factor interpolated linearly between calibration temperatures ("Measurement Error and Calibration
+    of FOG IMU", §4, piecewise-linear interpolation compensation): δ_i = b_i(T) + s_i(T) x_i, with b_i, s_i the values
+    at ``points_c`` (°C, increasing) joined linearly and held beyond the end points. ``bias`` (3, K) in rad/s or m/s²,
+    ``scale`` (3, K) fraction (SI in presets too)."""
 
     kind: ClassVar[str] = "temperature_pwl"
     display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (1.0, "SI (rad/s | 1)")}
@@ -217,8 +217,9 @@ class TemperaturePiecewise(Effect):
 
 @dataclass(frozen=True)
 class TemperatureRBF(Effect):
-    """Bias drift over temperature as a Gaussian radial-basis network with the inputs ΔT and ΔT²
-    ("Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros", §3.2: TDE modelled from ΔT = T − T_ref and ΔT²):
+    """Bias drift over temperature as a Gaussian radial-basis network with the inputs ΔT and ΔT² ("Modification of
+    MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros", §3.2: TDE modelled from ΔT = T − T_ref and
+    ΔT²):
 
         δ_i = Σ_k a_ik exp(−½ [((ΔT − ΔT_k)/w)² + ((ΔT² − ΔT_k²)/(w·s))²]),   s = 2 max_k |ΔT_k|
 

@@ -25,8 +25,20 @@ def test_model_and_data_ship_in_the_wheel_and_load_from_it(tmp_path):
     pytest.importorskip("setuptools")
     wheel_dir = tmp_path / "wheel"
     build = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(wheel_dir), str(ROOT)],
-        capture_output=True, text=True,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(wheel_dir),
+            str(ROOT),
+        ],
+        capture_output=True,
+        text=True,
     )
     assert build.returncode == 0, build.stderr
     (wheel,) = wheel_dir.glob("*.whl")
@@ -47,8 +59,11 @@ def test_model_and_data_ship_in_the_wheel_and_load_from_it(tmp_path):
     ep_text = zipfile.ZipFile(wheel).read(ep_file).decode()
     assert "[gyrosim.estimators]" in ep_text and "kf = calib.session.registry:kf" in ep_text
     target = tmp_path / "site"
-    inst = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
-                          capture_output=True, text=True)
+    inst = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
+        capture_output=True,
+        text=True,
+    )
     assert inst.returncode == 0, inst.stderr
     # run from an unrelated folder with only the installed copy on the path
     code = ("from gyrosim.scene import HandScene; from gyrosim.simulate import simulate_truth; "

@@ -1,7 +1,7 @@
 """The README's Python quick start runs as written and does what it says (a docs-snippet test).
 
-The block under "## Python: simulate → calibrate → apply" is taken from README.md verbatim and
-executed in a fresh namespace in a temporary folder (docs/calibration.md carries the same block); a renamed export, a changed signature or a
+The block under "## Python: simulate → calibrate → apply" is taken from README.md verbatim and executed in a fresh
+namespace in a temporary folder (docs/calibration.md carries the same block); a renamed export, a changed signature or a
 broken public API fails here, with the README line to fix.
 """
 

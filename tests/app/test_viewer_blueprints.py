@@ -16,10 +16,9 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import session
 
 from gyrosim.viewer import Span, board_eye, read_blueprint, read_texts, shared_range
-
-from conftest import session
 
 
 def _by_origin(views, kind=None):
@@ -34,9 +33,10 @@ def _covers(view, t0: float, t1: float, dt: float, timeline: str = "sensor_time"
 
 @pytest.fixture(scope="module")
 def calibrated():
-    from calib.session.paper import calibrate, true_gyro_parameters
     from gyrosim.sensor_model import load_sensor
     from gyrosim.simulate import apply_sensor
+
+    from calib.session.paper import calibrate, true_gyro_parameters
 
     rec = apply_sensor(session("typical"), load_sensor("mpu9250"), np.random.default_rng(4))
     return rec, calibrate(rec, "kf_session"), true_gyro_parameters(rec)

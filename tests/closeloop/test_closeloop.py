@@ -20,15 +20,15 @@ import re
 
 import numpy as np
 import pytest
+from conftest import session
 
-from calib.closeloop import run_closeloop
-from calib.closeloop.suite import SUITE, run_case, sensor_with
 from gyrosim.errors import RecordingError
 from gyrosim.loaders import available_datasets, load_dataset
 from gyrosim.recording import Recording, save_hdf5
 from gyrosim.simulate import apply_sensor
 
-from conftest import session
+from calib.closeloop import run_closeloop
+from calib.closeloop.suite import SUITE, run_case, sensor_with
 
 SUITE_SEED = 5
 
@@ -68,8 +68,9 @@ def test_a_50_hz_disturbance_is_unexplained_structure_not_an_effect():
 
     import rerun as rr
 
-    from calib.closeloop.rrd import write_closeloop_rrd
     from gyrosim.viewer import read_texts
+
+    from calib.closeloop.rrd import write_closeloop_rrd
     with tempfile.TemporaryDirectory() as tmp:
         path = write_closeloop_rrd(res, f"{tmp}/cl.rrd")
         assert "Found nothing" in read_texts(path)["story"]
@@ -90,6 +91,7 @@ def test_heating_alone_cannot_separate_temperature_bias_from_hysteresis(typical_
     from dataclasses import replace
 
     from gyrosim import effects as E
+
     from calib.closeloop.suite import WARM_UP
 
     base = sensor_with(None)
@@ -185,9 +187,13 @@ def test_cli_writes_report_json_md_plots_and_rrd(tmp_path, typical_session):
     for v in axes:
         a = v.contents[0].rsplit("/", 1)[-1]
         assert f"closeloop/residual_after/{a}" in v.contents and v.y_range == axes[0].y_range
-        assert v.time_ranges["sensor_time"][0] <= rec.t_s[0] + 0.1 and v.time_ranges["sensor_time"][1] >= rec.t_s[-1] - 0.1
+        assert (
+            v.time_ranges["sensor_time"][0] <= rec.t_s[0] + 0.1 and v.time_ranges["sensor_time"][1] >= rec.t_s[-1] - 0.1
+        )
     bars = {v.origin for v in views if v.kind == "BarChart"}
-    assert {f"closeloop/vs/time_offset/{a}" for a in "xyz"} <= bars and {f"closeloop/spectrum/{a}" for a in "xyz"} <= bars
+    assert {f"closeloop/vs/time_offset/{a}" for a in "xyz"} <= bars and {
+        f"closeloop/spectrum/{a}" for a in "xyz"
+    } <= bars
     assert "time offset of 3.4" in read_texts(tmp_path / "cl" / "closeloop.rrd")["story"]
 
 

@@ -21,15 +21,15 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from calib.closeloop import run_closeloop
-from calib.closeloop.candidates import (Candidate, CandidateFamily, Channel, register_family,
-                                        unregister_family)
-from calib.closeloop.suite import HARD_SUITE, run_case, run_suite, sensor_with
 from gyrosim.effects import Effect, unregister_effect
 from gyrosim.loaders import available_datasets, load_dataset
 from gyrosim.recording import Recording, Truth
 from gyrosim.simulate import apply_sensor
 from gyrosim.units import G0
+
+from calib.closeloop import run_closeloop
+from calib.closeloop.candidates import Candidate, CandidateFamily, Channel, register_family, unregister_family
+from calib.closeloop.suite import HARD_SUITE, run_case, run_suite, sensor_with
 
 PAIRS = [k for k in HARD_SUITE if "+" in k]
 SEED = 100
@@ -61,13 +61,16 @@ def test_a_confounded_group_reports_each_members_evidence_the_rule_and_what_sepa
     thermal hysteresis explain the same residual; both thermometer-driven (same channel), the rule
     falls to the gain, and the separating recording is a heating *and* cooling pass."""
     from gyrosim import effects as E
+
     from calib.closeloop.suite import WARM_UP
 
     base = sensor_with(None)
     sensor = replace(base, gyro=base.gyro + (E.ThermalHysteresis(value=np.radians([3.0, -2.5, 3.0]), tau_s=300.0),),
                      thermal=WARM_UP)
     res = run_closeloop(apply_sensor(typical_session, sensor, np.random.default_rng(6)))
-    group = next(g for g in res.not_distinguished if {"thermal_hysteresis", "temperature_bias"} <= {g.chosen, *g.rivals})
+    group = next(
+        g for g in res.not_distinguished if {"thermal_hysteresis", "temperature_bias"} <= {g.chosen, *g.rivals}
+    )
     assert all(m.gain > 0 and 0 < m.explained_fraction < 1 for m in group.members)
     assert "direct channel" in group.rule and "heating and a cooling" in group.separate_by
     first = res.found[0]
@@ -100,14 +103,20 @@ def test_an_addition_that_fits_a_flawed_rate_reference_is_refused_because_orient
 def test_nothing_identifiable_says_so_with_reasons_and_exit_0(tmp_path):
     """30 s at rest, no temperature channel: nothing can be tested — the report says why for each
     candidate, ``found`` is empty and the command exits 0."""
-    from calib.app.cli import main
     from gyrosim.recording import save_hdf5
+
+    from calib.app.cli import main
 
     t = np.arange(0.0, 30.0, 0.01)
     f = np.tile([0.0, 0.0, G0], (t.size, 1))
     zero = np.zeros((t.size, 3))
-    truth = Recording(t_s=t, gyro_rad_s=zero, acc_m_s2=f, truth=Truth(omega_body_rad_s=zero, specific_force_body_m_s2=f),
-                      meta={"rate_hz": 100.0})
+    truth = Recording(
+        t_s=t,
+        gyro_rad_s=zero,
+        acc_m_s2=f,
+        truth=Truth(omega_body_rad_s=zero, specific_force_body_m_s2=f),
+        meta={"rate_hz": 100.0},
+    )
     rec = apply_sensor(truth, sensor_with(None), np.random.default_rng(3))
     bare = Recording(t_s=rec.t_s, gyro_rad_s=rec.gyro_rad_s, acc_m_s2=rec.acc_m_s2)
     path = save_hdf5(bare, tmp_path / "rest.h5")

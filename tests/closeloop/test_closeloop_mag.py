@@ -15,19 +15,20 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from conftest import session
 from independent_generator import STEPS, kinematics, magnetometer_arrays
-from calib.closeloop import run_closeloop
-from calib.closeloop.mag.loop import run_mag_loop
-from calib.closeloop.mag.terms import mag_term, soft_iron_params_of
-from calib.closeloop.report import write_closeloop_report
-from calib.closeloop.suite import MAG_SUITE, suite_truth
+
 from gyrosim.errors import RecordingError
 from gyrosim.loaders import data_root, load_broad
 from gyrosim.recording import Recording, Truth
 from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor
+
+from calib.closeloop import run_closeloop
+from calib.closeloop.mag.loop import run_mag_loop
+from calib.closeloop.mag.terms import mag_term, soft_iron_params_of
+from calib.closeloop.report import write_closeloop_report
+from calib.closeloop.suite import MAG_SUITE, suite_truth
 
 MAG_9 = load_sensor("mpu9250_9axis")
 COMPASS = tuple(e for e in MAG_9.magnetometer if e.kind in ("white_noise", "quantization", "saturation"))
@@ -133,8 +134,15 @@ def test_closeloop_report_carries_the_magnetometer(tmp_path):
     assert list(data["magnetometer"]) == ["reference", "reference_description", "notes", "declared", "declared_params",
                                           "found", "unexplained", "not_tested", "not_distinguished", "error_before",
                                           "error_after", "metrics", "rejected", "rounds", "identifiability", "tested"]
-    assert set(data["magnetometer"]["unexplained"]) == {"disturbances", "disturbed_samples", "residual_rms_uT",
-                                                        "white_noise_uT", "ratio_to_noise", "tau_int_samples", "summary"}
+    assert set(data["magnetometer"]["unexplained"]) == {
+        "disturbances",
+        "disturbed_samples",
+        "residual_rms_uT",
+        "white_noise_uT",
+        "ratio_to_noise",
+        "tau_int_samples",
+        "summary",
+    }
     assert "## Magnetometer" in (tmp_path / "out" / "report.md").read_text()
     with pytest.raises(RecordingError, match="needs an attitude reference"):
         run_mag_loop(rec.with_signals(truth=None), ("frame_rotation",))

@@ -18,7 +18,9 @@ from gyrosim.campaign import CampaignSpec, load_campaign, make_tasks, run_campai
 from gyrosim.errors import GyrosimError
 from gyrosim.estimator import Estimate, load_estimator
 
-SMALL = CampaignSpec(hands=("ideal", "typical"), seeds=3, estimators=("kf", "kf_adaptive"), calibrated_accelerometer=True)
+SMALL = CampaignSpec(
+    hands=("ideal", "typical"), seeds=3, estimators=("kf", "kf_adaptive"), calibrated_accelerometer=True
+)
 
 
 def _rows(path: Path) -> list[dict]:
@@ -53,8 +55,8 @@ def test_results_have_provenance_summary_and_a_physical_trend(in_process):
     for r in summary:
         assert r["rms_S_pct_lo"] <= r["rms_S_pct"] <= r["rms_S_pct_hi"]
     assert (out / "summary.csv").is_file() and (out / "error_vs_severity.png").stat().st_size > 1000
-    # summary.rrd (what a person sees on opening it): the summary as plots against the external acceleration, every cell on x,
-    # S and G errors on one log10 scale
+    # summary.rrd (what a person sees on opening it): the summary as plots against the external acceleration, every cell
+    # on x, S and G errors on one log10 scale
     from gyrosim.viewer import read_blueprint, read_texts
 
     views = {v.origin: v for v in read_blueprint(out / "summary.rrd", sequence_timelines=["ext_acc_rms_mm_s2"])}

@@ -8,17 +8,33 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import session
+
+from gyrosim import effects as E
 from gyrosim.effects import (
-    EFFECTS, Bandwidth, Effect, Bias, EarthRate, GSensitivity, MagneticSensitivity, Misalignment,
-    NonOrthogonality, Quantization, Saturation, ScaleFactor, ScaleNonlinearity, SignalContext,
-    TemperatureBias, TemperatureScale, ThermalHysteresis, TimeOffset, WhiteNoise,
+    EFFECTS,
+    Bandwidth,
+    Bias,
+    EarthRate,
+    Effect,
+    GSensitivity,
+    MagneticSensitivity,
+    Misalignment,
+    NonOrthogonality,
+    Quantization,
+    Saturation,
+    ScaleFactor,
+    ScaleNonlinearity,
+    SignalContext,
+    TemperatureBias,
+    TemperatureScale,
+    ThermalHysteresis,
+    TimeOffset,
+    WhiteNoise,
 )
 from gyrosim.errors import GyrosimError, PresetError
 from gyrosim.sensor_model import SensorModel, load_sensor, sensor_preset_names
 from gyrosim.simulate import apply_sensor, signal_context, simulate
-from gyrosim import effects as E
 from gyrosim.thermal import ThermalModel
 from gyrosim.units import G0, to_si
 
@@ -29,7 +45,9 @@ DEG = math.pi / 180
 def ctx() -> SignalContext:
     """Truth of a typical zhou2020 session with a power-on warm-up temperature."""
     rec = session("typical")
-    temp = ThermalModel(ambient_c=20.0, self_heating_c=6.0, self_heating_tau_s=60.0, case_tau_s=20.0).temperature(rec.t_s)
+    temp = ThermalModel(ambient_c=20.0, self_heating_c=6.0, self_heating_tau_s=60.0, case_tau_s=20.0).temperature(
+        rec.t_s
+    )
     return signal_context(rec.with_signals(temp_c=temp))
 
 
@@ -45,11 +63,23 @@ def deterministic_effects():
         ("gyro", TemperatureBias(coefficients=[[1e-3, 2e-5], [-2e-3, 0.0], [5e-4, -1e-5]])),
         ("gyro", TemperatureScale(coefficients=[[3e-4], [-2e-4], [1e-4]])),
         ("gyro", ThermalHysteresis(value=[0.05, -0.03, 0.02], tau_s=30.0)),
-        ("gyro", E.TemperaturePiecewise(points_c=[18.0, 21.0, 24.0, 27.0],
-                                        bias=[[1e-3, 2e-3, 0.0, -1e-3], [0.0, 5e-4, 1e-3, 2e-3], [-1e-3, 0.0, 1e-3, 0.0]],
-                                        scale=[[1e-3, 0.0, -1e-3, 2e-3], [0.0, 1e-3, 0.0, 1e-3], [2e-3, 1e-3, 0.0, 0.0]])),
-        ("gyro", E.TemperatureRBF(centres_c=[18.0, 22.0, 26.0], width_c=3.0, t_ref_c=22.0,
-                                  weights=[[1e-3, -2e-3, 1e-3], [0.0, 1e-3, 0.0], [2e-3, 0.0, -1e-3]])),
+        (
+            "gyro",
+            E.TemperaturePiecewise(
+                points_c=[18.0, 21.0, 24.0, 27.0],
+                bias=[[1e-3, 2e-3, 0.0, -1e-3], [0.0, 5e-4, 1e-3, 2e-3], [-1e-3, 0.0, 1e-3, 0.0]],
+                scale=[[1e-3, 0.0, -1e-3, 2e-3], [0.0, 1e-3, 0.0, 1e-3], [2e-3, 1e-3, 0.0, 0.0]],
+            ),
+        ),
+        (
+            "gyro",
+            E.TemperatureRBF(
+                centres_c=[18.0, 22.0, 26.0],
+                width_c=3.0,
+                t_ref_c=22.0,
+                weights=[[1e-3, -2e-3, 1e-3], [0.0, 1e-3, 0.0], [2e-3, 0.0, -1e-3]],
+            ),
+        ),
         ("gyro", EarthRate(latitude_rad=48 * DEG)),
         ("gyro", MagneticSensitivity(value=np.eye(3) * 1e-5)),
         ("gyro", Bandwidth(cutoff_hz=41.0)),
@@ -234,7 +264,9 @@ def test_nothing_mutates_its_inputs(ctx):
     x = np.array(ctx.omega_true_rad_s)  # writeable copy
     before = x.copy()
     model = load_sensor("mpu9250").realize(np.random.default_rng(0))
-    c = SignalContext(ctx.t_s, x, np.array(ctx.specific_force_true_m_s2), ctx.temperature_c, ctx.quat_nb, ctx.mag_body_ut)
+    c = SignalContext(
+        ctx.t_s, x, np.array(ctx.specific_force_true_m_s2), ctx.temperature_c, ctx.quat_nb, ctx.mag_body_ut
+    )
     y = model.apply_triad("gyro", x, c, np.random.default_rng(1))
     y_before = y.copy()
     model.compensate_triad("gyro", y, c)

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import session
+
 from gyrosim.hand import Hand, hand_preset_names, load_hand
 from gyrosim.rotations import quat_angle_between, quat_rotate
 from gyrosim.schedule import load_schedule
@@ -91,7 +91,10 @@ def test_ideal_hand_produces_no_disturbance(ideal_session):
 
 def test_presets_are_ordered_by_severity():
     sched = load_schedule("zhou2020")
-    acc = [load_hand(p).expected_disturbance(sched)["external_acc_rms_m_s2"] for p in ("ideal", "steady", "typical", "shaky")]
+    acc = [
+        load_hand(p).expected_disturbance(sched)["external_acc_rms_m_s2"]
+        for p in ("ideal", "steady", "typical", "shaky")
+    ]
     assert acc == sorted(acc) and set(hand_preset_names()) >= {"ideal", "steady", "typical", "shaky"}
 
 

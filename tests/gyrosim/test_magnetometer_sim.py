@@ -9,8 +9,8 @@ import math
 import h5py
 import numpy as np
 import pytest
-
 from conftest import session
+
 from gyrosim.cli import main as gyrosim_main
 from gyrosim.effects import FrameRotation, HardIron, SoftIron
 from gyrosim.errors import GyrosimError

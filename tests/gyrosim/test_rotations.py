@@ -47,6 +47,8 @@ def test_right_jacobian_matches_finite_difference():
     phi = rng.normal(size=3) * 0.7
     phidot = rng.normal(size=3)
     h = 1e-6
-    dq = quat_multiply(quat_from_rotvec(phi - h * phidot) * np.array([1, -1, -1, -1]), quat_from_rotvec(phi + h * phidot))
+    dq = quat_multiply(
+        quat_from_rotvec(phi - h * phidot) * np.array([1, -1, -1, -1]), quat_from_rotvec(phi + h * phidot)
+    )
     omega_fd = quat_to_rotvec(dq) / (2 * h)
     np.testing.assert_allclose(right_jacobian_apply(phi, phidot), omega_fd, atol=1e-8)

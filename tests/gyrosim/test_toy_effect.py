@@ -24,15 +24,15 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
+from conftest import session
 
-from calib.closeloop import run_closeloop
-from calib.closeloop.suite import sensor_with
 from gyrosim.calibration import Calibration
 from gyrosim.effects import EFFECTS, VectorEffect, unregister_effect
 from gyrosim.sensor_model import load_sensor, stored_sensor_model
 from gyrosim.simulate import apply_sensor
 
-from conftest import session
+from calib.closeloop import run_closeloop
+from calib.closeloop.suite import sensor_with
 
 TOY_K = np.array([2e-3, -1.5e-3, 2.5e-3])  # 1/(rad/s): ~0.5–1 °/s at the schedule's 2–3 rad/s
 

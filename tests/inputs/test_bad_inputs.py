@@ -34,10 +34,11 @@ from typing import Callable
 
 import numpy as np
 import pytest
-
 from bad_inputs import Base, derived, make_base
-from calib.app.cli import main as calib_main
+
 from gyrosim.cli import main as gyrosim_main
+
+from calib.app.cli import main as calib_main
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -204,13 +205,29 @@ INSPECT_PROBLEMS = {
 }
 INSPECT_UNREADABLE = {k: v["pattern"] for k, v in RUN.items() if v["rc"] == (2,) and k not in INSPECT_PROBLEMS
                       and not re.search(r"Hz is (below|above)|needs at least|never turns", v["pattern"])}
-INSPECT_UNREADABLE = {k: v for k, v in INSPECT_UNREADABLE.items() if k in ("binary_junk", "truncated_h5", "header_only")}
-INSPECT_SKIP = {"t_ns", "epoch_us", "crlf", "header_case", "reordered", "comments", "spaces", "duplicate_row", "header_t_ms"}
+INSPECT_UNREADABLE = {
+    k: v for k, v in INSPECT_UNREADABLE.items() if k in ("binary_junk", "truncated_h5", "header_only")
+}
+INSPECT_SKIP = {
+    "t_ns",
+    "epoch_us",
+    "crlf",
+    "header_case",
+    "reordered",
+    "comments",
+    "spaces",
+    "duplicate_row",
+    "header_t_ms",
+}
 INSPECT = {}
 for name in list(RUN) + ["static_part", "static_10h", "static_gyro_spike"]:
-    if name in INSPECT_SKIP or (name in RUN and RUN[name]["rc"] == (2,) and name not in INSPECT_PROBLEMS
-                                and name not in INSPECT_UNREADABLE
-                                and not re.search(r"Hz is (below|above)|needs at least|never turns", RUN[name]["pattern"])):
+    if name in INSPECT_SKIP or (
+        name in RUN
+        and RUN[name]["rc"] == (2,)
+        and name not in INSPECT_PROBLEMS
+        and name not in INSPECT_UNREADABLE
+        and not re.search(r"Hz is (below|above)|needs at least|never turns", RUN[name]["pattern"])
+    ):
         continue  # the reading refusals are the run cases' (same code path); the table keeps three of them
     if name in INSPECT_UNREADABLE:
         INSPECT[name] = err(INSPECT_UNREADABLE[name])
@@ -319,53 +336,134 @@ def _copy_csv(b: Base, tmp: Path) -> Path:
 
 
 OUTPUTS = [
-    _out("run-json-is-input", lambda b, t: ["run", str(b.csv), "--json", str(b.csv)], r"--json .* would overwrite the input"),
-    _out("run-rrd-is-input", lambda b, t: ["run", str(b.csv), "--rrd", str(b.csv)], r"--rrd .* would overwrite the input"),
-    _out("run-json-relative-to-input", lambda b, t: ["run", str(b.csv), "--json", str(b.csv.parent / "." / b.csv.name)],
-         r"would overwrite the input"),
-    _out("run-json-symlink-to-input", lambda b, t: ["run", str(b.csv), "--json", str(t / "link.json")],
-         r"would overwrite the input", setup=lambda b, t: (t / "link.json").exists() or (t / "link.json").symlink_to(b.csv)),
-    _out("run-json-hardlink-to-input", lambda b, t: ["run", str(_copy_csv(b, t)), "--json", str(t / "hard.json")],
-         r"would overwrite the input", inputs=lambda b: [],
-         setup=lambda b, t: (t / "hard.json").exists() or os.link(_copy_csv(b, t), t / "hard.json")),
-    _out("run-json-missing-folder", lambda b, t: ["run", str(b.csv), "--json", str(t / "nope" / "r.json")],
-         r"folder .* does not exist"),
+    _out(
+        "run-json-is-input",
+        lambda b, t: ["run", str(b.csv), "--json", str(b.csv)],
+        r"--json .* would overwrite the input",
+    ),
+    _out(
+        "run-rrd-is-input", lambda b, t: ["run", str(b.csv), "--rrd", str(b.csv)], r"--rrd .* would overwrite the input"
+    ),
+    _out(
+        "run-json-relative-to-input",
+        lambda b, t: ["run", str(b.csv), "--json", str(b.csv.parent / "." / b.csv.name)],
+        r"would overwrite the input",
+    ),
+    _out(
+        "run-json-symlink-to-input",
+        lambda b, t: ["run", str(b.csv), "--json", str(t / "link.json")],
+        r"would overwrite the input",
+        setup=lambda b, t: (t / "link.json").exists() or (t / "link.json").symlink_to(b.csv),
+    ),
+    _out(
+        "run-json-hardlink-to-input",
+        lambda b, t: ["run", str(_copy_csv(b, t)), "--json", str(t / "hard.json")],
+        r"would overwrite the input",
+        inputs=lambda b: [],
+        setup=lambda b, t: (t / "hard.json").exists() or os.link(_copy_csv(b, t), t / "hard.json"),
+    ),
+    _out(
+        "run-json-missing-folder",
+        lambda b, t: ["run", str(b.csv), "--json", str(t / "nope" / "r.json")],
+        r"folder .* does not exist",
+    ),
     _out("run-json-unwritable-folder", lambda b, t: ["run", str(b.csv), "--json", "/proc/r.json"], r"not writable"),
     _out("run-json-is-a-folder", lambda b, t: ["run", str(b.csv), "--json", str(t)], r"--json .* is a folder"),
     _out("run-rrd-is-a-folder", lambda b, t: ["run", str(b.csv), "--rrd", str(t)], r"--rrd .* is a folder"),
-    _out("run-json-equals-rrd", lambda b, t: ["run", str(b.csv), "--json", str(t / "x"), "--rrd", str(t / "x")],
-         r"--json and --rrd name the same path|--rrd and --json name the same path"),
-    _out("allan-png-is-input", lambda b, t: ["allan", str(b.csv), "--png", str(b.csv)], r"--png .* would overwrite the input"),
-    _out("allan-png-missing-folder", lambda b, t: ["allan", str(b.csv), "--png", str(t / "no" / "a.png")], r"does not exist"),
-    _out("closeloop-out-is-input", lambda b, t: ["closeloop", str(b.csv), "--out", str(b.csv)],
-         r"--out .* is a file, but this option names an output folder"),
-    _out("closeloop-out-holds-input", lambda b, t: ["closeloop", str(t / "cl" / "report.json"), "--out", str(t / "cl")],
-         r"would overwrite the input", inputs=lambda b: [],
-         setup=lambda b, t: (t / "cl").mkdir(exist_ok=True) or (t / "cl" / "report.json").write_bytes(b.csv.read_bytes())),
-    _out("closeloop-out-missing-parent", lambda b, t: ["closeloop", str(b.csv), "--out", str(t / "a" / "b" / "c")],
-         r"does not exist"),
-    _out("temperature-json-is-input", lambda b, t: ["temperature", str(b.h5), "--json", str(b.h5)],
-         r"would overwrite the input", inputs=lambda b: [b.h5]),
-    _out("temperature-out-is-input", lambda b, t: ["temperature", str(b.h5), "--compensate", "rbf", "--out", str(b.h5)],
-         r"would overwrite the input", inputs=lambda b: [b.h5]),
+    _out(
+        "run-json-equals-rrd",
+        lambda b, t: ["run", str(b.csv), "--json", str(t / "x"), "--rrd", str(t / "x")],
+        r"--json and --rrd name the same path|--rrd and --json name the same path",
+    ),
+    _out(
+        "allan-png-is-input",
+        lambda b, t: ["allan", str(b.csv), "--png", str(b.csv)],
+        r"--png .* would overwrite the input",
+    ),
+    _out(
+        "allan-png-missing-folder",
+        lambda b, t: ["allan", str(b.csv), "--png", str(t / "no" / "a.png")],
+        r"does not exist",
+    ),
+    _out(
+        "closeloop-out-is-input",
+        lambda b, t: ["closeloop", str(b.csv), "--out", str(b.csv)],
+        r"--out .* is a file, but this option names an output folder",
+    ),
+    _out(
+        "closeloop-out-holds-input",
+        lambda b, t: ["closeloop", str(t / "cl" / "report.json"), "--out", str(t / "cl")],
+        r"would overwrite the input",
+        inputs=lambda b: [],
+        setup=lambda b, t: (
+            (t / "cl").mkdir(exist_ok=True) or (t / "cl" / "report.json").write_bytes(b.csv.read_bytes())
+        ),
+    ),
+    _out(
+        "closeloop-out-missing-parent",
+        lambda b, t: ["closeloop", str(b.csv), "--out", str(t / "a" / "b" / "c")],
+        r"does not exist",
+    ),
+    _out(
+        "temperature-json-is-input",
+        lambda b, t: ["temperature", str(b.h5), "--json", str(b.h5)],
+        r"would overwrite the input",
+        inputs=lambda b: [b.h5],
+    ),
+    _out(
+        "temperature-out-is-input",
+        lambda b, t: ["temperature", str(b.h5), "--compensate", "rbf", "--out", str(b.h5)],
+        r"would overwrite the input",
+        inputs=lambda b: [b.h5],
+    ),
     _out("montecarlo-json-is-a-folder", lambda b, t: ["montecarlo", "--json", str(t)], r"--json .* is a folder"),
-    _out("demo-out-is-a-file", lambda b, t: ["demo", "--out", str(b.csv)], r"is a file, but this option names an output folder"),
-    _out("simulate-out-is-schedule", lambda b, t: ["simulate", "--schedule", str(_toml(t, "schedule")), "--out",
-                                                  str(_toml(t, "schedule"))], r"would overwrite the input",
-         inputs=lambda b: [], tool="gyrosim"),
-    _out("simulate-out-is-hand", lambda b, t: ["simulate", "--hand", str(_toml(t, "hand")), "--out", str(_toml(t, "hand"))],
-         r"would overwrite the input", inputs=lambda b: [], tool="gyrosim"),
-    _out("simulate-out-is-sensor", lambda b, t: ["simulate", "--sensor", str(_toml(t, "sensor")), "--out",
-                                                str(_toml(t, "sensor"))], r"would overwrite the input",
-         inputs=lambda b: [], tool="gyrosim"),
-    _out("simulate-out-is-a-folder", lambda b, t: ["simulate", "--out", str(t)], r"is a folder", inputs=lambda b: [],
-         tool="gyrosim"),
-    _out("chamber-out-is-profile", lambda b, t: ["chamber", "--profile", str(_toml(t, "profile")), "--out",
-                                                str(_toml(t, "profile"))], r"would overwrite the input",
-         inputs=lambda b: [], tool="gyrosim"),
-    _out("ratetable-out-is-profile", lambda b, t: ["ratetable", "--profile", str(_toml(t, "profile")), "--out",
-                                                  str(_toml(t, "profile"))], r"would overwrite the input",
-         inputs=lambda b: [], tool="gyrosim"),
+    _out(
+        "demo-out-is-a-file",
+        lambda b, t: ["demo", "--out", str(b.csv)],
+        r"is a file, but this option names an output folder",
+    ),
+    _out(
+        "simulate-out-is-schedule",
+        lambda b, t: ["simulate", "--schedule", str(_toml(t, "schedule")), "--out", str(_toml(t, "schedule"))],
+        r"would overwrite the input",
+        inputs=lambda b: [],
+        tool="gyrosim",
+    ),
+    _out(
+        "simulate-out-is-hand",
+        lambda b, t: ["simulate", "--hand", str(_toml(t, "hand")), "--out", str(_toml(t, "hand"))],
+        r"would overwrite the input",
+        inputs=lambda b: [],
+        tool="gyrosim",
+    ),
+    _out(
+        "simulate-out-is-sensor",
+        lambda b, t: ["simulate", "--sensor", str(_toml(t, "sensor")), "--out", str(_toml(t, "sensor"))],
+        r"would overwrite the input",
+        inputs=lambda b: [],
+        tool="gyrosim",
+    ),
+    _out(
+        "simulate-out-is-a-folder",
+        lambda b, t: ["simulate", "--out", str(t)],
+        r"is a folder",
+        inputs=lambda b: [],
+        tool="gyrosim",
+    ),
+    _out(
+        "chamber-out-is-profile",
+        lambda b, t: ["chamber", "--profile", str(_toml(t, "profile")), "--out", str(_toml(t, "profile"))],
+        r"would overwrite the input",
+        inputs=lambda b: [],
+        tool="gyrosim",
+    ),
+    _out(
+        "ratetable-out-is-profile",
+        lambda b, t: ["ratetable", "--profile", str(_toml(t, "profile")), "--out", str(_toml(t, "profile"))],
+        r"would overwrite the input",
+        inputs=lambda b: [],
+        tool="gyrosim",
+    ),
 ]
 
 CASES = _input_cases() + ARGS + OUTPUTS

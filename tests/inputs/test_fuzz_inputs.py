@@ -63,8 +63,27 @@ def _motion(n: int, rate: float, rest_s: float, turn_deg_s: float, axis: int, se
     return t, gyro, acc
 
 
-CORRUPTIONS = ("nan", "inf", "spike", "huge", "dead", "gap", "short_gap", "disorder", "duplicate", "deg", "g", "ms_float",
-               "broken_row", "truncate", "missing_column", "wrong_shape", "int_dtype", "bad_rate_attr", "bom_latin")
+CORRUPTIONS = (
+    "nan",
+    "inf",
+    "spike",
+    "huge",
+    "dead",
+    "gap",
+    "short_gap",
+    "disorder",
+    "duplicate",
+    "deg",
+    "g",
+    "ms_float",
+    "broken_row",
+    "truncate",
+    "missing_column",
+    "wrong_shape",
+    "int_dtype",
+    "bad_rate_attr",
+    "bom_latin",
+)
 
 
 @st.composite
@@ -81,8 +100,14 @@ def recordings(draw):
     n = draw(st.sampled_from([0, 1, 2, 10, 60, 250, 400, 600, 1200, 1200]))
     rate = draw(st.sampled_from([1.0, 10.0, 20.0, 50.0, 50.0, 100.0, 285.7, 1000.0, 10000.0]))
     spec = {"mode": mode, "bad": sorted(bad), "n": n, "rate": rate}
-    t, g, a = _motion(max(n, 1), rate, draw(st.sampled_from([0.0, 3.0, 3.0])), draw(st.sampled_from([0.0, 30.0, 200.0])),
-                      draw(st.integers(0, 2)), draw(st.integers(0, 3)))
+    t, g, a = _motion(
+        max(n, 1),
+        rate,
+        draw(st.sampled_from([0.0, 3.0, 3.0])),
+        draw(st.sampled_from([0.0, 30.0, 200.0])),
+        draw(st.integers(0, 2)),
+        draw(st.integers(0, 3)),
+    )
     t, g, a = t[:n], g[:n], a[:n]
     t_unit = draw(st.sampled_from([1.0, 1.0, 1e3, 1e6, 1e9]))
     epoch = draw(st.sampled_from([0.0, 0.0, 1.7e9]))
@@ -128,7 +153,10 @@ def recordings(draw):
         if layout == "extra":
             header, body = header + ["quality"], np.column_stack([body, np.ones(body.shape[0])])
         elif layout == "mag":
-            header, body = header + ["mag_x", "mag_y", "mag_z"], np.column_stack([body, np.full((body.shape[0], 3), 30.0)])
+            header, body = (
+                header + ["mag_x", "mag_y", "mag_z"],
+                np.column_stack([body, np.full((body.shape[0], 3), 30.0)]),
+            )
         elif layout == "case":
             header = [f" {h.upper()} " for h in header]
         elif layout == "t_ms_name" and t_unit == 1e3 and epoch == 0:
@@ -138,14 +166,26 @@ def recordings(draw):
         lines = [sep.join(header)] + [sep.join(fmt % v for v in row) for row in body]
         if "broken_row" in bad and len(lines) > 1:
             i = draw(st.integers(1, len(lines) - 1))
-            lines[i] = draw(st.sampled_from([lines[i] + sep + "1", sep.join(lines[i].split(sep)[:-1]),
-                                              "abc" + sep + sep.join(lines[i].split(sep)[1:]), lines[i].replace(sep, sep + sep, 1),
-                                              ""]))
+            lines[i] = draw(
+                st.sampled_from(
+                    [
+                        lines[i] + sep + "1",
+                        sep.join(lines[i].split(sep)[:-1]),
+                        "abc" + sep + sep.join(lines[i].split(sep)[1:]),
+                        lines[i].replace(sep, sep + sep, 1),
+                        "",
+                    ]
+                )
+            )
         newline = draw(st.sampled_from(["\n", "\n", "\r\n"]))
         text = newline.join(lines) + (newline if draw(st.integers(0, 4)) else "")
         if sep in (";", "\t") and draw(st.integers(0, 3)) == 0:
             text = text.replace(".", ",")
-        enc = draw(st.sampled_from(["utf-8", "utf-8", "utf-8", "utf-8-sig", "utf-16"])) if "bom_latin" not in bad else "latin-1"
+        enc = (
+            draw(st.sampled_from(["utf-8", "utf-8", "utf-8", "utf-8-sig", "utf-16"]))
+            if "bom_latin" not in bad
+            else "latin-1"
+        )
         raw = ("# °C comment\n" + text if enc == "latin-1" else text).encode(enc)
         spec.update(layout=layout, sep=sep, fmt=fmt, enc=enc)
         suffix = ".h5" if draw(st.integers(0, 9)) == 0 else ".csv"
@@ -159,7 +199,7 @@ def recordings(draw):
                 if "wrong_shape" in bad and name == "gyro":
                     arr = arr[:, :2]
                 with np.errstate(invalid="ignore", over="ignore"):
-                    arr = (np.clip(np.nan_to_num(arr), -3e4, 3e4).astype(dtype) if dtype[0] == "i" else arr.astype(dtype))
+                    arr = np.clip(np.nan_to_num(arr), -3e4, 3e4).astype(dtype) if dtype[0] == "i" else arr.astype(dtype)
                 f.create_dataset(name, data=arr)
             if "bad_rate_attr" in bad:
                 f.attrs["rate_hz"] = draw(st.sampled_from([100.0, -1.0, float("nan"), 0.0]))
@@ -195,8 +235,12 @@ def _check_one(case, command: str) -> None:
         path.write_bytes(raw)
         digest = hashlib.sha256(raw).hexdigest()
         out_json = Path(d) / "out.json"
-        argv = {"run": ["run", str(path), "--json", str(out_json)], "inspect": ["inspect", str(path)],
-                "allan": ["allan", str(path)], "closeloop": ["closeloop", str(path), "--out", str(Path(d) / "cl")]}[command]
+        argv = {
+            "run": ["run", str(path), "--json", str(out_json)],
+            "inspect": ["inspect", str(path)],
+            "allan": ["allan", str(path)],
+            "closeloop": ["closeloop", str(path), "--out", str(Path(d) / "cl")],
+        }[command]
         rc, out, err, dt = _run(argv)
         info = f"{command} {spec} → exit {rc} in {dt:.2f} s\nstderr: {err[-1500:]}"
         assert "Traceback" not in out + err and "internal error" not in err, info

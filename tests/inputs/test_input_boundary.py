@@ -11,15 +11,24 @@ import os
 import numpy as np
 import pytest
 
-from calib.inputs import GapError, Requirements, SpikeError, TimeBaseError, check_recording, open_recording, prepare_recording
-from calib.inputs.gaps import find_gaps
-from calib.inputs.spikes import find_spikes
-from calib.inputs.timebase import detect_time_unit
 from gyrosim.cliargs import integer, number, seed
 from gyrosim.errors import OutputPathError
 from gyrosim.loaders import available_datasets, load_dataset
 from gyrosim.outputs import atomic_path, check_output_paths, json_safe, staged_folder, write_json_atomic
 from gyrosim.recording import Recording
+
+from calib.inputs import (
+    GapError,
+    Requirements,
+    SpikeError,
+    TimeBaseError,
+    check_recording,
+    open_recording,
+    prepare_recording,
+)
+from calib.inputs.gaps import find_gaps
+from calib.inputs.spikes import find_spikes
+from calib.inputs.timebase import detect_time_unit
 
 DATASETS = available_datasets()
 HANDHELD = Requirements("test", plausible_rate_hz=(0.5, 1e5))
@@ -192,7 +201,8 @@ def test_output_paths_equal_to_an_input_are_refused_by_any_name(tmp_path):
     for alias in (src, tmp_path / "." / "in.csv", tmp_path / "hard.csv", tmp_path / "soft.csv"):
         with pytest.raises(OutputPathError, match="would overwrite the input"):
             check_output_paths({"--json": alias}, [src])
-    check_output_paths({"--json": tmp_path / "new.json", "--rrd": None}, [src, None, "zhou2020"])  # preset names ignored
+    # preset names ignored
+    check_output_paths({"--json": tmp_path / "new.json", "--rrd": None}, [src, None, "zhou2020"])
 
 
 def test_numeric_options_name_their_range():
@@ -230,8 +240,9 @@ def test_a_10_khz_session_is_refused_and_calibrates_when_decimated(tmp_path):
     largest error plus 5e-4 (the 100 Hz errors are the hand's, ~3e-3 here; 5e-4 ≈ 5σ of S at 1 kHz).
     The status may read "inconsistent": at 1 kHz the filter's white-noise allowance for the hand
     already over-counts the accelerometer (the root cause, docs/bad-input.md), but it is not diverged."""
-    from calib.app.cli import main
     from gyrosim.cli import main as gmain
+
+    from calib.app.cli import main
 
     runs = {}
     for rate in (10000, 100):
@@ -255,10 +266,11 @@ def test_a_10_khz_session_is_refused_and_calibrates_when_decimated(tmp_path):
 @pytest.mark.slow
 def test_a_diverged_filter_exits_1_with_status_diverged(tmp_path):
     """The pivot-only hand of test_calibration.test_filter_divergence_is_named through the CLI."""
-    from calib.app.cli import main
     from gyrosim.hand import Hand, load_hand
     from gyrosim.recording import save_hdf5
     from gyrosim.simulate import simulate
+
+    from calib.app.cli import main
 
     hand = Hand(name="pivot_only", pivot_offset_m=load_hand("typical").pivot_offset_m)
     h5 = save_hdf5(simulate("zhou2020", hand, "zhou2020_sim_consumer", 100.0, seed=4), tmp_path / "p.h5")
@@ -270,8 +282,8 @@ def test_a_diverged_filter_exits_1_with_status_diverged(tmp_path):
 def test_allan_of_a_static_record_with_one_corrupt_gyro_sample_matches_the_clean_one():
     """The issue's case: one 1e30 gyro sample made N = 8e29 °/√h.  Excluded, N must equal the clean
     record's within 1 % (one interpolated sample of 6000 changes the variance by ~1/6000)."""
-    from calib.noise.allan import allan_deviation, fit_noise_terms
     from calib.inputs import ALLAN
+    from calib.noise.allan import allan_deviation, fit_noise_terms
 
     rec = _rec(6000)
     gyro = np.array(rec.gyro_rad_s)

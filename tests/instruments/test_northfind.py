@@ -16,14 +16,12 @@ from __future__ import annotations
 
 import json
 import math
+
 import numpy as np
 import pytest
+from conftest import session
+from independent_static import northfind_csv
 
-from calib.noise.allan import NoiseTerms
-from calib.app.cli import main as calib_main
-from calib.noise.window_means import noise_terms_from_model, sample_variance_moments, window_mean_covariance
-from calib.instruments.northfind import find_north
-from calib.instruments.northfind_plan import latitude_curve, limit_sigma_deg, max_latitude_deg, procedure_sigma_res, rest_time_needed
 from gyrosim.cli import main as gyrosim_main
 from gyrosim.effects import EARTH_RATE_RAD_S, MagneticSensitivity, SignalContext
 from gyrosim.northfind import NorthFindSequence, shielded, simulate_northfind, simulate_northfind_truth, with_latitude
@@ -31,8 +29,17 @@ from gyrosim.rig import Knock
 from gyrosim.sensor_model import SensorModel, load_sensor, stored_sensor_model
 from gyrosim.simulate import apply_sensor
 
-from conftest import session
-from independent_static import northfind_csv
+from calib.app.cli import main as calib_main
+from calib.instruments.northfind import find_north
+from calib.instruments.northfind_plan import (
+    latitude_curve,
+    limit_sigma_deg,
+    max_latitude_deg,
+    procedure_sigma_res,
+    rest_time_needed,
+)
+from calib.noise.allan import NoiseTerms
+from calib.noise.window_means import noise_terms_from_model, sample_variance_moments, window_mean_covariance
 
 FOG = load_sensor("fog_tactical")
 FOG_SHIELDED = shielded(FOG, 1e3)
@@ -59,7 +66,9 @@ def test_window_mean_covariance_matches_the_simulated_noise():
     # a random walk's spread within a window is the Brownian bridge's: mean K²T/6, σ K²T/√45
     k, T = 1e-5, 3600.0
     m, v = sample_variance_moments(NoiseTerms(0, 0, k, 0, 0, 0), (0, 36000), 10.0, 36000)
-    assert m == pytest.approx(k**2 * T / 6, rel=1e-3) and math.sqrt(v) == pytest.approx(k**2 * T / math.sqrt(45), rel=1e-3)
+    assert m == pytest.approx(k**2 * T / 6, rel=1e-3) and math.sqrt(v) == pytest.approx(
+        k**2 * T / math.sqrt(45), rel=1e-3
+    )
 
 
 def test_limit_formulas():
@@ -100,9 +109,15 @@ def test_north_found_at_the_physical_limit_at_three_latitudes():
         assert 0.75 < math.sqrt(np.mean((err / sig) ** 2)) < 1.35, lat
         assert st.count("ok") >= 48, (lat, st)          # each check alarms at p = 1e-4 with a known noise
         # the limit is σ_res/(Ω cos L) of the procedure: the level-table plan gives the same number
-        assert np.mean(lim) == pytest.approx(limit_sigma_deg(noise_terms_from_model(FOG, "gyro"), lat, 300.0,
-                                                             move_s=truth.meta["northfind"]["holds"][1]["start"] / RATE - 300),
-                                             rel=0.02)
+        assert np.mean(lim) == pytest.approx(
+            limit_sigma_deg(
+                noise_terms_from_model(FOG, "gyro"),
+                lat,
+                300.0,
+                move_s=truth.meta["northfind"]["holds"][1]["start"] / RATE - 300,
+            ),
+            rel=0.02,
+        )
 
 
 def test_unshielded_fog_coil_is_flagged_and_its_faraday_bias_is_the_predicted_one():
@@ -213,9 +228,14 @@ def test_cli_round_trip_exit_codes_and_bad_input(tmp_path, capsys):
     assert calib_main(["northfind", str(rec), "--json", str(rec)]) == 2
     assert calib_main(["northfind", str(rec), "--noise", "0.01,abc"]) == 2
     png = tmp_path / "lat.png"
-    assert calib_main(["northfind-latitude", "--accuracy-deg", "0.5", "--png", str(png)]) == 0 and png.stat().st_size > 0
+    assert (
+        calib_main(["northfind-latitude", "--accuracy-deg", "0.5", "--png", str(png)]) == 0 and png.stat().st_size > 0
+    )
     text = capsys.readouterr().out
-    assert "fog_tactical: 0.5° reachable up to latitude" in text and "mpu9250: 0.5° reachable up to latitude — (nowhere)" in text
+    assert (
+        "fog_tactical: 0.5° reachable up to latitude" in text
+        and "mpu9250: 0.5° reachable up to latitude — (nowhere)" in text
+    )
     assert gyrosim_main(["northfind", "--positions", "0", "--out", str(tmp_path / "x.h5")]) == 2
 
 

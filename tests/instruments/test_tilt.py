@@ -20,15 +20,15 @@ import math
 
 import numpy as np
 import pytest
+from independent_static import tilt_csv
 
-from calib.app.cli import main as calib_main
-from calib.scoring.instruments_mc import device_tilt_figures, tilt_monte_carlo
-from calib.instruments.tilt import UG, tilt_test
 from gyrosim.cli import main as gyrosim_main
 from gyrosim.sensor_model import load_sensor, stored_sensor_model
 from gyrosim.tilttable import TiltSequence, simulate_tilt_truth, simulate_tilttable
 
-from independent_static import tilt_csv
+from calib.app.cli import main as calib_main
+from calib.instruments.tilt import UG, tilt_test
+from calib.scoring.instruments_mc import device_tilt_figures, tilt_monte_carlo
 
 TILT = load_sensor("tilt_001")
 SEQ = TiltSequence(zero_hold_s=1200.0)
@@ -78,7 +78,10 @@ def test_knocked_holds_are_left_out_and_listed(tmp_path):
     assert calib_main(["tilt", str(rec), "--json", str(out), "--png", str(png)]) == 1
     d = json.loads(out.read_text())
     assert d["status"] == "incomplete" and png.stat().st_size > 0
-    assert [(h["sweep"], h["kind"], h["angle_deg"]) for h in d["excluded_holds"]] == [("x", "step", -7.5), ("x", "flip", 180.0)]
+    assert [(h["sweep"], h["kind"], h["angle_deg"]) for h in d["excluded_holds"]] == [
+        ("x", "step", -7.5),
+        ("x", "flip", 180.0),
+    ]
     assert all("motion" in h["excluded"] for h in d["excluded_holds"])
     x, y = d["axes"]["x"], d["axes"]["y"]
     assert x["zero_offset_ug"] is None and x["mechanical_zero_deg"] is None and x["missing"]
@@ -113,9 +116,18 @@ def test_independent_csv_with_a_hold_table(tmp_path):
         i, j = "xyz".index(s), "xyz".index(o)
         f = d["axes"][s]
         assert abs(f["zero_offset_ug"] - truth["bias_g"][i] * 1e6) < 4 * f["zero_offset_ug_sigma"]
-        assert abs(f["cross_axis_horizontal_pct"] - 100 * m[i, j] / f["scale_factor"]) < 4 * f["cross_axis_horizontal_pct_sigma"]
-        assert abs(f["cross_axis_vertical_pct"] - 100 * m[i, 2] / f["scale_factor"]) < 4 * f["cross_axis_vertical_pct_sigma"]
-        assert abs(f["scale_factor"] - m[i, i]) < truth["k_per_g"] * math.sin(math.radians(15)) + 4 * f["scale_factor_sigma"]
+        assert (
+            abs(f["cross_axis_horizontal_pct"] - 100 * m[i, j] / f["scale_factor"])
+            < 4 * f["cross_axis_horizontal_pct_sigma"]
+        )
+        assert (
+            abs(f["cross_axis_vertical_pct"] - 100 * m[i, 2] / f["scale_factor"])
+            < 4 * f["cross_axis_vertical_pct_sigma"]
+        )
+        assert (
+            abs(f["scale_factor"] - m[i, i])
+            < truth["k_per_g"] * math.sin(math.radians(15)) + 4 * f["scale_factor_sigma"]
+        )
 
 
 def test_bad_hold_tables_are_refused(tmp_path):

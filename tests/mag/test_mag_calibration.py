@@ -14,16 +14,23 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import session
-from calib.app.cli import main as calib_main
-from calib.mag import MagCalibration, calibrate_magnetometer, true_magnetometer
-from calib.mag.heading import compass_quaternion, heading_error_rad, heading_noise_floor_rad, magnetic_reference, up_from_quat
+
 from gyrosim.errors import GyrosimError, RecordingError
 from gyrosim.magnetic import environment_from_text
 from gyrosim.recording import save_hdf5
 from gyrosim.sensor_model import SensorModel, load_sensor
 from gyrosim.simulate import EARTH_FIELD_ENU_UT, apply_sensor, signal_context, simulate_truth
+
+from calib.app.cli import main as calib_main
+from calib.mag import MagCalibration, calibrate_magnetometer, true_magnetometer
+from calib.mag.heading import (
+    compass_quaternion,
+    heading_error_rad,
+    heading_noise_floor_rad,
+    magnetic_reference,
+    up_from_quat,
+)
 
 MAG_9 = load_sensor("mpu9250_9axis")
 
@@ -195,8 +202,9 @@ def test_a_room_anomaly_is_reported_as_a_disturbance_not_absorbed(tmp_path):
     assert absorbed.diagnostics["residual_field_rms_uT"] >= 2 * res.diagnostics["residual_field_rms_uT"]
     # its recording opens on |B| raw and calibrated in one view over the whole walk, the
     # disturbance marked inside that view, and a story that names it
-    from calib.app.rerun import save_magnetometer_rrd
     from gyrosim.viewer import read_blueprint, read_texts
+
+    from calib.app.rerun import save_magnetometer_rrd
 
     path = save_magnetometer_rrd(tmp_path / "mag.rrd", rec, res)
     views = {v.origin: v for v in read_blueprint(path)}

@@ -1,5 +1,5 @@
-"""The magnetometer calibration on data gyrosim did not make (tests/independent_mag_generator.py),
-and the heading filters of "Soft Magnetic Error Compensation Method of Electronic Compass" on signals whose answer is known."""
+"""The magnetometer calibration on data gyrosim did not make (tests/independent_mag_generator.py), and the heading
+filters of "Soft Magnetic Error Compensation Method of Electronic Compass" on signals whose answer is known."""
 
 from __future__ import annotations
 
@@ -7,13 +7,13 @@ import math
 
 import numpy as np
 import pytest
+from independent_mag_generator import generate
 
 from calib.app.cli import main as calib_main
+from calib.inputs import load_recording
 from calib.mag import calibrate_magnetometer
 from calib.mag.filters import HEADING_FILTERS, FilterSettings
 from calib.mag.heading import twist_heading_rad, wrap_pi
-from calib.inputs import load_recording
-from independent_mag_generator import generate
 
 
 def test_independent_generator_hard_soft_iron_and_misalignment(tmp_path):

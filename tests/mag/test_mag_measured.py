@@ -13,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gyrosim.loaders import available_datasets, load_dataset
+
 from calib.mag import calibrate_magnetometer
 from calib.mag.measured import optical_heading_errors
-from gyrosim.loaders import available_datasets, load_dataset
 
 AVAILABLE = set(available_datasets())
 

@@ -8,13 +8,14 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import session
-from calib.mag import calibrate_magnetometer, true_magnetometer
-from calib.mag.compare import simulated_comparison
+from test_mag_calibration import MAG_9, _heading_rms_and_floor, _symmetric_unit_det, _with_mag
+
 from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
-from test_mag_calibration import MAG_9, _heading_rms_and_floor, _symmetric_unit_det, _with_mag
+
+from calib.mag import calibrate_magnetometer, true_magnetometer
+from calib.mag.compare import simulated_comparison
 
 pytestmark = pytest.mark.slow
 

@@ -11,18 +11,26 @@ from __future__ import annotations
 import json
 import math
 
+import independent_noise as ind
 import numpy as np
 import pytest
 
-import independent_noise as ind
+from gyrosim.effects import (
+    BiasInstability,
+    GaussMarkov,
+    QuantizationNoise,
+    RandomWalk,
+    RateRamp,
+    SignalContext,
+    WhiteNoise,
+)
+from gyrosim.sensor_model import load_sensor
+
 from calib.app.cli import main as calib_main
 from calib.noise import identify_noise, parse_model
 from calib.noise.gmwm import identify_axis
 from calib.noise.plan import noise_terms_of, predicted_relative_sigma
 from calib.noise.wavelet import scales_for, wavelet_variance, wv_covariance, wv_covariance_dense
-from gyrosim.effects import (BiasInstability, GaussMarkov, QuantizationNoise, RandomWalk, RateRamp, SignalContext,
-                             WhiteNoise)
-from gyrosim.sensor_model import load_sensor
 
 FS = 100.0
 DT = 1 / FS
@@ -36,8 +44,11 @@ def _theory_check(draw, effect, n=2**14, reps=8, skip_small=0):
     est = np.array([wavelet_variance(draw()[:, i], DT, m).nu2 for _ in range(reps) for i in range(3)])
     theory = effect.haar_wavelet_variance(m, DT)[0]
     coeff = n - 2.0 * m + 1
-    sd = np.sqrt(np.diag(wv_covariance(lambda f: effect.discrete_psd(f, DT)[0], m, coeff))) if effect.kind != "rate_ramp" \
+    sd = (
+        np.sqrt(np.diag(wv_covariance(lambda f: effect.discrete_psd(f, DT)[0], m, coeff)))
+        if effect.kind != "rate_ramp"
         else np.full(m.size, 1e-300)
+    )
     z = (est.mean(axis=0) - theory) / (sd / math.sqrt(est.shape[0]) + 1e-12 * theory)
     assert np.all(np.abs(z[skip_small:]) < 4), (effect.kind, np.round(z, 2))
 
@@ -49,7 +60,10 @@ def test_wavelet_variance_theory_matches_independent_generator(make):
     eff, draw = {
         "white": (WhiteNoise(density=np.full(3, 0.01)), lambda: ind.white(n, FS, 0.01, rng)),
         "rw": (RandomWalk(value=np.full(3, 1e-3)), lambda: ind.random_walk(n, FS, 1e-3, rng)),
-        "gm": (GaussMarkov(sigma=np.full(3, 0.05), tau_s=np.full(3, 0.3)), lambda: ind.gauss_markov(n, FS, 0.05, 0.3, rng)),
+        "gm": (
+            GaussMarkov(sigma=np.full(3, 0.05), tau_s=np.full(3, 0.3)),
+            lambda: ind.gauss_markov(n, FS, 0.05, 0.3, rng),
+        ),
         "qn": (QuantizationNoise(value=np.full(3, 1e-4)), lambda: ind.quantization(n, FS, 1e-4, rng)),
     }[make]
     _theory_check(draw, eff, n)
@@ -71,7 +85,9 @@ def test_gyrosim_draws_match_their_own_wavelet_variance(effect):
     if effect.kind == "rate_ramp":  # deterministic: exact
         y = effect.delta(np.zeros((n, 3)), ctx, rng)
         m = scales_for(n)
-        np.testing.assert_allclose(wavelet_variance(y[:, 0], DT, m).nu2, effect.haar_wavelet_variance(m, DT)[0], rtol=1e-9)
+        np.testing.assert_allclose(
+            wavelet_variance(y[:, 0], DT, m).nu2, effect.haar_wavelet_variance(m, DT)[0], rtol=1e-9
+        )
         return
     _theory_check(lambda: effect.delta(np.zeros((n, 3)), ctx, rng), effect, n)
 
@@ -80,7 +96,11 @@ def test_banded_covariance_equals_dense_rule():
     # the octave-band rule with averaged fast oscillations against the exact dense midpoint rule
     n = 2**16
     m = scales_for(n)
-    effs = [WhiteNoise(density=np.full(3, 0.01)), RandomWalk(value=np.full(3, 1e-3)), BiasInstability(value=np.full(3, 0.01))]
+    effs = [
+        WhiteNoise(density=np.full(3, 0.01)),
+        RandomWalk(value=np.full(3, 1e-3)),
+        BiasInstability(value=np.full(3, 0.01)),
+    ]
     psd = lambda f: sum(e.discrete_psd(f, DT)[0] for e in effs)  # noqa: E731
     a, b = wv_covariance(psd, m, n - 2.0 * m + 1), wv_covariance_dense(psd, m, n - 2.0 * m + 1)
     d = np.sqrt(np.diag(b))
@@ -93,8 +113,13 @@ def test_covariance_matches_spread_of_realisations():
     rng = np.random.default_rng(4)
     n = 2**13
     m = scales_for(n)
-    est = np.array([wavelet_variance(x[:, i], DT, m).nu2 for x in
-                    (ind.white(n, FS, 0.01, rng) + ind.random_walk(n, FS, 2e-3, rng) for _ in range(20)) for i in range(3)])
+    est = np.array(
+        [
+            wavelet_variance(x[:, i], DT, m).nu2
+            for x in (ind.white(n, FS, 0.01, rng) + ind.random_walk(n, FS, 2e-3, rng) for _ in range(20))
+            for i in range(3)
+        ]
+    )
     effs = [WhiteNoise(density=np.full(3, 0.01)), RandomWalk(value=np.full(3, 2e-3))]
     sd = np.sqrt(np.diag(wv_covariance(lambda f: sum(e.discrete_psd(f, DT)[0] for e in effs), m, n - 2.0 * m + 1)))
     ratio = est.std(axis=0, ddof=1) / sd
@@ -112,7 +137,11 @@ def test_selection_and_intervals_on_independent_data(truth):
         x = ind.white(n, FS, 0.01, rng) + ind.random_walk(n, FS, 1.5e-3, rng)
         true = np.log([0.01, 1.5e-3])
     else:
-        x = ind.white(n, FS, 0.01, rng) + ind.gauss_markov(n, FS, 0.05, 0.5, rng) + ind.gauss_markov(n, FS, 0.02, 50.0, rng)
+        x = (
+            ind.white(n, FS, 0.01, rng)
+            + ind.gauss_markov(n, FS, 0.05, 0.5, rng)
+            + ind.gauss_markov(n, FS, 0.02, 50.0, rng)
+        )
         true = np.log([0.01, 0.05, 0.5, 0.02, 50.0])
     kinds = parse_model(truth)
     right = 0
@@ -170,7 +199,9 @@ def test_cli_noise_json_units_and_sensor_round_trip(tmp_path):
     assert wn["units"]["deg/sqrt(h)"] == pytest.approx(wn["value_si"] * 180 / math.pi * 60)
     assert wn["units"]["discrete_sigma_per_sample"] == pytest.approx(wn["value_si"] * math.sqrt(FS))
     assert wn["units"]["one_sided"] == pytest.approx(math.sqrt(2) * wn["value_si"])
-    assert wn["ci95_si"][0] < 0.002 < wn["ci95_si"][1] or abs(math.log(wn["value_si"] / 0.002)) < 4 * wn["relative_sigma"]
+    assert (
+        wn["ci95_si"][0] < 0.002 < wn["ci95_si"][1] or abs(math.log(wn["value_si"] / 0.002)) < 4 * wn["relative_sigma"]
+    )
     # the result file is a sensor: simulate from it and identify again (within 4σ of the first fit)
     sensor = load_sensor(out)
     ctx = SignalContext(np.arange(n) * DT, np.zeros((n, 3)), np.zeros((n, 3)), dt_s=DT)
@@ -228,8 +259,9 @@ def test_measured_static_stretches(tmp_path):
     out = tmp_path / "x.json"
     calib_main(["noise", "dataset:imu_tk_xsens", "--longest-still", "--model", "white", "--json", str(out)])
     res = json.loads(out.read_text())
-    from calib.noise.allan import allan_deviation, fit_noise_terms
     from gyrosim.loaders import load_dataset
+
+    from calib.noise.allan import allan_deviation, fit_noise_terms
 
     rec = load_dataset("imu_tk_xsens")
     keep = (rec.t_s >= rec.t_s[0] + 1) & (rec.t_s <= rec.t_s[0] + 50)

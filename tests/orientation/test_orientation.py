@@ -6,16 +6,27 @@ import csv
 import math
 import sys
 
+import independent_generator as ig
 import numpy as np
 import pytest
 
-import independent_generator as ig
-from gyrosim.attitude_errors import (broad_rmse_deg, convergence_time_s, error_quat_earth, heading_error_rad,
-                                     inclination_error_rad, score_session)
+from gyrosim.attitude_errors import (
+    broad_rmse_deg,
+    convergence_time_s,
+    error_quat_earth,
+    heading_error_rad,
+    inclination_error_rad,
+    score_session,
+)
 from gyrosim.errors import GyrosimError
 from gyrosim.loaders import data_root
-from gyrosim.orientation import (BUILTIN_ORIENTATION, MissingExtraError, OrientationFailure, load_orientation_estimator,
-                                 run_orientation)
+from gyrosim.orientation import (
+    BUILTIN_ORIENTATION,
+    MissingExtraError,
+    OrientationFailure,
+    load_orientation_estimator,
+    run_orientation,
+)
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_from_rotvec, quat_multiply
 
@@ -66,9 +77,9 @@ def test_compiled_kernels_equal_the_ahrs_package(independent):
     against ``ahrs`` 0.4, 6-axis through its batch API, 9-axis through its per-sample updates
     (ahrs's Madgwick uses the field reference (b_x, 0, b_z), NWU; its Mahony (0, b_xy, b_z), ENU).
     Both are float64: equal to 1e-9 rad after 1500 samples (rounding only)."""
+    from calib.orientation.estimators import initial_quat_nwu
     from calib.orientation.kernels import madgwick as madgwick_kernel
     from calib.orientation.kernels import mahony as mahony_kernel
-    from calib.orientation.estimators import initial_quat_nwu
 
     rec, _ = independent
     n = 1500
@@ -150,7 +161,9 @@ def test_heading_drift_rate_and_convergence_time():
 
 def _short_rec(n=200):
     t = np.arange(n) / 100.0
-    return Recording(t_s=t, gyro_rad_s=np.zeros((n, 3)), acc_m_s2=np.tile([0, 0, 9.81], (n, 1)), meta={"rate_hz": 100.0})
+    return Recording(
+        t_s=t, gyro_rad_s=np.zeros((n, 3)), acc_m_s2=np.tile([0, 0, 9.81], (n, 1)), meta={"rate_hz": 100.0}
+    )
 
 
 def raising_estimator(rec):
@@ -244,8 +257,8 @@ def test_broad_published_numbers_reproduced_and_vqf_beats_them():
     RMSEs within max(0.1°, 10 %) (gyrosim.orientation_broad: float32 C vs float64 and a different
     first-sample attitude only); VQF 9-axis is below the published Madgwick and Mahony totals on
     both, as the VQF paper reports for BROAD."""
-    from gyrosim.orientation_broad import PUBLISHED_TAGP, TOLERANCE_DEG, TOLERANCE_REL
     from gyrosim.loaders import load_broad
+    from gyrosim.orientation_broad import PUBLISHED_TAGP, TOLERANCE_DEG, TOLERANCE_REL
 
     for trial in ("02_undisturbed_slow_rotation_B", "30_disturbed_stationary_magnet_C"):
         rec = load_broad(BROAD / f"{trial}.hdf5")
@@ -253,11 +266,15 @@ def test_broad_published_numbers_reproduced_and_vqf_beats_them():
         for ours, pub_key in (("mahony_9d", "mahony_9d"), ("madgwick_c2011_9d", "madgwick_9d")):
             got = broad_rmse_deg(run_orientation(load_orientation_estimator(ours), rec, ours).quat_nb,
                                  rec.truth.quat_nb, mv)
-            for key, pub in zip(("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"), PUBLISHED_TAGP[pub_key][trial]):
+            for key, pub in zip(
+                ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"), PUBLISHED_TAGP[pub_key][trial]
+            ):
                 assert abs(got[key] - pub) <= max(TOLERANCE_DEG, TOLERANCE_REL * pub), (trial, ours, key, got[key], pub)
         vqf = broad_rmse_deg(run_orientation(load_orientation_estimator("vqf_9d"), rec, "vqf_9d").quat_nb,
                              rec.truth.quat_nb, mv)
-        assert vqf["total_rmse_deg"] < min(PUBLISHED_TAGP["madgwick_9d"][trial][0], PUBLISHED_TAGP["mahony_9d"][trial][0])
+        assert vqf["total_rmse_deg"] < min(
+            PUBLISHED_TAGP["madgwick_9d"][trial][0], PUBLISHED_TAGP["mahony_9d"][trial][0]
+        )
 
 
 def test_rerun_view_has_truth_estimators_and_error_series(tmp_path):

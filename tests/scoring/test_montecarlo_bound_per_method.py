@@ -26,11 +26,11 @@ def test_population_prior_is_the_information_form():
 
 
 def test_kf_is_scored_against_the_bound_of_s_at_the_oracles_temperature():
-    """mpu9250, ideal hand, 2 seeds, kf and kf_hand in one run: G has no temperature dependence, so both methods'
-    G bounds agree to 2 % (kf's is the Bayesian bound with the devices' s_T spread, kf_hand's keeps its filter's
-    vague prior: that information reaches G only through its correlation with s_T — measured 0.4–0.7 %); kf's S bound is that of S at 25 °C (≥ 5 % above kf_hand's at T_r ≈ 25.2–25.6 °C: the
-    extrapolation by T_r − 25 °C of s_T's population spread; measured +5 %, +4 %, +20 %), and kf's efficiency is
-    its RMSE over that bound."""
+    """mpu9250, ideal hand, 2 seeds, kf and kf_hand in one run: G has no temperature dependence, so both methods' G
+    bounds agree to 2 % (kf's is the Bayesian bound with the devices' s_T spread, kf_hand's keeps its filter's vague
+    prior: that information reaches G only through its correlation with s_T — measured 0.4–0.7 %); kf's S bound is that
+    of S at 25 °C (≥ 5 % above kf_hand's at T_r ≈ 25.2–25.6 °C: the extrapolation by T_r − 25 °C of s_T's population
+    spread; measured +5 %, +4 %, +20 %), and kf's efficiency is its RMSE over that bound."""
     r = monte_carlo("zhou2020", "ideal", "mpu9250", seeds=2, methods=("kf", "kf_hand"), calibrated_accelerometer=True)
     b_kf, b_kh = r.sqrt_crlb_hand_by_method["kf"], r.sqrt_crlb_hand_by_method["kf_hand"]
     assert r.hand_psd["oracle_reference_temperature_c"] == 25.0
@@ -46,8 +46,9 @@ _PICKY_CALLS = []
 
 def picky_kf_hand(rec):
     """kf_hand that refuses every other session it is given (a RecordingError, calib run's exit 2)."""
-    from calib.session.hand.filter import kf_hand
     from gyrosim.errors import RecordingError
+
+    from calib.session.hand.filter import kf_hand
 
     _PICKY_CALLS.append(1)
     if len(_PICKY_CALLS) % 2 == 0:
@@ -62,7 +63,9 @@ def test_montecarlo_counts_a_refused_session_instead_of_crashing():
     from calib.scoring.montecarlo import monte_carlo
 
     _PICKY_CALLS.clear()
-    r = monte_carlo("zhou2020", "ideal", "zhou2020_sim", seeds=3, methods=("test_montecarlo_bound_per_method:picky_kf_hand",))
+    r = monte_carlo(
+        "zhou2020", "ideal", "zhou2020_sim", seeds=3, methods=("test_montecarlo_bound_per_method:picky_kf_hand",)
+    )
     st = r.methods["test_montecarlo_bound_per_method:picky_kf_hand"]
     assert st.statuses.get("refused") == 1 and sum(st.statuses.values()) == 3, st.statuses
     from scipy import stats

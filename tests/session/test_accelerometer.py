@@ -12,17 +12,18 @@ from __future__ import annotations
 import json
 import math
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
-from calib.session.paper import calibrate
-from calib.app.cli import main as calib_main
-from calib.inputs import load_recording
 from gyrosim.calibration import Calibration, truth_calibration
 from gyrosim.errors import GyrosimError, RecordingError
 from gyrosim.recording import Recording, load_hdf5, save_hdf5
+
+from calib.app.cli import main as calib_main
+from calib.inputs import load_recording
+from calib.session.paper import calibrate
 
 RAW = {"acc_bias_g": (0.060, -0.055, 0.070), "acc_scale": (0.02, -0.025, 0.03), "acc_nonortho": (0.01, -0.012, 0.015)}
 DATASHEET = {"gyro_noise_deg_s": 0.1, "acc_noise_g": 0.003}
@@ -65,12 +66,12 @@ def test_noise_free_independent_data_is_exact(steps, tmp_path):
     assert res.status == "ok", res.warnings
 
 
-# the hand cross-check's false alarms on these hand-free sessions (calib.session.hand.filter.hand_cross_check: |δ| + 2σ_peer
-# against 3σ, the peer's σ 1.1–1.3× this one's, so a δ of ~1σ crosses): measured 1 of 60 on each schedule (seeds
+# the hand cross-check's false alarms on these hand-free sessions (calib.session.hand.filter.hand_cross_check: |δ| +
+# 2σ_peer against 3σ, the peer's σ 1.1–1.3× this one's, so a δ of ~1σ crosses): measured 1 of 60 on each schedule (seeds
 # 1000–1059: STEPS 1010 at 3.01, MULTIPOSE 1006 at 3.14, both before and after the joint's accelerometer prior became
-# its |f| = g fit's block sandwich) and, since that change, seed 110 of the STEPS set at 3.02 (2.4 median).  A flag
-# is the safe direction (a right answer called inconsistent); these tests allow the measured rate and no other
-# non-ok status.
+# its |f| = g fit's block sandwich) and, since that change, seed 110 of the STEPS set at 3.02 (2.4 median).  A flag is
+# the safe direction (a right answer called inconsistent); these tests allow the measured rate and no other non-ok
+# status.
 CROSS_CHECK_FLAG = "inconsistent: the hand-aware estimate"
 
 
@@ -248,7 +249,9 @@ def test_apply_round_trip_gives_zero_errors(tmp_path, capsys):
                             ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")):
             tol = 4 * (first.std(triad, kind) + second.std(triad, kind))
             assert np.all(np.abs(second.value(triad, kind)) < tol), (suffix, triad, kind, second.value(triad, kind))
-        assert np.all(np.abs(second.value("gyro", "bias")) < 4 * (first.std("gyro", "bias") + second.std("gyro", "bias")))
+        assert np.all(
+            np.abs(second.value("gyro", "bias")) < 4 * (first.std("gyro", "bias") + second.std("gyro", "bias"))
+        )
     # the compensated HDF5 names what it was compensated with; the input is untouched
     comp = load_hdf5(tmp_path / "compensated.h5")
     # calib run labels its result with the registered name it equals (the default --method hand: kf_hand_joint)
@@ -341,8 +344,9 @@ def test_schedule_observability_covers_the_accelerometer():
     """calib observability names what a schedule leaves undetermined for the accelerometer (|f| = g):
     Zhou's Table 6 sweeps gravity through every body plane (all nine determined, posterior σ below 1 %
     of the prior at datasheet noise); vertical_only keeps gravity on z (only b_z + g·S_z is seen)."""
-    from calib.session.observability import schedule_accelerometer_observability
     from gyrosim.schedule import load_schedule
+
+    from calib.session.observability import schedule_accelerometer_observability
 
     for name in ("zhou2020", "zhou2020_multipose"):
         verdict, poses = schedule_accelerometer_observability(load_schedule(name))

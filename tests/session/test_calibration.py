@@ -9,19 +9,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun as rr
+from independent_generator import generate
 
-from calib.session.paper import calibrate
 from gyrosim.calibration import truth_calibration
-from calib.app.cli import main as calib_main
-from calib.inputs import load_recording
-from calib.session.model import jacobian_nonorthogonality
-from calib.session.rest import detect_rest
 from gyrosim.effects import Bias, NonOrthogonality, ScaleFactor
 from gyrosim.errors import RecordingError
 from gyrosim.hand import Hand, load_hand
 from gyrosim.sensor_model import SensorModel
 from gyrosim.simulate import simulate
-from independent_generator import generate
+
+from calib.app.cli import main as calib_main
+from calib.inputs import load_recording
+from calib.session.model import jacobian_nonorthogonality
+from calib.session.paper import calibrate
+from calib.session.rest import detect_rest
 
 
 @pytest.fixture(scope="module")
@@ -111,19 +112,22 @@ def test_a_session_whose_first_long_rest_comes_after_the_turns_is_refused(method
     """The filter starts at the rest that gives the bias (the first ≥ 2 s).  The independent generator's session with
     its first 9 s cut off leaves only pauses < 2 s before the last rest: nothing turns after it.  Before, ``kf_session``
     with a calibrated accelerometer answered S, G = the prior 0 ± 0.05 with status ok (and a warning), with the
-    accelerometer estimated it refused for the accelerometer's sake, and kf_hand crashed in its low-pass (ValueError: padlen); now both refuse,
-    saying where the filter starts and how much rotation comes before it."""
+    accelerometer estimated it refused for the accelerometer's sake, and kf_hand crashed in its low-pass (ValueError:
+    padlen); now both refuse, saying where the filter starts and how much rotation comes before it."""
     import independent_generator as ig
-    from calib.session.hand.filter import kf_hand
+
     from gyrosim.errors import RecordingError
     from gyrosim.recording import Recording
+
+    from calib.session.hand.filter import kf_hand
 
     d = ig.generate_arrays(seed=0, gyro_noise_deg_s=0.1, acc_noise_g=0.001)
     k = d["t_s"] >= 9.0
     rec = Recording(d["t_s"][k] - d["t_s"][k][0], d["gyro_rad_s"][k], d["acc_m_s2"][k], meta={"rate_hz": 100.0})
     run = (lambda: calibrate(rec, method, accelerometer=accelerometer)) if method == "kf_session" else (
         lambda: kf_hand(rec, accelerometer=accelerometer))
-    with pytest.raises(RecordingError, match=r"starts at the first rest of ≥ 2 s \(t = 93.*100 % of the session's rotation"):
+    with pytest.raises(RecordingError, match=r"starts at the first rest of ≥ 2 s \(t = 93.*100 % of the session's "
+                                             r"rotation"):
         run()
 
 

@@ -16,13 +16,13 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import session
 
-from calib.session.paper import calibrate
 from gyrosim.estimator import as_user_file, load_estimator, registered_estimators
 from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor
 
-from conftest import session
+from calib.session.paper import calibrate
 
 
 @pytest.fixture(scope="module")
@@ -74,8 +74,10 @@ def test_calib_run_filter_is_registered_under_the_name_it_reports(device_session
         old = calibrate(user, "kf", accelerometer="calibrated", keep_history=False)
     _same(old, new)
     with warnings.catch_warnings():
-        warnings.simplefilter("error")   # the default spelling does not warn
-        assert calibrate(user, accelerometer="calibrated", keep_history=False, hand_check=False).method == "kf_session_r"
+        warnings.simplefilter("error")  # the default spelling does not warn
+        assert (
+            calibrate(user, accelerometer="calibrated", keep_history=False, hand_check=False).method == "kf_session_r"
+        )
 
 
 @pytest.fixture(scope="module")

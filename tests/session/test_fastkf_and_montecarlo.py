@@ -4,13 +4,13 @@ with consistent covariances."""
 from __future__ import annotations
 
 import numpy as np
+from independent_generator import generate
 from scipy import stats
 
-from calib.session.paper import calibrate, prepare
-from calib.session.kernel import run_batch
 from calib.inputs import load_recording
 from calib.scoring.montecarlo import monte_carlo
-from independent_generator import generate
+from calib.session.kernel import run_batch
+from calib.session.paper import calibrate, prepare
 
 
 def test_fast_path_equals_filterpy_to_1e_9(tmp_path):
@@ -56,6 +56,7 @@ def test_monte_carlo_refuses_a_gyro_only_method_when_scoring_the_accelerometer()
     # the paper's kf assumes a calibrated accelerometer and reports no σ for its parameters: scoring them
     # used to die inside a matrix inverse (exit 3); now the first session names the method and the fix
     import pytest
+
     from gyrosim.errors import GyrosimError
 
     with pytest.raises(GyrosimError, match=r"'kf' does not estimate them.*kf_session"):
@@ -66,9 +67,11 @@ def test_monte_carlo_refuses_a_declared_gyro_only_method_before_simulating(monke
     # kf, kf_hand, ... declare estimates = ("gyro",): the refusal comes before the first seed is simulated
     # (it used to come after one MuJoCo session); a joint method declares both triads and is not refused
     import pytest
-    import calib.scoring.montecarlo as mc
+
     from gyrosim.errors import GyrosimError
     from gyrosim.estimator import estimated_triads, load_estimator
+
+    import calib.scoring.montecarlo as mc
 
     def no_simulation(*a, **k):
         raise AssertionError("simulated before refusing")

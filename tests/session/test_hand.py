@@ -10,17 +10,18 @@ from __future__ import annotations
 
 import math
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
-from calib.session import registry as estimators
-from calib.app.cli import main as calib_main
-from calib.session.consistency import apply_inflation, innovation_inflation
-from calib.session.hand.filter import CONFOUND_CORRELATION, LAYOUT, _confounding
 from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
+
+from calib.app.cli import main as calib_main
+from calib.session import registry as estimators
+from calib.session.consistency import apply_inflation, innovation_inflation
+from calib.session.hand.filter import CONFOUND_CORRELATION, LAYOUT, _confounding
 
 # a typical hand (gyrosim's preset values, injected the generator's own way): wrist 7 cm behind the board
 HAND_KW = dict(lever_arm_m=(0.01, 0.07, 0.02), tremor_acc_rms_m_s2=0.07, sway_acc_rms_m_s2=0.02)
@@ -159,14 +160,15 @@ def test_montecarlo_takes_registered_methods_and_the_hand_bound_is_above_the_ide
 NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer", "steady"): "in",
              ("zhou2020_sim_consumer", "typical"): "in", ("zhou2020_sim_consumer", "shaky"): "in",
              ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
-             ("mpu9250", "shaky"): "in"}   # measured 5.35, 5.79, 5.57, 6.22 (consumer); 6.32, 6.22, 6.43, 6.23 (mpu9250,
-# band [5.08, 7.00]; since the lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian) — before it 5.32, 5.80, 5.63,
-# 6.34 and 6.37, 6.23, 6.41, 6.20; since the spectral correction's reference is the a_e model as the low-passed data carry it
-# (calib.session.hand.filter.PREFILTER_REFERENCE) — before it 5.32, 5.78, 5.44, 5.51 and 6.37, 6.23, 6.35, 6.11;
-# the gyro bias's temperature coefficient a state since calib.session.hand.filter.GYRO_TEMP_BIAS — before it
-# 5.25, 5.14, 5.29, 5.03; σ from the slow residual's own spectrum since calib.session.spectral — before it 4.46, 3.17
-# and 4.74, 3.80 with the typical and shaky hands;
-# S scored at the rate it states since calib.session.hand.filter.scale_reference_rate: typical was 5.25 "in" against the slope at 0)
+             # measured 5.35, 5.79, 5.57, 6.22 (consumer); 6.32, 6.22, 6.43, 6.23 (mpu9250,
+             ("mpu9250", "shaky"): "in"}
+# band [5.08, 7.00]; since the lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian) — before it 5.32,
+# 5.80, 5.63, 6.34 and 6.37, 6.23, 6.41, 6.20; since the spectral correction's reference is the a_e model as the
+# low-passed data carry it (calib.session.hand.filter.PREFILTER_REFERENCE) — before it 5.32, 5.78, 5.44, 5.51 and 6.37,
+# 6.23, 6.35, 6.11; the gyro bias's temperature coefficient a state since calib.session.hand.filter.GYRO_TEMP_BIAS —
+# before it 5.25, 5.14, 5.29, 5.03; σ from the slow residual's own spectrum since calib.session.spectral — before it
+# 4.46, 3.17 and 4.74, 3.80 with the typical and shaky hands; S scored at the rate it states since
+# calib.session.hand.filter.scale_reference_rate: typical was 5.25 "in" against the slope at 0)
 
 
 @pytest.mark.slow
@@ -267,8 +269,19 @@ def test_high_passed_gauss_markov_block_propagates_to_its_stationary_covariance(
     n = 4001
     t = np.arange(n) / 100.0
     acc = np.tile([0.0, 0.0, 9.80665], (n, 1))
-    out = run_filter(np.zeros((1, n, 3)), acc[None], t, np.array([1.0, 0, 0, 0]), np.zeros(18), np.zeros((HAND.n, HAND.n)),
-                     HAND, cfg, 100.0, update_mask=np.zeros(n, bool), lever_regressor=np.zeros((n, 3, 3)))
+    out = run_filter(
+        np.zeros((1, n, 3)),
+        acc[None],
+        t,
+        np.array([1.0, 0, 0, 0]),
+        np.zeros(18),
+        np.zeros((HAND.n, HAND.n)),
+        HAND,
+        cfg,
+        100.0,
+        update_mask=np.zeros(n, bool),
+        lever_regressor=np.zeros((n, 3, 3)),
+    )
     idx = [HAND.offset(b) for b in ("ext_acc", "ext_acc_lp", "ext_acc_lp2")][:order + 1]
     for j in range(3):
         got = out.p[0][np.ix_([i + j for i in idx], [i + j for i in idx])]

@@ -11,14 +11,15 @@ from __future__ import annotations
 
 import math
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
+from gyrosim.recording import Recording
+
 from calib.session import registry as estimators
 from calib.session.rest_bias import rest_bias
-from gyrosim.recording import Recording
 
 NOISE = dict(gyro_noise_deg_s=0.05, acc_noise_g=0.001)
 # a shaky hand's turning during a "rest", as a rotation (rad RMS of |φ|): sway 0.2–1 Hz, tremor 8–12 Hz

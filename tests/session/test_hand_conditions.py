@@ -16,15 +16,16 @@ from __future__ import annotations
 
 import json
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
-from calib.session import registry as estimators
-from calib.app.cli import main as calib_main
-from calib.session.hand.checks import DISPLACEMENT_MAX_M
 from gyrosim.recording import Recording
+
+from calib.app.cli import main as calib_main
+from calib.session import registry as estimators
+from calib.session.hand.checks import DISPLACEMENT_MAX_M
 
 HAND_KW = dict(lever_arm_m=(0.01, 0.07, 0.02), tremor_acc_rms_m_s2=0.07, sway_acc_rms_m_s2=0.02)
 NOISE = dict(gyro_noise_deg_s=0.05, acc_noise_g=0.001)          # the consumer sensor of tests/session/test_hand.py
@@ -66,11 +67,11 @@ def test_kf_hand_is_ok_and_within_its_sigma_in_the_users_conditions(case):
     and the white noise's share is 1.3 √W m (0.02 m with 10× the consumer noise, measured 0.020): below a
     fifth of the 0.30-m bound in every case (measured ≤ 0.020 m).
 
-    The half-rotation session turns about z and x only while each is vertical: S, G are pinned weakly (σ of S_x, S_z
-    ~1 %), so K(ω̂, ω̂̇) built from the rate compensated at the pass's S, G is off by a share of that and the lever arm
+    The half-rotation session turns about z and x only while each is vertical: S, G are pinned weakly (σ of S_x, S_z ~1
+    %), so K(ω̂, ω̂̇) built from the rate compensated at the pass's S, G is off by a share of that and the lever arm
     term carries it into the innovations.  Until the update's H carried ∂(K r̂)/∂(S, G, b)
-    (tests/session/test_hand_lever_jacobian.py) that left σ ~1.4× optimistic there (seed 0 NEES 24.3; ten seeds 125.1 against
-    χ²(60)'s 102.7, a strict xfail below); with it seed 0 measures 4.7 and the ten seeds 102.0."""
+    (tests/session/test_hand_lever_jacobian.py) that left σ ~1.4× optimistic there (seed 0 NEES 24.3; ten seeds 125.1
+    against χ²(60)'s 102.7, a strict xfail below); with it seed 0 measures 4.7 and the ten seeds 102.0."""
     cal, e, c = _run(*CASES[case])
     assert cal.status == "ok", cal.warnings
     assert cal.diagnostics["assumptions"]["slow_displacement_rms_m"] < DISPLACEMENT_MAX_M / 5
@@ -92,15 +93,15 @@ def test_half_the_rotations_gives_a_larger_honest_sigma_where_information_is_mis
 
 
 def test_every_draw_zero_is_refused_with_a_named_reason_not_diverged():
-    """No sensor noise, no tremor, no sway (a lever arm only): the noise levels sit at their floors and
-    the innovations are the rate integration's deterministic error.  The estimate is within the
-    discretisation error (measured 5.2e-6, below; bound 1e-5 ≈ (ω_peak Δt)²/24, a second-order integrator's
-    relative error per step at these turns' peak 1.57 rad/s and 100 Hz), but the floor-level σ is ~4e-7, so the error is
-    ~6 σ: the answer must not be ``ok`` (nor ``diverged``) and must say it is noise-free input.  With the lever arm
-    term's Jacobian in H the lever arm's path informs S, G too and the error is 5.2e-6 (2.6e-6 without): the regressor's
-    own discretisation (K of the low-passed rate, not the low-pass of K) is in the innovations at the floor's scale,
-    mean NIS 36 — beyond the divergence test's limit, which noise-free input cannot be judged by (calib.session.consistency
-    ``verdict(noise_free=True)``: "inconsistent")."""
+    """No sensor noise, no tremor, no sway (a lever arm only): the noise levels sit at their floors and the innovations
+    are the rate integration's deterministic error.  The estimate is within the discretisation error (measured 5.2e-6,
+    below; bound 1e-5 ≈ (ω_peak Δt)²/24, a second-order integrator's relative error per step at these turns' peak 1.57
+    rad/s and 100 Hz), but the floor-level σ is ~4e-7, so the error is ~6 σ: the answer must not be ``ok`` (nor
+    ``diverged``) and must say it is noise-free input.  With the lever arm term's Jacobian in H the lever arm's path
+    informs S, G too and the error is 5.2e-6 (2.6e-6 without): the regressor's own discretisation (K of the low-passed
+    rate, not the low-pass of K) is in the innovations at the floor's scale, mean NIS 36 — beyond the divergence test's
+    limit, which noise-free input cannot be judged by (calib.session.consistency ``verdict(noise_free=True)``:
+    "inconsistent")."""
     cal, e, c = _run(100.0, ig.STEPS, NOISE_FREE, dict(lever_arm_m=HAND_KW["lever_arm_m"]))
     assert np.max(np.abs(e)) < 1e-5, e
     assert cal.status not in ("ok", "diverged"), cal.status

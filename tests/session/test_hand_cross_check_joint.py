@@ -13,14 +13,14 @@ from __future__ import annotations
 
 import time
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
-
-import independent_generator as ig
-from calib.session.paper import calibrate
 from test_hand import _rec, kin  # noqa: F401  (kin: the fixture)
 from test_hand_joint import ACC_KW
+
+from calib.session.paper import calibrate
 
 NOISY = dict(gyro_noise_deg_s=0.8, acc_noise_g=0.01)
 LEVER = dict(lever_arm_m=(0.01, 0.04, 0.01), sway_acc_rms_m_s2=0.02)

@@ -14,13 +14,14 @@ Tolerances.  Under an honest σ, each session's z = (δ̂ − δ)/σ_δ is N(0, 
 
 from __future__ import annotations
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
-from calib.session.hand.filter import kf_hand
 from gyrosim.recording import Recording
+
+from calib.session.hand.filter import kf_hand
 
 HAND_KW = dict(lever_arm_m=(0.01, 0.07, 0.02), tremor_acc_rms_m_s2=0.07, sway_acc_rms_m_s2=0.02)
 NOISE = dict(gyro_noise_deg_s=0.05, acc_noise_g=0.001)

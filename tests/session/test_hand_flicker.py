@@ -1,6 +1,6 @@
 """kf_hand when the gyro bias drifts while the recorded temperature stays flat — a warmed-up MEMS gyro's
-bias-instability (flicker) floor — on the independent generator (tests/independent_generator.py with Kasdin–Walter 1/f noise from
-tests/independent_noise.py, not gyrosim's spectral generator; no hand, the paper's schedule).
+bias-instability (flicker) floor — on the independent generator (tests/independent_generator.py with Kasdin–Walter 1/f
+noise from tests/independent_noise.py, not gyrosim's spectral generator; no hand, the paper's schedule).
 
 Two rests measure how far the bias moved, not how: the random-walk state fitted to that end-to-end change leaves S, G
 with an error its σ does not count.  Measured here (60 sessions, B = 2.6e-4 rad/s, gyro 0.1 °/s per sample): NEES(6)
@@ -16,17 +16,19 @@ seeded) must contain 1 — with 60 sessions the random-walk σ alone gave [1.06,
 
 from __future__ import annotations
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
-from calib.session.hand.filter import kf_hand
 from gyrosim.recording import Recording
+
+from calib.session.hand.filter import kf_hand
 
 ITEMS = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
 NOISE = dict(gyro_noise_deg_s=0.1, acc_noise_g=0.001)       # 0.01 °/s/√Hz at 100 Hz, the MPU-9250's
-FLICKER_RAD_S = 2.6e-4                                        # B, 54 °/h: a consumer gyro's floor (×3 the MPU-9250 preset's)
+# B, 54 °/h: a consumer gyro's floor (×3 the MPU-9250 preset's)
+FLICKER_RAD_S = 2.6e-4
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import warnings
 
 import pytest
 
-from calib.session.consistency import (INCONSISTENT_FRACTION, Consistency, Inflation, apply_inflation, verdict)
+from calib.session.consistency import INCONSISTENT_FRACTION, Consistency, Inflation, apply_inflation, verdict
 
 HAND_BLIND_ADVICE = ("--external-acc", "iterated_session", "hand-aware method (kf_hand)")
 

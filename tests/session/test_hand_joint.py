@@ -1,5 +1,5 @@
-"""``kf_hand_joint``: the hand-aware calibration with a raw accelerometer (its bias, scale factor and
-non-orthogonality estimated with the gyro's, and its delay behind the gyro: 36 states) — what ``calib run --method hand`` runs.
+"""``kf_hand_joint``: the hand-aware calibration with a raw accelerometer (its bias, scale factor and non-orthogonality
+estimated with the gyro's, and its delay behind the gyro: 36 states) — what ``calib run --method hand`` runs.
 
 Data from the independent generator (tests/independent_generator.py: imports nothing of ours), which
 injects a lever arm (closed-form ω̇), tremor and sway (sums of sines in nav) and a raw accelerometer
@@ -10,16 +10,17 @@ from __future__ import annotations
 
 import json
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
+from test_hand import HAND_KW, NOISE, _rec, kin  # noqa: F401  (kin: the fixture; kf_hand's typical hand, noise)
 
-import independent_generator as ig
-from calib.session import registry as estimators
-from calib.app.cli import main as calib_main
 from gyrosim.estimator import load_estimator
 from gyrosim.recording import Recording
-from test_hand import HAND_KW, NOISE, _rec, kin  # noqa: F401  (kin: the fixture; kf_hand's typical hand, noise)
+
+from calib.app.cli import main as calib_main
+from calib.session import registry as estimators
 
 # a raw consumer accelerometer: tens of mg bias, 1–2 % scale and 0.5 % axis errors
 ACC_KW = dict(acc_bias_g=(0.02, -0.015, 0.03), acc_scale=(0.01, -0.02, 0.015), acc_nonortho=(0.005, -0.004, 0.006))
@@ -96,8 +97,10 @@ def test_calib_run_method_hand_estimates_the_accelerometer(kin, tmp_path):
     assert calib_main(["run", *args, "--method", "kf_session", "--json", str(tmp_path / "s.json")]) != 0
     blind = json.loads((tmp_path / "s.json").read_text())
     assert blind["method"] == "kf_joint"
-    assert set(blind["accelerometer"]) == set(out["accelerometer"])     # the same accelerometer report
-    assert [e["effect"] for e in blind["effects"]["accelerometer"]] == [e["effect"] for e in out["effects"]["accelerometer"]]
+    assert set(blind["accelerometer"]) == set(out["accelerometer"])  # the same accelerometer report
+    assert [e["effect"] for e in blind["effects"]["accelerometer"]] == [
+        e["effect"] for e in out["effects"]["accelerometer"]
+    ]
     assert np.shape(out["covariance"]) == np.shape(blind["covariance"]) == (18, 18)
 
 
@@ -119,15 +122,16 @@ def test_montecarlo_with_a_raw_accelerometer_gives_the_joint_hand_bound():
 JOINT_NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer", "steady"): "in",
                    ("zhou2020_sim_consumer", "typical"): "in", ("zhou2020_sim_consumer", "shaky"): "in",
                    ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
-                   ("mpu9250", "shaky"): "in"}   # consumer 5.61, 5.54, 5.47, 6.31; MPU-9250 5.50, 5.65, 5.70, 5.81 since
-# the lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian; before it: consumer 5.55, 5.53, 5.30, 6.42 and MPU-9250
-# 5.62, 5.66, 5.68, 5.80), since the accelerometer prior is the |f| = g fit's block sandwich (calib.session.hand.filter._gravity_fit_lever_free; before it: consumer
-# 5.55, 5.52, 5.32, 7.45 "high" and MPU-9250 5.59, 5.63, 5.73, 6.13) and since
-# the spectral correction's reference is the a_e model as the low-passed data carry it (calib.session.spectral,
-# prefilter_gain2; before: consumer 5.48, 5.07 "low", 6.69 and MPU-9250 5.60, 5.67, 5.88 — the consumer shaky cell's
-# G_x, G_y were ×1.35 optimistic then too, hidden by the aliased floor's caution: docs/hand.md); σ follows the slow
-# residual's own spectrum (calib.session.spectral; before it: 4.23, 4.65 and 4.93, 4.33); S scored at its stated
-# rate (calib.session.hand.filter.scale_reference_rate; typical read 5.60 "in" against the slope at 0 rad/s)
+                   # consumer 5.61, 5.54, 5.47, 6.31; MPU-9250 5.50, 5.65, 5.70, 5.81 since
+                   ("mpu9250", "shaky"): "in"}
+# the lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian; before it: consumer 5.55, 5.53, 5.30, 6.42
+# and MPU-9250 5.62, 5.66, 5.68, 5.80), since the accelerometer prior is the |f| = g fit's block sandwich
+# (calib.session.hand.filter._gravity_fit_lever_free; before it: consumer 5.55, 5.52, 5.32, 7.45 "high" and MPU-9250
+# 5.59, 5.63, 5.73, 6.13) and since the spectral correction's reference is the a_e model as the low-passed data carry it
+# (calib.session.spectral, prefilter_gain2; before: consumer 5.48, 5.07 "low", 6.69 and MPU-9250 5.60, 5.67, 5.88 — the
+# consumer shaky cell's G_x, G_y were ×1.35 optimistic then too, hidden by the aliased floor's caution: docs/hand.md); σ
+# follows the slow residual's own spectrum (calib.session.spectral; before it: 4.23, 4.65 and 4.93, 4.33); S scored at
+# its stated rate (calib.session.hand.filter.scale_reference_rate; typical read 5.60 "in" against the slope at 0 rad/s)
 
 
 @pytest.mark.slow
@@ -194,7 +198,9 @@ def test_kf_hand_joint_reports_the_accelerometer_bias_at_a_stated_temperature(ki
         items = ITEMS[:2] + ACC_ITEMS_B
         est = np.concatenate([cal.value(a, b) for a, b in items])
         cov = cal.block_covariance(items)
-        truth = np.concatenate([d["scale_factor"], d["nonorthogonality"], d["acc_bias_m_s2"] + ACC_C_M_S2_C * (t_a - temp[0])])
+        truth = np.concatenate(
+            [d["scale_factor"], d["nonorthogonality"], d["acc_bias_m_s2"] + ACC_C_M_S2_C * (t_a - temp[0])]
+        )
         assert np.all(np.isfinite(t_r)) or "scale_reference_temperature_c" not in info
         e = est - truth
         total += float(e @ np.linalg.solve(cov, e))
@@ -207,15 +213,20 @@ def test_kf_hand_joint_reports_the_accelerometer_bias_at_a_stated_temperature(ki
 
 
 def test_joint_hand_bound_with_the_temperature_blocks_as_nuisance(kin):
-    """kf_hand_joint's hand-aware bound on a warming session: the accelerometer bias's c_a and the gyro scale's
-    s_T as vague nuisance states (``hand_crlb(..., estimate_accelerometer=True, temperature_rel_c=…)``, 42
-    states with the accelerometer delay δ), S and b_a mapped to the temperatures where they decouple.  Nuisance parameters cannot add
-    information: every σ of S, G and b_a ≥ the bound without them (to 1e-9 relative, the recursion's rounding);
-    b_a at its T_a stays within 1.1× (measured 1.01–1.07 on this schedule: deterministic, no noise drawn) — the
-    point of stating T_a."""
-    from calib.session.hand.filter import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature
-    from calib.session.model import HAND_JOINT, FilterConfig
+    """kf_hand_joint's hand-aware bound on a warming session: the accelerometer bias's c_a and the gyro scale's s_T as
+    vague nuisance states (``hand_crlb(..., estimate_accelerometer=True, temperature_rel_c=…)``, 42 states with the
+    accelerometer delay δ), S and b_a mapped to the temperatures where they decouple.  Nuisance parameters cannot add
+    information: every σ of S, G and b_a ≥ the bound without them (to 1e-9 relative, the recursion's rounding); b_a at
+    its T_a stays within 1.1× (measured 1.01–1.07 on this schedule: deterministic, no noise drawn) — the point of
+    stating T_a."""
     from calib.scoring.montecarlo import hand_crlb
+    from calib.session.hand.filter import (
+        acc_bias_at_temperature,
+        joint_layout,
+        scale_at_temperature,
+        session_temperature,
+    )
+    from calib.session.model import HAND_JOINT, FilterConfig
 
     t, omega, quat = kin
     g_body = np.einsum("nji,j->ni", np.stack([ig._dcm(q) for q in quat]), np.array([0.0, 0.0, ig.G]))
@@ -254,11 +265,11 @@ def test_without_a_temperature_channel_a_drifting_gyro_warns_that_the_accelerome
 
 
 def test_calib_run_default_is_the_hand_aware_filter_with_p_in_the_rerun_recording(kin, tmp_path):
-    """The default ``calib run`` (no --method) is kf_hand_joint and its .rrd shows the filter's √P converging
-    (the last pass's history: /calib/P/S has finite values that end no larger than they began — information
-    only accumulates in a filter whose S is a constant — and the JSON's σ of S_x is that final √P times the
-    inflation's σ factor, ≥ 1, and the residual spectrum's σ factor); --external-acc, an allowance only the hand-blind filters take, selects
-    kf_session (labelled kf_joint)."""
+    """The default ``calib run`` (no --method) is kf_hand_joint and its .rrd shows the filter's √P converging (the last
+    pass's history: /calib/P/S has finite values that end no larger than they began — information only accumulates in a
+    filter whose S is a constant — and the JSON's σ of S_x is that final √P times the inflation's σ factor, ≥ 1, and the
+    residual spectrum's σ factor); --external-acc, an allowance only the hand-blind filters take, selects kf_session
+    (labelled kf_joint)."""
     import rerun as rr
 
     d = ig.generate_arrays(seed=4, kin=kin, **NOISE, **HAND_KW, **ACC_KW)
@@ -270,7 +281,9 @@ def test_calib_run_default_is_the_hand_aware_filter_with_p_in_the_rerun_recordin
     sx = []
     for chunk in rr.chunk.RrdReader(str(tmp_path / "d.rrd")).stream():
         if chunk.entity_path == "/calib/P/S/x":
-            sx += [float(np.asarray(v).ravel()[0]) for v in chunk.to_record_batch().column("Scalars:scalars").to_pylist()]
+            sx += [
+                float(np.asarray(v).ravel()[0]) for v in chunk.to_record_batch().column("Scalars:scalars").to_pylist()
+            ]
     assert len(sx) > 1000 and np.all(np.isfinite(sx)) and sx[-1] < sx[0]
     factor = out["consistency"]["sigma_inflation"]["sigma_factor"]
     # and the slow residual's spectrum's factor (calib.session.spectral; 1 when it did not apply)

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.session.kernel import _nb_lever_jac
 from calib.session.hand.filter import lever_jacobian, lever_regressor
+from calib.session.kernel import _nb_lever_jac
 from calib.session.model import m_matrix
 
 FS = 100.0

@@ -96,15 +96,15 @@ def test_broad_every_trial_ok_only_when_truth_agrees(name):
 
 @needs("xio_fusion")
 def test_xio_fusion_hand_held_plausible_and_honest():
-    """x-IMU3 hand-held: the lever arm is a hand's (|r| + 3σ below 30 cm), but the slow external acceleration
-    kf_hand fits is not: at periods of 5–20 s it implies a displacement of 2.9 m RMS (calib.session.hand.checks check 4; a
-    hand turning a device: ≤ 0.30 m), a 5-s burst of 2.3 m/s² mean |f| − g with rotations to 368 °/s — the device
-    travelled or an effect the model lacks was fitted as the hand.  The status was "ok" (honest but
-    uninformative: every S, G within 2.5 σ of the factory calibration's ≈ 0), then "inconsistent" with the warning
-    that says why; since the update's H carries the lever arm term's dependence on S, G, b (docs/hand.md, "The lever
-    arm term's Jacobian") the non-hand acceleration, seen through ω² up to 40 rad²/s², also drags S to −40 … −129 %:
-    "diverged" (S beyond any real sensor) — never "ok", and the slow-content warning still says why.  Margin: 2.9 m
-    is 10× the bound; gyrosim's hands read ≤ 0.010 m."""
+    """x-IMU3 hand-held: the lever arm is a hand's (|r| + 3σ below 30 cm), but the slow external acceleration kf_hand
+    fits is not: at periods of 5–20 s it implies a displacement of 2.9 m RMS (calib.session.hand.checks check 4; a hand
+    turning a device: ≤ 0.30 m), a 5-s burst of 2.3 m/s² mean |f| − g with rotations to 368 °/s — the device travelled
+    or an effect the model lacks was fitted as the hand.  The status was "ok" (honest but uninformative: every S, G
+    within 2.5 σ of the factory calibration's ≈ 0), then "inconsistent" with the warning that says why; since the
+    update's H carries the lever arm term's dependence on S, G, b (docs/hand.md, "The lever arm term's Jacobian") the
+    non-hand acceleration, seen through ω² up to 40 rad²/s², also drags S to −40 … −129 %: "diverged" (S beyond any real
+    sensor) — never "ok", and the slow-content warning still says why.  Margin: 2.9 m is 10× the bound; gyrosim's hands
+    read ≤ 0.010 m."""
     cal = _hand(_load("xio_fusion"))
     h = cal.diagnostics["hand"]
     r, rsd = np.array(h["lever_arm_m"]), np.array(h["lever_arm_std_m"])

@@ -1,5 +1,5 @@
-"""S stated at the rates it was learnt at (calib.session.hand.filter.scale_reference_rate): a gyro whose scale is not linear,
-δ_i = k_i ω_i|ω_i|, on the independent generator (tests/independent_generator.py adds k ω|ω| its own way).
+"""S stated at the rates it was learnt at (calib.session.hand.filter.scale_reference_rate): a gyro whose scale is not
+linear, δ_i = k_i ω_i|ω_i|, on the independent generator (tests/independent_generator.py adds k ω|ω| its own way).
 
 A linear fit over the session's rates reads S_i + k_i m_i, m_i = Σ|ω_i|³/Σω_i² — the chord slope over ±m_i.  kf_hand
 reports m_i (``diagnostics["scale_reference_rate"]``); its S must then be honest against S + k m and is not against
@@ -7,19 +7,20 @@ the slope at 0 rad/s.  Measured (12 sessions, k = ±1e-4 per rad/s — 0.09 % of
 datasheet's order — m ≈ 1.2–1.3 rad/s): NEES(6) 4.91 against S + k m (4.90 with k = 0 on the same seeds), 61 against
 S.  Tolerance: under an honest σ the summed NEES over N sessions is χ²(6N), two-sided 99.9 % interval (scipy).
 
-The Monte Carlo scorer's side (calib.scoring.montecarlo.truth_gyro_scale_at_rate) is checked against the effect's own form
-on a gyrosim recording: a nonlinearity reads k m, a temperature-dependent scale (linear in the rate) nothing.
+The Monte Carlo scorer's side (calib.scoring.montecarlo.truth_gyro_scale_at_rate) is checked against the effect's own
+form on a gyrosim recording: a nonlinearity reads k m, a temperature-dependent scale (linear in the rate) nothing.
 """
 
 from __future__ import annotations
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
-from calib.session.hand.filter import kf_hand, scale_reference_rate
 from gyrosim.recording import Recording
+
+from calib.session.hand.filter import kf_hand, scale_reference_rate
 
 ITEMS = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
 K = np.array([1e-4, -1e-4, 1e-4])    # 1/(rad/s)
@@ -60,11 +61,12 @@ def test_the_reference_rate_is_the_chord_rule():
 def test_the_scorer_reads_k_m_for_a_nonlinearity_and_nothing_for_a_temperature_scale():
     from dataclasses import replace
 
-    from calib.scoring.montecarlo import truth_gyro_scale_at_rate
     from gyrosim.hand import load_hand
     from gyrosim.schedule import load_schedule
     from gyrosim.sensor_model import load_sensor, stored_sensor_model
     from gyrosim.simulate import apply_sensor, simulate_truth
+
+    from calib.scoring.montecarlo import truth_gyro_scale_at_rate
 
     truth = simulate_truth(load_schedule("static"), load_hand("ideal"), 100.0, seed=0)
     model = load_sensor("mpu9250")
@@ -80,16 +82,18 @@ def test_the_scorer_reads_k_m_for_a_nonlinearity_and_nothing_for_a_temperature_s
 
 def test_the_accelerometer_scale_is_stated_and_scored_at_the_force_its_updates_saw():
     """kf_hand_joint's accelerometer counterpart (calib.session.hand.filter.acc_scale_reference_force, ``diagnostics[
-    "acc_scale_reference_force"]``): the same chord rule on the specific force — an axis that is ±g half of the time
-    and 0 otherwise reads g, a tilt sweep its Σ|f|³/Σf² — and the scorer (calib.scoring.montecarlo.truth_acc_scale_at_gravity
-    with ``force_m_s2``) reads k m for the MPU-9250 preset's accelerometer nonlinearity k f|f| (its temperature scale
-    taken at the preset's reference, where it is 0), k g without it."""
-    from calib.session.hand.filter import acc_scale_reference_force
-    from calib.scoring.montecarlo import truth_acc_scale_at_gravity
+    "acc_scale_reference_force"]``): the same chord rule on the specific force — an axis that is ±g half of the time and
+    0 otherwise reads g, a tilt sweep its Σ|f|³/Σf² — and the scorer
+    (calib.scoring.montecarlo.truth_acc_scale_at_gravity with ``force_m_s2``) reads k m for the MPU-9250 preset's
+    accelerometer nonlinearity k f|f| (its temperature scale taken at the preset's reference, where it is 0), k g
+    without it."""
     from gyrosim.hand import load_hand
     from gyrosim.schedule import load_schedule
     from gyrosim.sensor_model import load_sensor, stored_sensor_model
     from gyrosim.simulate import apply_sensor, simulate_truth
+
+    from calib.scoring.montecarlo import truth_acc_scale_at_gravity
+    from calib.session.hand.filter import acc_scale_reference_force
 
     g = 9.80665
     f = np.zeros((400, 3))

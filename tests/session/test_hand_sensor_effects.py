@@ -12,25 +12,26 @@ temperature channel and reports S_i at those temperatures (``diagnostics["temper
 independent generator (tests/independent_generator.py: the scale's temperature term is its own
 construction, ω_i (1 + s_T,i (T − T[0])) on top of M ω).
 
-g-sensitivity.  A MEMS gyro's bias moves with the specific force along its axis (MPU-9250 family: 0.1 °/s/g):
-b_i = b_i⁰ + k_i f_i — a bias step at every change of attitude; ``kf_hand`` estimates k (three states, the
-bias's prior correlated with it through the first rest's reading; ``g_sensitivity=True``, off by default).  The generator's g-sensitivity is its own
-(gyro += K f with f its true gravity in the body).
+g-sensitivity.  A MEMS gyro's bias moves with the specific force along its axis (MPU-9250 family: 0.1 °/s/g): b_i = b_i⁰
++ k_i f_i — a bias step at every change of attitude; ``kf_hand`` estimates k (three states, the bias's prior correlated
+with it through the first rest's reading; ``g_sensitivity=True``, off by default).  The generator's g-sensitivity is its
+own (gyro += K f with f its true gravity in the body).
 """
 
 from __future__ import annotations
 
 import math
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
+from gyrosim.recording import Recording
+
+from calib.scoring.montecarlo import hand_crlb
 from calib.session.hand.filter import kf_hand, scale_at_temperature, session_temperature
 from calib.session.model import HAND_BIAS_TS, FilterConfig
-from calib.scoring.montecarlo import hand_crlb
-from gyrosim.recording import Recording
 
 HAND_KW = dict(lever_arm_m=(0.01, 0.07, 0.02), tremor_acc_rms_m_s2=0.07, sway_acc_rms_m_s2=0.02)
 NOISE = dict(gyro_noise_deg_s=0.05, acc_noise_g=0.001)
@@ -96,12 +97,12 @@ def test_no_temperature_channel_or_a_still_one_keeps_the_constant_scale_model(ki
 
 
 def test_hand_bound_with_the_temperature_coefficient_as_nuisance(kin):
-    """The hand-aware bound with s_T as three vague nuisance states, mapped to S at the temperatures where it
-    decouples (scale_at_temperature): adding nuisance parameters cannot add information, so every σ is ≥ the
-    bound without them (to 1e-9 relative: the recursion's rounding); and at those temperatures the slope's
-    uncertainty leaks into S only through the asymmetry of the rotations around them, so the bound
-    stays within 1.1× (measured 1.000–1.007 on this schedule: deterministic, no noise drawn) — far below the extrapolation to the start
-    temperature (13–70× here: s_T is pinned only to ~1e-3/°C)."""
+    """The hand-aware bound with s_T as three vague nuisance states, mapped to S at the temperatures where it decouples
+    (scale_at_temperature): adding nuisance parameters cannot add information, so every σ is ≥ the bound without them
+    (to 1e-9 relative: the recursion's rounding); and at those temperatures the slope's uncertainty leaks into S only
+    through the asymmetry of the rotations around them, so the bound stays within 1.1× (measured 1.000–1.007 on this
+    schedule: deterministic, no noise drawn) — far below the extrapolation to the start temperature (13–70× here: s_T is
+    pinned only to ~1e-3/°C)."""
     t, omega, quat = kin
     temp = _warming(t)
     g_body = np.einsum("nji,j->ni", np.stack([ig._dcm(q) for q in quat]), np.array([0.0, 0.0, ig.G]))
@@ -140,7 +141,9 @@ def test_kf_hand_estimates_the_g_sensitivity_and_stays_honest():
                                g_sensitivity=np.diag(k_true))
         cal = kf_hand(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], meta={"rate_hz": 100.0}), g_sensitivity=True)
         assert cal.status == "ok", cal.warnings
-        e = np.concatenate([cal.value(a, b) for a, b in ITEMS]) - np.concatenate([d["scale_factor"], d["nonorthogonality"]])
+        e = np.concatenate([cal.value(a, b) for a, b in ITEMS]) - np.concatenate(
+            [d["scale_factor"], d["nonorthogonality"]]
+        )
         total += float(e @ np.linalg.solve(cal.block_covariance(ITEMS), e))
         g = cal.diagnostics["gyro_g_sensitivity"]
         ek = D @ (np.asarray(g["k_rad_s_per_m_s2"]) - k_true)
@@ -155,11 +158,12 @@ def test_kf_hand_models_a_bias_that_follows_the_temperature(kin):
     """Four hand-held sessions on a board warming 1.5 °C whose gyro bias follows the temperature, c_b (T − T[0]) with
     c_b = 0.05, −0.04, 0.06 °/s/°C (the MPU-9250 datasheet's ZRO tolerance is ±0.24 °/s/°C), plus a 1e-5 rad/s/√s random
     walk — written by the independent generator its own way (``gyro_bias_per_c``).  kf_hand must model it
-    (``gyro_temp_bias`` states, calib.session.hand.filter.GYRO_TEMP_BIAS) and keep the σ of c_b and of S, G on the safe side: the
-    4 × 3 z² of c_b against the generator's below χ²(12)'s 99.9 % quantile 32.9, Σ NEES(6) below χ²(24)'s 51.2, every
-    session ``ok``.  Both σ are cautious on a pure ramp (measured: z RMS of c_b 0.23, NEES(6) 2.2 per session — the
-    random walk kept at ½ q̂_b lets the bias wander where it does not; docs/hand.md "The warm-up's ramp as a state",
-    left open), so only the optimistic side is asserted; without the c_b states the test fails on the key lookup."""
+    (``gyro_temp_bias`` states, calib.session.hand.filter.GYRO_TEMP_BIAS) and keep the σ of c_b and of S, G on the safe
+    side: the 4 × 3 z² of c_b against the generator's below χ²(12)'s 99.9 % quantile 32.9, Σ NEES(6) below χ²(24)'s
+    51.2, every session ``ok``.  Both σ are cautious on a pure ramp (measured: z RMS of c_b 0.23, NEES(6) 2.2 per
+    session — the random walk kept at ½ q̂_b lets the bias wander where it does not; docs/hand.md "The warm-up's ramp as
+    a state", left open), so only the optimistic side is asserted; without the c_b states the test fails on the key
+    lookup."""
     t = kin[0]
     temp = _warming(t)
     c_b = np.radians([0.05, -0.04, 0.06])
@@ -175,7 +179,9 @@ def test_kf_hand_models_a_bias_that_follows_the_temperature(kin):
         sd = np.asarray(info["bias_temperature_coefficient_std_rad_s_per_c"])
         z2 += float(np.sum(((est - c_b) / sd) ** 2))
         assert cal.diagnostics["gyro_bias_drift"]["random_walk_factor_used"] in (0.5, 1.0)
-        e = np.concatenate([cal.value(a, b) for a, b in ITEMS]) - np.concatenate([d["scale_factor"], d["nonorthogonality"]])
+        e = np.concatenate([cal.value(a, b) for a, b in ITEMS]) - np.concatenate(
+            [d["scale_factor"], d["nonorthogonality"]]
+        )
         nees += float(e @ np.linalg.solve(cal.block_covariance(ITEMS), e))
     assert z2 < stats.chi2.ppf(0.999, 12), z2
     assert nees < stats.chi2.ppf(0.9995, 24), nees

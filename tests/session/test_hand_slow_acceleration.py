@@ -1,6 +1,6 @@
-"""kf_hand's fourth assumption check (calib.session.hand.checks, check 4): the slow acceleration it attributes to the hand
-must be one a hand can make — a displacement RMS below ``DISPLACEMENT_MAX_M`` (30 cm, a forearm) at periods of
-5–20 s.  Measured on the x-IMU3 hand-held session (``ok`` before, fitted a_e 2.85 m/s² RMS, τ 6.3 s): 3.7 m.
+"""kf_hand's fourth assumption check (calib.session.hand.checks, check 4): the slow acceleration it attributes to the
+hand must be one a hand can make — a displacement RMS below ``DISPLACEMENT_MAX_M`` (30 cm, a forearm) at periods of 5–20
+s.  Measured on the x-IMU3 hand-held session (``ok`` before, fitted a_e 2.85 m/s² RMS, τ 6.3 s): 3.7 m.
 
 The estimator of the displacement is checked against displacements made here, of known RMS; the check's false
 alarm rate on gyrosim's hands is under ``slow`` (20-seed screening, every hand and both sensors: max 0.010 m),
@@ -44,9 +44,10 @@ def test_slow_displacement_recovers_a_displacement_made_in_the_band(seed):
 
 
 def test_a_hand_sway_above_the_band_implies_no_slow_displacement():
-    """gyrosim's and a real hand's sway sits at 0.2–1 Hz: a 1-cm RMS sway at 0.3–1 Hz (0.3–2 m/s² peaks, far
-    more acceleration than the check's 0.03 m/s² at 0.05 Hz) implies < 1 mm in the band (Hann side lobes
-    fall fast; a linear detrend instead read 3 mm: calib.session.hand.checks.slow_displacement; measured 0.04 mm) — the check reads displacement, not acceleration."""
+    """gyrosim's and a real hand's sway sits at 0.2–1 Hz: a 1-cm RMS sway at 0.3–1 Hz (0.3–2 m/s² peaks, far more
+    acceleration than the check's 0.03 m/s² at 0.05 Hz) implies < 1 mm in the band (Hann side lobes fall fast; a linear
+    detrend instead read 3 mm: calib.session.hand.checks.slow_displacement; measured 0.04 mm) — the check reads
+    displacement, not acceleration."""
     x, a = _sway(0.01, (0.3, 1.0), 3)
     res = slow_displacement(a, T_S, RATE_HZ)
     assert res.rms_m < 1e-3, res.rms_m

@@ -16,16 +16,17 @@ from __future__ import annotations
 
 import math
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import signal as sps
 from scipy import stats
 
-import independent_generator as ig
+from gyrosim.recording import Recording
+
 from calib.session.hand import filter as hk
 from calib.session.kernel import ext_acc_discrete, run_filter
 from calib.session.model import EXT_ACC_EXTRA_BLOCKS, HAND, FilterConfig, StateLayout, initial_covariance
-from gyrosim.recording import Recording
 
 ITEMS = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
 
@@ -42,7 +43,8 @@ def test_exact_discretisation_is_the_gauss_markov_closed_form():
 
 def test_band_model_state_space_has_the_psd_the_fit_assumes():
     """FilterConfig.ext_acc_model's band-pass (balanced modal form) has |H(f)|² = the fit's Butterworth shape
-    (calib.session.hand.filter._band_shape) to 1e-8, and the stationary RMS of a_e is √(σ₀² + σ_b²) (independent components)."""
+    (calib.session.hand.filter._band_shape) to 1e-8, and the stationary RMS of a_e is √(σ₀² + σ_b²) (independent
+    components)."""
     cfg = FilterConfig(1e-3, 1e-3, ext_acc_rms_m_s2=0.004, ext_acc_tau_s=3.0, ext_acc_band_hz=(0.21, 0.93),
                        ext_acc_band_rms_m_s2=0.02, ext_acc_band_order=hk.BAND_ORDER)
     a, qc, c = cfg.ext_acc_model()
@@ -109,7 +111,8 @@ def test_band_fit_finds_the_band_and_gives_the_outside_power_to_the_floor():
     fi_all = np.geomspace(1e-4, 50, 4000)
     ab = fit["band_rms_m_s2"] ** 2 / np.trapezoid(hk._band_shape(fi_all, f1, f2), fi_all)
     density = a0 / (1 + (2 * np.pi * 0.05 * fit["floor_tau_s"]) ** 2) + ab * hk._band_shape(0.05, f1, f2)
-    model = density * fs / int(40 * fs)               # × Welch's bin width (40-s segments): the power the model puts in the line's bin
+    # × Welch's bin width (40-s segments): the power the model puts in the line's bin
+    model = density * fs / int(40 * fs)
     f, pxx = sps.welch(e - e.mean(), fs=fs, nperseg=int(40 * fs))
     k = int(np.argmin(np.abs(f - 0.05)))
     nseg = 2 * n / int(40 * fs) - 1
@@ -158,15 +161,17 @@ def test_kf_hand_band_reports_its_model_beside_the_promised_keys():
                                        "over 10 seeds, every seed ok): why it is not kf_hand's default")
 def test_kf_hand_band_is_honest_on_the_noise_free_independent_generator():
     """Ten seeds of tests/session/test_hand_conditions.py's noise-free sensor with a hand: ΣNEES inside χ²(60)'s 99.9 %
-    interval — what the default kf_hand passes.  Measured with the band model: ΣNEES 379 (seeds 0–9: 36, 56, 33, 26, 2.5,
-    105, 42, 0.7, 78, 0.1), every seed "ok"."""
+    interval — what the default kf_hand passes.  Measured with the band model: ΣNEES 379 (seeds 0–9: 36, 56, 33, 26,
+    2.5, 105, 42, 0.7, 78, 0.1), every seed "ok"."""
     total = 0.0
     hand = dict(lever_arm_m=(0.01, 0.07, 0.02), tremor_acc_rms_m_s2=0.07, sway_acc_rms_m_s2=0.02)
     for seed in range(10):
         d = ig.generate_arrays(rate_hz=100.0, seed=seed, gyro_noise_deg_s=0.0, acc_noise_g=0.0,
                                kin=ig.kinematics(100.0, ig.STEPS), **hand)
         cal = hk.kf_hand_band(Recording(d["t_s"], d["gyro_rad_s"], d["acc_m_s2"], meta={"rate_hz": 100.0}))
-        e = np.concatenate([cal.value(t, k) for t, k in ITEMS]) - np.concatenate([d["scale_factor"], d["nonorthogonality"]])
+        e = np.concatenate([cal.value(t, k) for t, k in ITEMS]) - np.concatenate(
+            [d["scale_factor"], d["nonorthogonality"]]
+        )
         total += float(e @ np.linalg.solve(cal.block_covariance(ITEMS), e))
     lo, hi = stats.chi2.ppf([0.0005, 0.9995], 60)
     assert lo < total < hi, total

@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import dataclasses
 
+import independent_generator as ig
 import numpy as np
 import pytest
-
-import independent_generator as ig
-from gyrosim.errors import PresetError
-from gyrosim.hand import IMPERFECTIONS, load_hand
 from test_hand import HAND_KW, NOISE, _rec, kin  # noqa: F401  (kin: the independent generator's kinematics, a fixture)
 from test_hand_joint import ACC_KW
+
+from gyrosim.errors import PresetError
+from gyrosim.hand import IMPERFECTIONS, load_hand
 
 
 def test_without_zeroes_only_the_named_imperfection():
@@ -54,8 +54,8 @@ def test_without_refuses_nothing_or_an_unknown_name(parts):
 
 
 def test_monte_carlo_takes_a_hand_variant():
-    """calib.scoring.montecarlo.monte_carlo accepts a Hand (not only a preset name) and reports it by its name; one seed of
-    the deterministic pivot-only hand, kf_hand with the accelerometer calibrated: a finite NEES, no divergence."""
+    """calib.scoring.montecarlo.monte_carlo accepts a Hand (not only a preset name) and reports it by its name; one seed
+    of the deterministic pivot-only hand, kf_hand with the accelerometer calibrated: a finite NEES, no divergence."""
     from calib.scoring.montecarlo import monte_carlo
 
     hand = load_hand("typical").without("tremor", "tremor_rotation", "sway", "wobble")
@@ -72,8 +72,9 @@ def test_kf_hand_sigma_holds_with_one_imperfection_switched_off(part):
     """kf_hand (accelerometer calibrated) on the shaky hand with its sway or its wobble switched off, consumer
     sensor, 50 seeds: NEES(6) inside χ²(300)/50's 99 % interval [4.81, 7.34] (measured 5.60 and 5.62; an honest σ
     fails this 1 % of the time), no seed diverged."""
-    from calib.scoring.montecarlo import monte_carlo
     from scipy import stats
+
+    from calib.scoring.montecarlo import monte_carlo
 
     r = monte_carlo("zhou2020", load_hand("shaky").without(part), "zhou2020_sim_consumer", seeds=50,
                     methods=("kf_hand",), calibrated_accelerometer=True)
@@ -86,12 +87,13 @@ def test_kf_hand_sigma_holds_with_one_imperfection_switched_off(part):
 @pytest.mark.slow
 def test_kf_hand_joint_sigma_without_wobble():
     """kf_hand_joint (raw consumer sensor) on the shaky hand without its wobble, 50 seeds: no seed diverged, NEES(6)
-    below χ²(300)/50's 99 % top 7.34 (not optimistic) and above its bottom 4.81 / 1.5² (at most ×1.5 pessimistic in
-    σ).  Measured 4.96 (S_y's err/σ RMS 0.88, RMS error 4.8e-5) since the accelerometer prior is the |f| = g fit's
-    block sandwich (calib.session.hand.filter._gravity_fit_lever_free); 11.3 before (S_y's err/σ RMS 2.37, 49 of 50 seeds `ok`:
-    σ optimistic and not flagged — this was a strict xfail then)."""
-    from calib.scoring.montecarlo import monte_carlo
+    below χ²(300)/50's 99 % top 7.34 (not optimistic) and above its bottom 4.81 / 1.5² (at most ×1.5 pessimistic in σ).
+    Measured 4.96 (S_y's err/σ RMS 0.88, RMS error 4.8e-5) since the accelerometer prior is the |f| = g fit's block
+    sandwich (calib.session.hand.filter._gravity_fit_lever_free); 11.3 before (S_y's err/σ RMS 2.37, 49 of 50 seeds
+    `ok`: σ optimistic and not flagged — this was a strict xfail then)."""
     from scipy import stats
+
+    from calib.scoring.montecarlo import monte_carlo
 
     r = monte_carlo("zhou2020", load_hand("shaky").without("wobble"), "zhou2020_sim_consumer", seeds=50,
                     methods=("kf_hand_joint",), accelerometer="estimate")
@@ -124,9 +126,9 @@ def _summed_nees6(kin, raw: bool, seeds: int) -> tuple[float, list[str]]:
 def test_the_joint_holds_its_sigma_on_an_independent_shaky_sized_hand(kin):
     """On data we did not generate: 20 independent-generator sessions with a shaky-sized hand.  kf_hand_joint (raw
     accelerometer) and kf_hand with the accelerometer calibrated, on the same motions: summed NEES(6) inside χ²(120)'s
-    95 % interval [91.6, 152.2] (σ of S, G neither optimistic nor grossly cautious), no session diverged.  Measured:
-    the joint 151.0 (mean 7.55, at the interval's top), kf_hand 101.3 (5.06).  Until the update's H carried the lever
-    arm term's dependence on S, G, b (tests/session/test_hand_lever_jacobian.py) the joint read 171.8 (8.59, σ ~1.2× small)
+    95 % interval [91.6, 152.2] (σ of S, G neither optimistic nor grossly cautious), no session diverged.  Measured: the
+    joint 151.0 (mean 7.55, at the interval's top), kf_hand 101.3 (5.06).  Until the update's H carried the lever arm
+    term's dependence on S, G, b (tests/session/test_hand_lever_jacobian.py) the joint read 171.8 (8.59, σ ~1.2× small)
     and warned about it in every hand session (219.8 before the accelerometer prior's block sandwich)."""
     from scipy import stats
 

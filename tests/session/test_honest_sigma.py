@@ -17,15 +17,16 @@ from __future__ import annotations
 
 import warnings
 
+import independent_generator as ig
 import numpy as np
 import pytest
 from scipy import stats
 
-import independent_generator as ig
-from calib.session import registry as estimators
-from calib.session.consistency import innovation_inflation
 from gyrosim.estimator import load_estimator
 from gyrosim.recording import Recording
+
+from calib.session import registry as estimators
+from calib.session.consistency import innovation_inflation
 
 CONSUMER = dict(gyro_noise_deg_s=0.083, acc_noise_g=1.5e-4)
 ITEMS = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
@@ -89,7 +90,9 @@ def test_kf_static_bias_error_is_in_its_model_on_independent_data(kin):
         gls.append(inf["long_run_variance"])
         plain.append(inf["long_run_variance_ignoring_fixed"])
         fired += inf["covariance_factor"] > 1
-        e = np.concatenate([cal.value(t, k) for t, k in ITEMS]) - np.concatenate([d["scale_factor"], d["nonorthogonality"]])
+        e = np.concatenate([cal.value(t, k) for t, k in ITEMS]) - np.concatenate(
+            [d["scale_factor"], d["nonorthogonality"]]
+        )
         nees += float(e @ np.linalg.solve(cal.block_covariance(ITEMS), e))
     assert abs(np.mean(gls) - 1.0) < 0.17, gls
     assert np.mean(plain) > 1.17, plain
@@ -168,6 +171,7 @@ def test_montecarlo_accepts_every_registered_estimator():
     """`calib montecarlo --methods <every registered name>` runs with a hand and prints efficiency and
     NEES per method (2 seeds of mpu9250 with the typical hand: the slowest and most varied case)."""
     from gyrosim.estimator import registered_estimators
+
     from calib.scoring.montecarlo import monte_carlo
 
     names = tuple(registered_estimators()) + ("kf_session", "iterated_session")

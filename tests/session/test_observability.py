@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.session.observability import parameter_gram, segment_observability, som, unobservable_parameters
 from gyrosim.schedule import load_schedule
+
+from calib.session.observability import parameter_gram, segment_observability, som, unobservable_parameters
 
 G = 9.80665
 

@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import warnings
 
+import independent_generator as ig
 import numpy as np
 
-import independent_generator as ig
-from calib import calibrate
-from calib.session.paper import prepare
-from calib.session.consistency import INFLATION_INCONSISTENT_SIGMA
 from gyrosim.recording import Recording
+
+from calib import calibrate
+from calib.session.consistency import INFLATION_INCONSISTENT_SIGMA
+from calib.session.paper import prepare
 
 LSB_M_S2 = 0.04
 

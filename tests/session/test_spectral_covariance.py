@@ -1,12 +1,12 @@
 """calib.session.spectral: the covariance of kf_hand's estimate under the slow residual's measured spectrum.
 
-Three facts: (1) the adjoint's weights W_k are those of the filter's recorded linear model (a forward run of the
-same recursion with one update's innovation perturbed moves the final states by exactly W_k δ); (2) the spectral
-form Σ_i ∫ Re[V Vᴴ] S df reproduces the variance Σ_kl w_k C(k − l) w_l of a known coloured disturbance (its PSD
-conventions: one-sided, folding onto the updates' grid), and (2b) with a zero-phase pre-filter on the data it takes
-the model as the data can carry it (the filter's aliased power above the updates' Nyquist removed); (3) on gyrosim's shaky hand, whose sway (flat 0.2–1 Hz,
-~30 dB lower outside) no first-order model follows, kf_hand's σ of S, G is honest: NEES(6) inside χ²'s interval
-(it was 3.2–3.5, σ ×1.35 too large, before this correction).
+Three facts: (1) the adjoint's weights W_k are those of the filter's recorded linear model (a forward run of the same
+recursion with one update's innovation perturbed moves the final states by exactly W_k δ); (2) the spectral form Σ_i ∫
+Re[V Vᴴ] S df reproduces the variance Σ_kl w_k C(k − l) w_l of a known coloured disturbance (its PSD conventions:
+one-sided, folding onto the updates' grid), and (2b) with a zero-phase pre-filter on the data it takes the model as the
+data can carry it (the filter's aliased power above the updates' Nyquist removed); (3) on gyrosim's shaky hand, whose
+sway (flat 0.2–1 Hz, ~30 dB lower outside) no first-order model follows, kf_hand's σ of S, G is honest: NEES(6) inside
+χ²'s interval (it was 3.2–3.5, σ ×1.35 too large, before this correction).
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ def test_adjoint_weights_are_the_recorded_filters_own(monkeypatch):
     """(1): on a hand-held session of the independent generator, the adjoint's W_k for four updates equals the
     forward recursion's response to a unit innovation there, to rounding (1e-9 relative)."""
     import independent_generator as ig
+
     from gyrosim.recording import Recording
 
     captured = {}

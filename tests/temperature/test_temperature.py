@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.temperature.bias_model import fit_bias_temperature
 from gyrosim.effects import SignalContext
 from gyrosim.errors import RecordingError
 from gyrosim.loaders import available_datasets, data_root, load_dataset
 from gyrosim.recording import Recording
 from gyrosim.sensor_model import SensorModel, load_sensor
+
+from calib.temperature.bias_model import fit_bias_temperature
 
 
 def _warm_up(seed: int) -> tuple[Recording, np.ndarray]:

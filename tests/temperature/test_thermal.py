@@ -19,12 +19,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from calib.temperature.ratetable import calibrate_rate_table, piecewise_model
-from calib.temperature.compensation import compare_methods, fit_compensation, fit_methods, split_cycles
 from gyrosim.chamber import load_chamber, simulate_chamber
 from gyrosim.errors import PresetError, RecordingError
 from gyrosim.ratetable import simulate_rate_table
 from gyrosim.sensor_model import SensorModel, load_sensor
+
+from calib.temperature.compensation import compare_methods, fit_compensation, fit_methods, split_cycles
+from calib.temperature.ratetable import calibrate_rate_table, piecewise_model
 
 SHORT = """
 name = "short"
@@ -105,8 +106,9 @@ def test_best_compensation_is_ten_times_better_on_held_out_cycles(chamber, tmp_p
         assert rows[m].held_out_rms_deg_s < 0.1 * none.held_out_rms_deg_s
     # the same comparison as a recording (what its viewer opens on): every model's residual in one view per axis on one
     # y range, the whole chamber run on x, the held-out cycles marked, the story names the best model
-    from calib.app.rerun_temperature import save_temperature_rrd
     from gyrosim.viewer import read_blueprint, read_texts
+
+    from calib.app.rerun_temperature import save_temperature_rrd
 
     held = [(float(c.t_s[0]), float(c.t_s[-1])) for c in cycles[2:]]
     path = save_temperature_rrd(tmp_path / "t.rrd", chamber, fitted, listed, held, "2 cycles")
@@ -119,8 +121,9 @@ def test_best_compensation_is_ten_times_better_on_held_out_cycles(chamber, tmp_p
 
 
 def test_compensated_recording_is_a_new_file_and_flattens_the_bias(chamber, tmp_path):
-    from calib.app.cli import main
     from gyrosim.recording import load_hdf5, save_hdf5
+
+    from calib.app.cli import main
 
     src = save_hdf5(chamber, tmp_path / "ch.h5")
     before = src.read_bytes()

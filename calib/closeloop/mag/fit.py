@@ -20,12 +20,21 @@ import numpy as np
 
 from gyrosim.effects import rotation_matrix
 
-from calib.mag.ellipsoid import fit_sphere
-from calib.mag.lsq import block_index, levenberg_marquardt, sandwich_covariance
 from calib.closeloop.mag.reference import MagReference
 from calib.closeloop.mag.terms import SOFT_BASIS, mag_term, soft_iron_matrix
+from calib.mag.ellipsoid import fit_sphere
+from calib.mag.lsq import block_index, levenberg_marquardt, sandwich_covariance
 
-__all__ = ["MagFit", "fit_mag", "model_function", "initial_base", "base_size", "split_theta", "corrected_field", "residual_all"]
+__all__ = [
+    "MagFit",
+    "fit_mag",
+    "model_function",
+    "initial_base",
+    "base_size",
+    "split_theta",
+    "corrected_field",
+    "residual_all",
+]
 
 _EPS = 1e-6
 RANK_TOL = 1e-7

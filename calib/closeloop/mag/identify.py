@@ -37,20 +37,18 @@ field magnitude, and the Jacobian at h = 0 (far from a large hard iron) does not
 from __future__ import annotations
 
 import math
-
-import numpy as np
-
 from dataclasses import replace
 
+import numpy as np
 from scipy import ndimage
 
-from calib.mag.calibrate import MIN_COVERAGE
-from calib.mag.checks import rotations_to_add
-from calib.mag.gravity import direction_coverage
 from calib.closeloop.identify import Z_DETECT, Excitation
 from calib.closeloop.mag.fit import MagFit, model_function, split_theta
 from calib.closeloop.mag.reference import MagReference
 from calib.closeloop.mag.terms import mag_term
+from calib.mag.calibrate import MIN_COVERAGE
+from calib.mag.checks import rotations_to_add
+from calib.mag.gravity import direction_coverage
 
 __all__ = ["mag_excitation"]
 

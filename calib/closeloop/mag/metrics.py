@@ -27,11 +27,11 @@ import numpy as np
 
 from gyrosim.units import RAD2DEG
 
-from calib.mag.disturbance import find_disturbances
-from calib.mag.result import Disturbance
 from calib.closeloop.mag.fit import MagFit, corrected_field, split_theta
 from calib.closeloop.mag.reference import MagReference
 from calib.closeloop.metrics import MetricSums
+from calib.mag.disturbance import find_disturbances
+from calib.mag.result import Disturbance
 
 __all__ = ["field_deviations", "mag_metrics", "detect_disturbances"]
 
@@ -56,13 +56,30 @@ def field_deviations(ref: MagReference, fit: MagFit) -> dict[str, np.ndarray]:
     return {k: np.where(ref.valid, v, np.nan) for k, v in out.items()}
 
 
-_DEFS = (("held_out_field_residual_rms", "residual_sq", "µT", "the model's residual rows", "everything the model predicts"),
-         ("held_out_field_magnitude_rms", "field_dev_ut", "µT", "|corrected field| − |B_n|",
-          "hard and soft iron; blind to the misalignment"),
-         ("held_out_heading_rms_deg", "heading_dev_deg", "°", "the reference attitude's heading of the field",
-          "what a compass shows: hard/soft iron and the axes' rotation about up"),
-         ("held_out_inclination_rms_deg", "incl_dev_deg", "°", "the reference attitude's up direction",
-          "the tilt of the axes: misalignment and soft iron"))
+_DEFS = (
+    ("held_out_field_residual_rms", "residual_sq", "µT", "the model's residual rows", "everything the model predicts"),
+    (
+        "held_out_field_magnitude_rms",
+        "field_dev_ut",
+        "µT",
+        "|corrected field| − |B_n|",
+        "hard and soft iron; blind to the misalignment",
+    ),
+    (
+        "held_out_heading_rms_deg",
+        "heading_dev_deg",
+        "°",
+        "the reference attitude's heading of the field",
+        "what a compass shows: hard/soft iron and the axes' rotation about up",
+    ),
+    (
+        "held_out_inclination_rms_deg",
+        "incl_dev_deg",
+        "°",
+        "the reference attitude's up direction",
+        "the tilt of the axes: misalignment and soft iron",
+    ),
+)
 
 
 def mag_metrics(ref: MagReference, fit: MagFit, exclude: np.ndarray) -> dict[str, MetricSums]:

@@ -91,25 +91,47 @@ class MagTerm:
         return f"{self.kind} [{vals}] {unit}"
 
 
-MAG_TERMS: dict[str, MagTerm] = {t.kind: t for t in (
-    MagTerm("hard_iron", ("h_x", "h_y", "h_z"), 450.0,
+MAG_TERMS: dict[str, MagTerm] = {
+    t.kind: t
+    for t in (
+        MagTerm(
+            "hard_iron",
+            ("h_x", "h_y", "h_z"),
+            450.0,
             "a field fixed in the body frame (magnetised parts, the sensor's zero-field offset)",
-            "rotations of the board (a constant field in the body frame turns against the Earth's)", False,
-            E.HardIron.display_unit("magnetometer"), lambda th: E.HardIron(value=np.asarray(th, float)),
+            "rotations of the board (a constant field in the body frame turns against the Earth's)",
+            False,
+            E.HardIron.display_unit("magnetometer"),
+            lambda th: E.HardIron(value=np.asarray(th, float)),
             lambda e: np.asarray(e.value, float),
-            "the hard iron along the turning axis (calib mag's circle fit gives the other two components)"),
-    MagTerm("soft_iron", ("S_xx", "S_yy", "S_xy", "S_xz", "S_yz"), 0.25,
+            "the hard iron along the turning axis (calib mag's circle fit gives the other two components)",
+        ),
+        MagTerm(
+            "soft_iron",
+            ("S_xx", "S_yy", "S_xy", "S_xz", "S_yz"),
+            0.25,
             "the field induced in the board's ferrous parts, proportional to the applied field",
-            "attitudes that point the field along and against all three body axes", False,
-            (1.0, "(A − I, trace-free)"), lambda th: E.SoftIron(matrix=soft_iron_matrix(th)),
-            lambda e: soft_iron_params_of(e.matrix), "the soft iron"),
-    MagTerm("frame_rotation", ("theta_x", "theta_y", "theta_z"), math.radians(5.0),
+            "attitudes that point the field along and against all three body axes",
+            False,
+            (1.0, "(A − I, trace-free)"),
+            lambda th: E.SoftIron(matrix=soft_iron_matrix(th)),
+            lambda e: soft_iron_params_of(e.matrix),
+            "the soft iron",
+        ),
+        MagTerm(
+            "frame_rotation",
+            ("theta_x", "theta_y", "theta_z"),
+            math.radians(5.0),
             "the magnetometer's axes rotated against the IMU frame (the reference attitude's frame)",
             "an attitude reference in the IMU's own frame (truth); against an optical body frame a rotation of "
             "that frame to the IMU looks the same — the gyro residual against the same reference separates them",
-            True, E.FrameRotation.display_unit("magnetometer"), lambda th: E.FrameRotation(angles=np.asarray(th, float)),
-            lambda e: np.asarray(e.angles, float)),
-)}
+            True,
+            E.FrameRotation.display_unit("magnetometer"),
+            lambda th: E.FrameRotation(angles=np.asarray(th, float)),
+            lambda e: np.asarray(e.angles, float),
+        ),
+    )
+}
 
 
 def is_mag_kind(kind: str) -> bool:

@@ -79,12 +79,13 @@ class SlowDisplacement:
 
 
 def slow_displacement(residual_m_s2: np.ndarray, t_s: np.ndarray, rate_hz: float) -> SlowDisplacement | None:
-    """Check 4 of the module docstring: x_rms = √(Σ_band Ŝ_e(f) / (2πf)⁴ Δf), Ŝ_e the one-sided Welch PSD of
-    the residual with ``SLOW_SEGMENT_S`` Hann segments, each segment's mean removed.  Not a linear detrend:
-    the line fitted to a sway tone is ~A/(πk) of it (k its bin), and that ramp × Hann lands in the lowest bins,
-    where 1/f⁴ magnifies it (a 1-cm sway at 0.3–1 Hz read 3 mm; with the mean removed 0.04 mm).  A slow
-    drift's ramp falls mostly in bins 0–1, which the band leaves out (it starts at bin 2).  None for a recording shorter than two segments' band (< 2/``SLOW_BAND_HZ[0]`` s), where
-    the band has no bin to read.  Source: x(f) = a(f) / (2πf)² (Fourier transform of ẍ = a); Welch 1967."""
+    """Check 4 of the module docstring: x_rms = √(Σ_band Ŝ_e(f) / (2πf)⁴ Δf), Ŝ_e the one-sided Welch PSD of the
+    residual with ``SLOW_SEGMENT_S`` Hann segments, each segment's mean removed.  Not a linear detrend: the line fitted
+    to a sway tone is ~A/(πk) of it (k its bin), and that ramp × Hann lands in the lowest bins, where 1/f⁴ magnifies it
+    (a 1-cm sway at 0.3–1 Hz read 3 mm; with the mean removed 0.04 mm).  A slow drift's ramp falls mostly in bins 0–1,
+    which the band leaves out (it starts at bin 2).  None for a recording shorter than two segments' band (<
+    2/``SLOW_BAND_HZ[0]`` s), where the band has no bin to read.  Source: x(f) = a(f) / (2πf)² (Fourier transform of ẍ =
+    a); Welch 1967."""
     e = np.asarray(residual_m_s2, float)
     t = np.asarray(t_s, float)
     if e.size < 16 or e.size / rate_hz < 2.0 / SLOW_BAND_HZ[0] or not np.all(np.isfinite(e)):
@@ -174,10 +175,13 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                          "(--accelerometer estimate)")
     if tremor_band_rms_m_s2 > TREMOR_MAX_M_S2:
         ok = False
-        notes.append(f"inconsistent: {tremor_band_rms_m_s2:.2f} m/s² RMS of acceleration above the 4-Hz pre-filter is "
-                     f"not a hand's tremor (at most 0.35 m/s² peak; this check's limit {TREMOR_MAX_M_S2:.1f} m/s²): impacts, vibration or "
-                     "fast motion, whose bursts the hand model averages over the session — S, G and σ are not "
-                     "trustworthy. Record the rotations by hand without tapping or shaking the device")
+        notes.append(
+            f"inconsistent: {tremor_band_rms_m_s2:.2f} m/s² RMS of acceleration above the 4-Hz pre-filter is "
+            f"not a hand's tremor (at most 0.35 m/s² peak; this check's limit {TREMOR_MAX_M_S2:.1f} m/s²): impacts, "
+            "vibration or "
+            "fast motion, whose bursts the hand model averages over the session — S, G and σ are not "
+            "trustworthy. Record the rotations by hand without tapping or shaking the device"
+        )
     r = np.asarray(lever_arm_m, float)
     rn = float(np.linalg.norm(r))
     if rn > LEVER_ARM_MAX_M:
@@ -192,15 +196,17 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                         "slow_band_hz": list(SLOW_BAND_HZ)})
         if slow.rms_m > DISPLACEMENT_MAX_M:
             ok = False
-            notes.append(f"inconsistent: the acceleration kf_hand attributes to the hand has slow content (periods "
-                         f"{1 / SLOW_BAND_HZ[1]:.0f}–{1 / SLOW_BAND_HZ[0]:.0f} s) that would move a hand by "
-                         f"{slow.rms_m:.2f} m RMS, beyond the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device moves at most "
-                         f"(largest around t = {slow.worst_t_s:.0f} s). Either the device travelled (carried, walked, "
-                         "swung at arm's length about a moving pivot) or it is a sensor effect the model lacks — an "
-                         "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "
-                         "accelerometer bias; kf_hand fitted it as the hand's acceleration and weighted S, G by it, so "
-                         "S, G and σ are not trustworthy. Check the accelerometer calibration (calib run's default "
-                         "--accelerometer estimate, or calib run --method hand), the gyro–accelerometer time alignment, "
-                         "trace the residual with calib closeloop, and record again turning the device at the wrist "
-                         "without moving the arm")
+            notes.append(
+                f"inconsistent: the acceleration kf_hand attributes to the hand has slow content (periods "
+                f"{1 / SLOW_BAND_HZ[1]:.0f}–{1 / SLOW_BAND_HZ[0]:.0f} s) that would move a hand by "
+                f"{slow.rms_m:.2f} m RMS, beyond the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device moves at most "
+                f"(largest around t = {slow.worst_t_s:.0f} s). Either the device travelled (carried, walked, "
+                "swung at arm's length about a moving pivot) or it is a sensor effect the model lacks — an "
+                "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "
+                "accelerometer bias; kf_hand fitted it as the hand's acceleration and weighted S, G by it, so "
+                "S, G and σ are not trustworthy. Check the accelerometer calibration (calib run's default "
+                "--accelerometer estimate, or calib run --method hand), the gyro–accelerometer time alignment, "
+                "trace the residual with calib closeloop, and record again turning the device at the wrist "
+                "without moving the arm"
+            )
     return HandAssumptions(ok, tuple(notes), eps, spread, float(tremor_band_rms_m_s2), rn, details)

@@ -5,72 +5,68 @@ nav ENU; f the specific force, g_b gravity in the body):
 
     f = g_b + K(ω, ω̇) r + C(q)ᵀ a_e + v,     K(ω, ω̇) = [ω̇×] + [ω×][ω×]
 
-* r — the lever arm from the rotation centre (wrist, elbow) to the accelerometer, body frame, m: a
-  constant (the accelerometer–gyro site offset is part of it).  f − g_b = ω̇ × r + ω × (ω × r) is
-  deterministic and correlated with the rotation, so the paper's filter turns it into S and G errors
-  (0.3 % with a 6 cm wrist): it is estimated, three states.  K is built from the rate compensated with the
-  pass's S, G, b (:func:`lever_regressor`), so K r̂ depends on them too: the update carries that dependence,
-  ∂(K r̂)/∂(S, G, b) (:func:`lever_jacobian`) — without it a session that pins S, G weakly left σ ~1.4× optimistic;
-* a_e — the hand's own translation, in nav: tremor (8–12 Hz) and sway (0.2–1 Hz), coloured.  The
-  calibration's information lives below ~1 Hz (the rotations), so the tremor band is removed rather
-  than modelled: the specific force is rotated to nav with the gyro's own attitude, low-passed there
-  (zero-phase Butterworth, ``CUTOFF_HZ``; in nav, so that the slow gravity direction, not the fast
-  wobble the gyro also sees, is what is smoothed) and rotated back — a whitening pre-filter — and the
-  filter updates every D-th sample with R = σ_f²/D (the white noise averaged over D samples: the
-  information per second of the raw samples, not more), D = ⌊1/ρ⌋ where ρ = Σh² is the low-pass's
-  white-noise variance ratio.  The slow rest (sway) is a shaping filter per nav axis: a first-order
-  Gauss–Markov x (σ_s, τ) high-passed (τ_h, order m ∈ {1, 2}): a_e = x − z (− z₂), z the low-pass of
-  x, z₂ that of x − z — a hand's translation is bounded, so its acceleration has no power at 0 Hz (the
-  one-sided PSD 4σ_s²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m, estimated from the data, is
-  reported); three to nine states;
+* r — the lever arm from the rotation centre (wrist, elbow) to the accelerometer, body frame, m: a constant (the
+  accelerometer–gyro site offset is part of it).  f − g_b = ω̇ × r + ω × (ω × r) is deterministic and correlated with
+  the rotation, so the paper's filter turns it into S and G errors (0.3 % with a 6 cm wrist): it is estimated, three
+  states.  K is built from the rate compensated with the pass's S, G, b (:func:`lever_regressor`), so K r̂ depends on
+  them too: the update carries that dependence, ∂(K r̂)/∂(S, G, b) (:func:`lever_jacobian`) — without it a session that
+  pins S, G weakly left σ ~1.4× optimistic;
+* a_e — the hand's own translation, in nav: tremor (8–12 Hz) and sway (0.2–1 Hz), coloured.  The calibration's
+  information lives below ~1 Hz (the rotations), so the tremor band is removed rather than modelled: the specific force
+  is rotated to nav with the gyro's own attitude, low-passed there (zero-phase Butterworth, ``CUTOFF_HZ``; in nav, so
+  that the slow gravity direction, not the fast wobble the gyro also sees, is what is smoothed) and rotated back — a
+  whitening pre-filter — and the filter updates every D-th sample with R = σ_f²/D (the white noise averaged over D
+  samples: the information per second of the raw samples, not more), D = ⌊1/ρ⌋ where ρ = Σh² is the low-pass's
+  white-noise variance ratio.  The slow rest (sway) is a shaping filter per nav axis: a first-order Gauss–Markov x (σ_s,
+  τ) high-passed (τ_h, order m ∈ {1, 2}): a_e = x − z (− z₂), z the low-pass of x, z₂ that of x − z — a hand's
+  translation is bounded, so its acceleration has no power at 0 Hz (the one-sided PSD 4σ_s²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1
+  + (2πfτ_h)²)]^m, estimated from the data, is reported); three to nine states;
 * axis wobble is real rotation: the gyro sees it, nothing to remove;
-* the gyro bias b_g drifts during a session (a consumer gyro's warm-up, its g-sensitivity after a change
-  of attitude, bias instability): a random-walk state, ḃ_g = w, E w² = q_b, q_b from the rests' own
-  bias change (:func:`bias_drift`; 0 when the rests agree within their white noise), prior the first
-  rest's average; on a warming sensor (a temperature channel that moved) the warm-up's ramp in its own shape,
-  b_g(T) = b_g + c_b (T − T₀), three states (``GYRO_TEMP_BIAS``, :func:`_temp_bias_prior`), and the walk then q_b/2
-  unless the innovations reject it (``QB_LADDER``).  The filter starts after that rest (its gyro samples would otherwise inform the bias
-  twice), the tilt prior the rest's accelerometer mean's σ;
-* the gyro's g-sensitivity (a MEMS gyro's "linear acceleration sensitivity", 0.1 °/s/g for the MPU-9250
-  family): b_g,i = b_i + k_i f_i with f the (calibrated, low-passed) specific force — a bias step after every
-  change of attitude, which a random walk can only cover by inflating σ; three states, prior σ 1e-3 rad/s
-  per m/s² (0.56 °/s/g), reported in ``diagnostics["gyro_g_sensitivity"]``;
-* the accelerometer's delay behind the gyro, δ (s): f̃(t) = f(t − δ), to first order f = f̃ + δ ḟ̃ (ḟ̃ the
-  derivative of the low-passed f̃, body) — one state for the triad (``acc_delay``, :func:`_common_delay_prior`,
-  prior σ 10 ms).  The filter's attitude comes from the gyro and its levelling measurement from the
-  accelerometer, so a skew between them reads as an attitude error δ ω × g_b during every turn: at 1 rad/s a
-  1-ms skew is 10 mm/s², the signature of a 1e-3 scale factor error over the same turn.  Two triads' anti-alias
-  filters of different bandwidth make such a skew (MPU-9250 DLPF setting 3: gyro 5.9 ms, accelerometer 4.88 ms);
-  unmodelled it stayed in the innovations, and σ of S, G was inflated for it (MPU-9250 preset, ideal hand, 20 seeds:
-  NEES(6) 4.24 → 4.85 with δ estimated: δ̂ −0.81 ms mean, 0.16 ms spread over the seeds, reported σ 0.16–0.21 ms,
-  against the simulated gyro's 0.82-ms low-pass delay);
-  reported in ``diagnostics["acc_delay"]``;
-* the scale factor's temperature dependence (``gyro_temp_scale``), when the recording has a temperature
-  channel that moved ≥ ``THERMAL_MIN_SPAN_C`` (a board warming after power-on): S_i(T) = S_i(T₀) +
-  s_T,i (T − T₀), three states with a vague prior.  A session spanning a degree cannot measure s_T, but it
-  does pin S_i at the temperature where axis i's rotations happened (:func:`scale_at_temperature`), and
-  that is what is reported, with the temperatures, in ``diagnostics["temperature"]`` — a scale factor
-  holds at a temperature (measured on the MPU-9250 preset, zhou2020 schedule: 25.40, 25.24, 25.62 °C
-  for x, y, z in a session warming from 25.0 to 25.85 °C; the constant-S filter's estimates are S at
-  the same temperatures, it just did not say so);
-* likewise at a rate: a gyro's scale is not exactly linear (k ω|ω|, ±0.1 % of full scale on the MPU-9250), and a
-  linear S learnt from the session's turns is the chord slope over ±m_i, m_i = Σ|ω_i|³/Σω_i²
-  (:func:`scale_reference_rate`, reported in ``diagnostics["scale_reference_rate"]``);
+* the gyro bias b_g drifts during a session (a consumer gyro's warm-up, its g-sensitivity after a change of attitude,
+  bias instability): a random-walk state, ḃ_g = w, E w² = q_b, q_b from the rests' own bias change (:func:`bias_drift`;
+  0 when the rests agree within their white noise), prior the first rest's average; on a warming sensor (a temperature
+  channel that moved) the warm-up's ramp in its own shape, b_g(T) = b_g + c_b (T − T₀), three states
+  (``GYRO_TEMP_BIAS``, :func:`_temp_bias_prior`), and the walk then q_b/2 unless the innovations reject it
+  (``QB_LADDER``).  The filter starts after that rest (its gyro samples would otherwise inform the bias twice), the tilt
+  prior the rest's accelerometer mean's σ;
+* the gyro's g-sensitivity (a MEMS gyro's "linear acceleration sensitivity", 0.1 °/s/g for the MPU-9250 family): b_g,i =
+  b_i + k_i f_i with f the (calibrated, low-passed) specific force — a bias step after every change of attitude, which a
+  random walk can only cover by inflating σ; three states, prior σ 1e-3 rad/s per m/s² (0.56 °/s/g), reported in
+  ``diagnostics["gyro_g_sensitivity"]``;
+* the accelerometer's delay behind the gyro, δ (s): f̃(t) = f(t − δ), to first order f = f̃ + δ ḟ̃ (ḟ̃ the derivative of
+  the low-passed f̃, body) — one state for the triad (``acc_delay``, :func:`_common_delay_prior`, prior σ 10 ms).  The
+  filter's attitude comes from the gyro and its levelling measurement from the accelerometer, so a skew between them
+  reads as an attitude error δ ω × g_b during every turn: at 1 rad/s a 1-ms skew is 10 mm/s², the signature of a 1e-3
+  scale factor error over the same turn.  Two triads' anti-alias filters of different bandwidth make such a skew
+  (MPU-9250 DLPF setting 3: gyro 5.9 ms, accelerometer 4.88 ms); unmodelled it stayed in the innovations, and σ of S, G
+  was inflated for it (MPU-9250 preset, ideal hand, 20 seeds: NEES(6) 4.24 → 4.85 with δ estimated: δ̂ −0.81 ms mean,
+  0.16 ms spread over the seeds, reported σ 0.16–0.21 ms, against the simulated gyro's 0.82-ms low-pass delay); reported
+  in ``diagnostics["acc_delay"]``;
+* the scale factor's temperature dependence (``gyro_temp_scale``), when the recording has a temperature channel that
+  moved ≥ ``THERMAL_MIN_SPAN_C`` (a board warming after power-on): S_i(T) = S_i(T₀) + s_T,i (T − T₀), three states with
+  a vague prior.  A session spanning a degree cannot measure s_T, but it does pin S_i at the temperature where axis i's
+  rotations happened (:func:`scale_at_temperature`), and that is what is reported, with the temperatures, in
+  ``diagnostics["temperature"]`` — a scale factor holds at a temperature (measured on the MPU-9250 preset, zhou2020
+  schedule: 25.40, 25.24, 25.62 °C for x, y, z in a session warming from 25.0 to 25.85 °C; the constant-S filter's
+  estimates are S at the same temperatures, it just did not say so);
+* likewise at a rate: a gyro's scale is not exactly linear (k ω|ω|, ±0.1 % of full scale on the MPU-9250), and a linear
+  S learnt from the session's turns is the chord slope over ±m_i, m_i = Σ|ω_i|³/Σω_i² (:func:`scale_reference_rate`,
+  reported in ``diagnostics["scale_reference_rate"]``);
 * a gyro bias drift while the recorded temperature stayed flat (a flicker floor or a random walk — the rests cannot
-  tell): σ is the two models' mixture (:func:`_drift_ambiguity`, ``diagnostics["gyro_bias_drift"]["constant_bias_check"]``);
-* with the accelerometer estimated (``kf_hand_joint``) and a temperature channel that moved: the accelerometer
-  bias's temperature dependence, b_a(T) = b_a(T₀) + c_a (T − T₀) (``acc_temp_bias``, three states, prior σ
-  0.1 m/s²/°C) — the "zero-g level change vs. temperature" of a MEMS accelerometer (InvenSense PS-MPU-9250A-01
-  rev 1.1: ±1.5 mg/°C), first order over a session's degree as the temperature-point compensation of an
-  IMU's acceleration-channel zero bias is piecewise linear (/work/shared/seeds/001, ERICCO FOG-IMU calibration
-  §4; polynomial temperature-drift models in T − T_ref: seeds/003, Qi et al. 2017 for MEMS capacitive
-  accelerometers) — and the gyro scale's s_T as above.  Without it a warming board's bias drift (MPU-9250 preset: 0.5 mg/°C
-  σ over 25.0 → 25.85 °C) sat in the filter's constant b_a and bent the attitude it levels, so σ of S, G was
-  ~25 % small (Monte Carlo NEES 9.3 against [5.08, 7.00]).  b_a is reported at the temperatures T_a,i where it
-  decouples from c_a (:func:`acc_bias_at_temperature`) and the compensation of every sample uses b_a(T(t));
-  the initial tilt, levelled on the first rest's mean, carries c_a's error through the rest's T − T₀ in P₀.
-  Without a temperature channel nothing models the drift (measured: NEES(6) 8.3 ideal hand, 7.2 typical on
-  that preset with the channel removed; docs/hand.md).
+  tell): σ is the two models' mixture (:func:`_drift_ambiguity`,
+  ``diagnostics["gyro_bias_drift"]["constant_bias_check"]``);
+* with the accelerometer estimated (``kf_hand_joint``) and a temperature channel that moved: the accelerometer bias's
+  temperature dependence, b_a(T) = b_a(T₀) + c_a (T − T₀) (``acc_temp_bias``, three states, prior σ 0.1 m/s²/°C) — the
+  "zero-g level change vs. temperature" of a MEMS accelerometer (InvenSense PS-MPU-9250A-01 rev 1.1: ±1.5 mg/°C), first
+  order over a session's degree as the temperature-point compensation of an IMU's acceleration-channel zero bias is
+  piecewise linear (/work/shared/seeds/001, ERICCO FOG-IMU calibration §4; polynomial temperature-drift models in T −
+  T_ref: seeds/003, Qi et al. 2017 for MEMS capacitive accelerometers) — and the gyro scale's s_T as above.  Without it
+  a warming board's bias drift (MPU-9250 preset: 0.5 mg/°C σ over 25.0 → 25.85 °C) sat in the filter's constant b_a and
+  bent the attitude it levels, so σ of S, G was ~25 % small (Monte Carlo NEES 9.3 against [5.08, 7.00]).  b_a is
+  reported at the temperatures T_a,i where it decouples from c_a (:func:`acc_bias_at_temperature`) and the compensation
+  of every sample uses b_a(T(t)); the initial tilt, levelled on the first rest's mean, carries c_a's error through the
+  rest's T − T₀ in P₀. Without a temperature channel nothing models the drift (measured: NEES(6) 8.3 ideal hand, 7.2
+  typical on that preset with the channel removed; docs/hand.md).
 
 Noise levels from the data, as every estimator here (:mod:`calib.session.noiselevels`), but from the first
 rest's spectrum *above* the tremor band (:func:`white_density`): a hand's rest is not still, and its
@@ -124,23 +120,69 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
-from calib.session.paper import (_apply_observability, _initial_attitude, _observability, _tilt_sigma, prepare,
-                        refuse_if_nothing_observed, rest_mask)
-from calib.session.noiselevels import (WHITE_BAND2_HZ, WHITE_BAND_HZ, WHITE_SEGMENT_S, white_density, white_density_check,  # noqa: F401 (re-exported)
-                          white_variance_relative_sd)
-from calib.session.consistency import (INFLATION_BLOCK_S, check_estimate, check_innovations, apply_inflation, innovation_inflation, rest_gravity,
-                          verdict)
-from calib.session.kernel import LeverJacobian, _j_g, regressor_half_window, run_filter
+from calib.session.consistency import (
+    INFLATION_BLOCK_S,
+    apply_inflation,
+    check_estimate,
+    check_innovations,
+    innovation_inflation,
+    rest_gravity,
+    verdict,
+)
 from calib.session.gravityfit import GravityFit, compensate_acc, fit_gravity
-from calib.session.model import (ACC_DELAY_BLOCKS, BLOCK_LABELS, EXT_ACC_EXTRA_BLOCKS, G_SENS_BLOCKS, HAND_BIAS, HAND_JOINT, SENSOR_EXTRA_BLOCKS, FilterHistory, StateLayout, initial_covariance, leave_out_means, m_matrix,
-                     theta_slice)
 from calib.session.hand.checks import check_hand_assumptions
+from calib.session.kernel import LeverJacobian, _j_g, regressor_half_window, run_filter
+from calib.session.model import (
+    ACC_DELAY_BLOCKS,
+    BLOCK_LABELS,
+    EXT_ACC_EXTRA_BLOCKS,
+    G_SENS_BLOCKS,
+    HAND_BIAS,
+    HAND_JOINT,
+    SENSOR_EXTRA_BLOCKS,
+    FilterHistory,
+    StateLayout,
+    initial_covariance,
+    leave_out_means,
+    m_matrix,
+    theta_slice,
+)
+from calib.session.noiselevels import (  # noqa: F401 (re-exported)
+    WHITE_BAND2_HZ,
+    WHITE_BAND_HZ,
+    WHITE_SEGMENT_S,
+    white_density,
+    white_density_check,
+    white_variance_relative_sd,
+)
+from calib.session.paper import (
+    _apply_observability,
+    _initial_attitude,
+    _observability,
+    _tilt_sigma,
+    prepare,
+    refuse_if_nothing_observed,
+    rest_mask,
+)
 from calib.session.rest_bias import rest_bias
 from calib.session.spectral import gauss_markov_psd, spectral_correction, update_weights
 
-__all__ = ["kf_hand", "CUTOFF_HZ", "CONFOUND_CORRELATION", "lever_regressor", "lever_jacobian", "white_density",
-           "BiasDrift", "bias_drift", "THERMAL_MIN_SPAN_C", "session_temperature", "scale_at_temperature", "scale_reference_rate", "joint_layout",
-           "acc_bias_at_temperature"]
+__all__ = [
+    "kf_hand",
+    "CUTOFF_HZ",
+    "CONFOUND_CORRELATION",
+    "lever_regressor",
+    "lever_jacobian",
+    "white_density",
+    "BiasDrift",
+    "bias_drift",
+    "THERMAL_MIN_SPAN_C",
+    "session_temperature",
+    "scale_at_temperature",
+    "scale_reference_rate",
+    "joint_layout",
+    "acc_bias_at_temperature",
+]
 
 CUTOFF_HZ = 4.0            # below the tremor band (8–12 Hz), above the schedule's rotations (< 1 Hz)
 ORDER = 4
@@ -149,52 +191,63 @@ LOW_BAND_HZ = 0.2          # the rotations' band, where the Gauss–Markov model
 PASSES = 3
 SPECTRAL_SIGMA = True      # P corrected to the slow residual's measured spectrum (calib.session.spectral); False: the
 #                            model's P, for the before/after measurements of docs/hand.md
-PREFILTER_REFERENCE = True  # the correction's reference is the a_e model as the low-passed data can carry it (no aliases:
-#                            calib.session.spectral); False: the filter's folded model, as before (docs/hand.md)
-# kf_hand's a_e: "gauss_markov" (the high-passed Gauss–Markov family, _gm_from_residual; the default) or "band" (a
-# Gauss–Markov floor + a Butterworth band-pass, _band_from_residual; opt-in, calib.session.hand.filter:kf_hand_band — docs/hand.md,
-# "A band-limited sway model": not strictly closer to 6 on gyrosim, and ΣNEES 379 (10 seeds) with every seed "ok" on the
-# independent generator's noise-free sensor, so not the default)
+# the correction's reference is the a_e model as the low-passed data can carry it (no aliases:
+PREFILTER_REFERENCE = True
+# calib.session.spectral); False: the filter's folded model, as before (docs/hand.md) kf_hand's a_e: "gauss_markov" (the
+# high-passed Gauss–Markov family, _gm_from_residual; the default) or "band" (a Gauss–Markov floor + a Butterworth
+# band-pass, _band_from_residual; opt-in, calib.session.hand.filter:kf_hand_band — docs/hand.md, "A band-limited sway
+# model": not strictly closer to 6 on gyrosim, and ΣNEES 379 (10 seeds) with every seed "ok" on the independent
+# generator's noise-free sensor, so not the default)
 SWAY_MODELS = ("gauss_markov", "band")
 LAYOUT = HAND_BIAS         # kf_hand (accelerometer calibrated); kf_hand_joint: HAND_JOINT
 # the registered estimator each accelerometer mode of :func:`kf_hand` is (the label its result carries)
 REGISTERED_NAME = {"calibrated": "kf_hand", "estimate": "kf_hand_joint"}
 DRIFT_QUANTILE = 0.95      # the rests' bias differences must exceed their white-noise χ² quantile to be drift
 LEVER_INFLATION_BLOCK_S = 1.0   # the lever arm's σ inflation test's blocks (its information: 0.1–1 Hz; see kf_hand)
-THERMAL_MIN_SPAN_C = 0.2   # the scale factor's temperature coefficient is a state when the session's temperature moved this much
+# the scale factor's temperature coefficient is a state when the session's temperature moved this much
+THERMAL_MIN_SPAN_C = 0.2
 THERMAL_SMOOTH_S = 2.0     # the temperature channel is averaged over this window (its quantisation and noise)
-# kf_hand on a warming sensor (the temperature moved ≥ THERMAL_MIN_SPAN_C): the gyro bias's temperature coefficient c_b is a state,
-# b_g(T) = b_g + c_b (T − T₀) — the warm-up's ramp in its own shape, not a random walk fitted to its end-to-end change
+# kf_hand on a warming sensor (the temperature moved ≥ THERMAL_MIN_SPAN_C): the gyro bias's temperature coefficient c_b
+# is a state, b_g(T) = b_g + c_b (T − T₀) — the warm-up's ramp in its own shape, not a random walk fitted to its
+# end-to-end change
 GYRO_TEMP_BIAS = True
 # … and the random walk keeps what c_b does not explain, which two rests cannot measure (three degrees of freedom, c_b
-# has three): the last pass tries q_b = λ q̂_b for λ in this ladder and keeps the first whose innovations pass
-# κ̂'s test (calib.session.consistency.innovation_inflation; the last λ when none does).  Measured (MPU-9250 preset, ideal
-# hand, kf_hand, 4 × 50 seeds, NEES(6), 200-seed band [5.52, 6.48]): the random walk alone 4.75; c_b with (1,) 4.75,
-# (0.5, 1) 5.75, (0.25, 1) 6.34, (1/16, 1/4, 1) 6.9 over 100 seeds; fixed λ = 0.25 6.13 with 3 of 100 seeds
-# "inconsistent", λ = 0 5.3 with 45 of 100 (docs/hand.md, "The warm-up's ramp as a state")
+# has three): the last pass tries q_b = λ q̂_b for λ in this ladder and keeps the first whose innovations pass κ̂'s test
+# (calib.session.consistency.innovation_inflation; the last λ when none does).  Measured (MPU-9250 preset, ideal hand,
+# kf_hand, 4 × 50 seeds, NEES(6), 200-seed band [5.52, 6.48]): the random walk alone 4.75; c_b with (1,) 4.75, (0.5, 1)
+# 5.75, (0.25, 1) 6.34, (1/16, 1/4, 1) 6.9 over 100 seeds; fixed λ = 0.25 6.13 with 3 of 100 seeds "inconsistent", λ = 0
+# 5.3 with 45 of 100 (docs/hand.md, "The warm-up's ramp as a state")
 QB_LADDER = (0.5, 1.0)
 
 
 def hand_layout(temperature: bool, g_sensitivity: bool = False, band: bool = False, delay: bool = True) -> StateLayout:
     """kf_hand's states: :data:`calib.session.model.HAND_BIAS` (attitude, S, G, gyro bias, lever arm, x, z, z₂), then
     the bias's and the scale factor's temperature coefficients c_b (``GYRO_TEMP_BIAS``) and s_T when the session's
-    temperature moved (``temperature``), then with ``g_sensitivity`` the gyro's g-sensitivity (diagonal:
-    b_g,i = b_i + k_i f_i, f the specific force), then with ``delay`` (default) the accelerometer's delay behind the gyro (``acc_delay``: one δ, :func:`_common_delay_prior`)
-    — 27 to 36 states (24 to 33 without δ).  The g-sensitivity is off by default: on the measured x-IMU3 hand-held session it took the lever
-    arm's information (r̂ 5.3 → 2.0 cm, σ ×2.5–3); on the MPU-9250 preset it brought NEES into its band.  ``band``:
-    the band-limited sway's extra shaping-filter states (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`; with x, z, z₂
-    they hold the floor and the band-pass's 2·``BAND_ORDER`` states per nav axis)."""
-    return StateLayout(HAND_BIAS.blocks + (("gyro_temp_bias",) if temperature and GYRO_TEMP_BIAS else ())
-                       + (("gyro_temp_scale",) if temperature else ())
-                       + (G_SENS_BLOCKS if g_sensitivity else ()) + (EXT_ACC_EXTRA_BLOCKS[:2 * BAND_ORDER - 2] if band else ())
-                       + (ACC_DELAY_BLOCKS if delay else ()))
+    temperature moved (``temperature``), then with ``g_sensitivity`` the gyro's g-sensitivity (diagonal: b_g,i = b_i +
+    k_i f_i, f the specific force), then with ``delay`` (default) the accelerometer's delay behind the gyro
+    (``acc_delay``: one δ, :func:`_common_delay_prior`) — 27 to 36 states (24 to 33 without δ).  The g-sensitivity is
+    off by default: on the measured x-IMU3 hand-held session it took the lever arm's information (r̂ 5.3 → 2.0 cm, σ
+    ×2.5–3); on the MPU-9250 preset it brought NEES into its band.  ``band``: the band-limited sway's extra
+    shaping-filter states (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`; with x, z, z₂ they hold the floor and the
+    band-pass's 2·``BAND_ORDER`` states per nav axis)."""
+    return StateLayout(
+        HAND_BIAS.blocks
+        + (("gyro_temp_bias",) if temperature and GYRO_TEMP_BIAS else ())
+        + (("gyro_temp_scale",) if temperature else ())
+        + (G_SENS_BLOCKS if g_sensitivity else ())
+        + (EXT_ACC_EXTRA_BLOCKS[: 2 * BAND_ORDER - 2] if band else ())
+        + (ACC_DELAY_BLOCKS if delay else ())
+    )
 
 
 def _band_config(band: dict) -> dict:
     """FilterConfig fields of a fitted band-limited sway (:func:`_band_from_residual`; the floor goes in
     ``ext_acc_rms_m_s2`` / ``ext_acc_tau_s``)."""
-    return {"ext_acc_band_hz": band["band_hz"], "ext_acc_band_rms_m_s2": band["band_rms_m_s2"] if band["band_hz"] else 0.0,
-            "ext_acc_band_order": BAND_ORDER}
+    return {
+        "ext_acc_band_hz": band["band_hz"],
+        "ext_acc_band_rms_m_s2": band["band_rms_m_s2"] if band["band_hz"] else 0.0,
+        "ext_acc_band_order": BAND_ORDER,
+    }
 
 
 def _band_report(band: dict | None) -> dict:
@@ -202,24 +255,31 @@ def _band_report(band: dict | None) -> dict:
     describe its floor)."""
     if band is None:
         return {"psd_model": "gauss_markov_highpass"}
-    return {"psd_model": "gauss_markov_floor_plus_butterworth_band",
-            "band_model": ("a_e = a Gauss–Markov floor (rms_m_s2, tau_s; no high-pass) + white noise through an analog "
-                           f"Butterworth band-pass band_hz of {BAND_ORDER} poles per edge with RMS band_rms_m_s2: one-sided "
-                           "PSD 4σ²τ/(1 + (2πfτ)²) + S_b/(1 + ((f² − f₁f₂)/(f(f₂ − f₁)))^(2N))"),
-            "band_hz": list(band["band_hz"]) if band["band_hz"] else None, "band_rms_m_s2": band["band_rms_m_s2"],
-            "band_order": BAND_ORDER, "floor_rms_m_s2": band["floor_rms_m_s2"], "floor_tau_s": band["floor_tau_s"]}
+    return {
+        "psd_model": "gauss_markov_floor_plus_butterworth_band",
+        "band_model": (
+            "a_e = a Gauss–Markov floor (rms_m_s2, tau_s; no high-pass) + white noise through an analog "
+            f"Butterworth band-pass band_hz of {BAND_ORDER} poles per edge with RMS band_rms_m_s2: one-sided "
+            "PSD 4σ²τ/(1 + (2πfτ)²) + S_b/(1 + ((f² − f₁f₂)/(f(f₂ − f₁)))^(2N))"
+        ),
+        "band_hz": list(band["band_hz"]) if band["band_hz"] else None,
+        "band_rms_m_s2": band["band_rms_m_s2"],
+        "band_order": BAND_ORDER,
+        "floor_rms_m_s2": band["floor_rms_m_s2"],
+        "floor_tau_s": band["floor_tau_s"],
+    }
 
 
 # kf_hand_joint on a warming sensor: the gyro scale's temperature coefficient s_T as well as the accelerometer
 # bias's c_a (measured: docs/hand.md, "kf_hand_joint")
 JOINT_GYRO_THERMAL = True
-# … but not the gyro bias's c_b (GYRO_TEMP_BIAS, kf_hand's): measured (MPU-9250, 50 seeds per hand) it took kf_hand_joint's
-# NEES(6) from 5.59, 5.60, 5.67, 5.88 to 6.58, 6.59, 6.70, 6.89 — in band — but its NEES(15) with the accelerometer from
-# 15.85, 16.18, 16.26, 14.35 to 17.14, 17.42, 17.63, 15.74 against [13.52, 16.56]: the accelerometer's own σ is ~1.2×
-# small there (z RMS of b_a, S_a,x, S_a,y 1.13–1.33, unchanged by c_b), which the gyro's cautious σ had hidden
-# (docs/hand.md, "The warm-up's ramp as a state").  S_a's share was its scoring at ±g instead of the force the session
-# saw (acc_scale_reference_force since: NEES(15) without c_b 14.93, 15.30, 15.56, 13.85); b_a's share of the
-# accelerometer's nonlinearity remains (z RMS 1.21 on x), so c_b stays off here until that is stated too
+# … but not the gyro bias's c_b (GYRO_TEMP_BIAS, kf_hand's): measured (MPU-9250, 50 seeds per hand) it took
+# kf_hand_joint's NEES(6) from 5.59, 5.60, 5.67, 5.88 to 6.58, 6.59, 6.70, 6.89 — in band — but its NEES(15) with the
+# accelerometer from 15.85, 16.18, 16.26, 14.35 to 17.14, 17.42, 17.63, 15.74 against [13.52, 16.56]: the
+# accelerometer's own σ is ~1.2× small there (z RMS of b_a, S_a,x, S_a,y 1.13–1.33, unchanged by c_b), which the gyro's
+# cautious σ had hidden (docs/hand.md, "The warm-up's ramp as a state").  S_a's share was its scoring at ±g instead of
+# the force the session saw (acc_scale_reference_force since: NEES(15) without c_b 14.93, 15.30, 15.56, 13.85); b_a's
+# share of the accelerometer's nonlinearity remains (z RMS 1.21 on x), so c_b stays off here until that is stated too
 JOINT_GYRO_TEMP_BIAS = False
 
 
@@ -227,9 +287,10 @@ def joint_layout(temperature: bool, gyro_thermal: bool | None = None, delay: boo
                  gyro_temp_bias: bool | None = None) -> StateLayout:
     """kf_hand_joint's states: :data:`calib.session.model.HAND_JOINT` (33), and when the session's temperature moved
     (``temperature``) the accelerometer bias's temperature coefficient c_a (``acc_temp_bias``, 3 states) and —
-    ``gyro_thermal``, default ``JOINT_GYRO_THERMAL`` — the gyro scale's s_T (``gyro_temp_scale``, as kf_hand), and
-    with ``gyro_temp_bias`` (default ``JOINT_GYRO_TEMP_BIAS``, off) the gyro bias's c_b as kf_hand, and with ``delay``
-    (default) the accelerometer's delay δ (as kf_hand): 36, 39 or 42 states (33, 36 or 39 without δ; 3 more with c_b)."""
+    ``gyro_thermal``, default ``JOINT_GYRO_THERMAL`` — the gyro scale's s_T (``gyro_temp_scale``, as kf_hand), and with
+    ``gyro_temp_bias`` (default ``JOINT_GYRO_TEMP_BIAS``, off) the gyro bias's c_b as kf_hand, and with ``delay``
+    (default) the accelerometer's delay δ (as kf_hand): 36, 39 or 42 states (33, 36 or 39 without δ; 3 more with
+    c_b)."""
     dl = ACC_DELAY_BLOCKS if delay else ()
     if not temperature:
         return StateLayout(HAND_JOINT.blocks + dl)
@@ -243,7 +304,9 @@ def _smoothed_temperature(temp_c: np.ndarray, rate_hz: float) -> np.ndarray:
     """The temperature channel averaged over ``THERMAL_SMOOTH_S`` (as :func:`session_temperature`), °C."""
     from scipy.ndimage import uniform_filter1d
 
-    return uniform_filter1d(np.asarray(temp_c, float), size=max(1, int(round(THERMAL_SMOOTH_S * rate_hz))), mode="nearest")
+    return uniform_filter1d(
+        np.asarray(temp_c, float), size=max(1, int(round(THERMAL_SMOOTH_S * rate_hz))), mode="nearest"
+    )
 
 
 def _rest_temperature(temp_c: np.ndarray, rate_hz: float, a: int, b: int) -> float:
@@ -393,7 +456,8 @@ def _lowpass(x: np.ndarray, rate_hz: float) -> np.ndarray:
 
 
 def _lowpass_gain2(f_hz: np.ndarray, rate_hz: float) -> np.ndarray:
-    """|H(f)|² of :func:`_lowpass` (zero-phase: the Butterworth's |H_b|², squared), at any f (periodic in ``rate_hz``)."""
+    """|H(f)|² of :func:`_lowpass` (zero-phase: the Butterworth's |H_b|², squared), at any f (periodic in
+    ``rate_hz``)."""
     b, a = _lowpass_design(rate_hz)
     return np.abs(sp_signal.freqz(b, a, worN=np.asarray(f_hz, float), fs=rate_hz)[1]) ** 4
 
@@ -458,7 +522,8 @@ def _gm_from_residual(e: np.ndarray, dt_s: float, white_var: float,
 BAND_ORDER = 2             # Butterworth poles per band edge of the sway model (FilterConfig.ext_acc_band_hz)
 BAND_FIT_LO_HZ = 0.02      # the band powers fitted: 1/3-octave bands from here …
 BAND_FIT_HI_HZ = 3.2       # … to here (below the 4-Hz tremor pre-filter)
-UNDER_WEIGHT = 100.0       # the fit's cost of a band's power under-modelled, relative to the same log-ratio over-modelled
+# the fit's cost of a band's power under-modelled, relative to the same log-ratio over-modelled
+UNDER_WEIGHT = 100.0
 
 
 def _band_shape(f_hz: np.ndarray, f1: np.ndarray, f2: np.ndarray, order: int = BAND_ORDER) -> np.ndarray:
@@ -699,7 +764,8 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     r_var = sigma_f2 / dec
     theta = prep.theta0.copy()
     hand0 = np.zeros(6)
-    sens0 = np.zeros(3 * len(SENSOR_EXTRA_BLOCKS))   # extra blocks' nominals: c_b, s_T, k, c_a (calib.session.model.SENSOR_EXTRA_BLOCKS)
+    # extra blocks' nominals: c_b, s_T, k, c_a (calib.session.model.SENSOR_EXTRA_BLOCKS)
+    sens0 = np.zeros(3 * len(SENSOR_EXTRA_BLOCKS))
     f_rest = np.mean(rec.acc_m_s2[ra:rb], axis=0)    # the specific force during the rest that gave the bias's prior
     # pass 1's external acceleration: the session's (|f_lp| − g)² (kf_session_r's allowance, low-passed),
     # with the accelerometer compensated by the |f| = g fit when it is estimated
@@ -711,7 +777,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # what that subtraction resolves: 2σ of the white-noise variance removed (its N² measured on the first rest), as an
     # RMS — on a noisy sensor the "tremor" is the noise estimate's error (the paper's preset, VRW 15 mg/√Hz: 0.67 m/s²
     # reported, the hand's 0.09)
-    rel_n2 = white_variance_relative_sd(rec.acc_m_s2[ra:rb], fs) if vrw is not None and cfg0.vrw_m_s2_sqrt_hz == vrw else None
+    rel_n2 = (
+        white_variance_relative_sd(rec.acc_m_s2[ra:rb], fs)
+        if vrw is not None and cfg0.vrw_m_s2_sqrt_hz == vrw
+        else None
+    )
     tremor_resolution = math.sqrt(2.0 * 3 * sigma_f2 * (1 - rho) * rel_n2) if rel_n2 is not None else 0.0
     tremor_resolved = tremor_rms > tremor_resolution
     still = rest_mask(prep, n)
@@ -722,13 +792,15 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     layout = (joint_layout(thermal is not None, delay=delay) if estimate
               else hand_layout(thermal is not None, g_sensitivity, band=sway == "band", delay=delay))
     band = None
-    # the rest's mean temperature − T₀: its accelerometer mean levels the initial attitude (c_a) and its gyro mean is the
-    # bias's prior (c_b)
+    # the rest's mean temperature − T₀: its accelerometer mean levels the initial attitude (c_a) and its gyro mean is
+    # the bias's prior (c_b)
     dt_rest = _rest_temperature(rec.temp_c, fs, ra, rb) - thermal[1] if thermal is not None else 0.0
     q0 = prep.quat0_nb
     obs_notes: list[str] = []
-    out_const = None      # the last pass with a constant gyro bias, when the rests saw a drift the temperature does not explain
-    # a recorded temperature that stayed flat: the drift is not a warm-up (_drift_ambiguity); without a channel it may be
+    # the last pass with a constant gyro bias, when the rests saw a drift the temperature does not explain
+    out_const = None
+    # a recorded temperature that stayed flat: the drift is not a warm-up (_drift_ambiguity); without a channel it may
+    # be
     flat_temperature = thermal is None and rec.temp_c is not None and bool(np.all(np.isfinite(rec.temp_c[a:])))
     for p in range(PASSES):
         theta[theta_slice("gyro_bias")] = prep.theta0[theta_slice("gyro_bias")]   # each pass starts at the rest's bias
@@ -753,7 +825,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                 band = _band_from_residual(e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2)
                 sigma_s, tau, tau_hp, hp_order = band["floor_rms_m_s2"], band["floor_tau_s"], math.inf, 1
             else:
-                sigma_s, tau, tau_hp, hp_order = _gm_from_residual(e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2)
+                sigma_s, tau, tau_hp, hp_order = _gm_from_residual(
+                    e, 1.0 / fs, sigma_f2 * rho, 2.0 * cfg0.vrw_m_s2_sqrt_hz**2
+                )
             sigma_s = max(sigma_s, 1e-3 * math.sqrt(r_var))
         cfg = type(cfg0)(**{**cfg0.__dict__, "external_acc_allowance_m_s2": 0.0, "ext_acc_rms_m_s2": sigma_s,
                             "ext_acc_tau_s": tau, "ext_acc_highpass_tau_s": tau_hp, "ext_acc_highpass_order": hp_order,
@@ -810,10 +884,10 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # ideal-hand cells validate, and what the residual shows beyond it is the filter's own estimation error: on the
     # independent generator without a hand it moved σ of G by up to ×1.2 at random); not for the band model's general
     # shaping filter (the adjoint follows the Gauss–Markov states), nor for a noise-free sensor (its S, G errors come
-    # from the filter's linearisation, not from a_e: measured 7e-5 against the linear prediction's 1e-5)
-    # (the gate is the last pass's record= above: the record exists exactly when it applies)
-    # the slow residual, f_lp − K r̂ (N, 3, body) and e = |f_lp − K r̂| − g (attitude-free): the spectral σ's data and the
-    # hand-assumption check's displacement data
+    # from the filter's linearisation, not from a_e: measured 7e-5 against the linear prediction's 1e-5) (the gate is
+    # the last pass's record= above: the record exists exactly when it applies) the slow residual, f_lp − K r̂ (N, 3,
+    # body) and e = |f_lp − K r̂| − g (attitude-free): the spectral σ's data and the hand-assumption check's
+    # displacement data
     slow_f = f_lp - np.einsum("nij,j->ni", kreg, hand0[:3])
     slow_resid = np.linalg.norm(slow_f, axis=1) - cfg0.gravity_m_s2
     if out.record is not None:
@@ -860,9 +934,11 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # the accelerometer's S likewise at the specific force its updates saw (the compensated, low-passed f̂ there)
     force_ref = acc_scale_reference_force(f_lp[upd]) if estimate else None
     if layout.has("gyro_temp_scale"):
-        theta[theta_slice("gyro_scale")] += sens0[3:6] * (t_ref - thermal[1])   # S_i(T_r,i) = S_i(T₀) + s_T,i (T_r,i − T₀)
+        # S_i(T_r,i) = S_i(T₀) + s_T,i (T_r,i − T₀)
+        theta[theta_slice("gyro_scale")] += sens0[3:6] * (t_ref - thermal[1])
     if layout.has("acc_temp_bias"):
-        theta[theta_slice("acc_bias")] += sens0[9:12] * (t_ref_a - thermal[1])  # b_a,i(T_a,i) = b_a,i(T₀) + c_a,i (T_a,i − T₀)
+        # b_a,i(T_a,i) = b_a,i(T₀) + c_a,i (T_a,i − T₀)
+        theta[theta_slice("acc_bias")] += sens0[9:12] * (t_ref_a - thermal[1])
     values = {BLOCK_LABELS[b]: theta[theta_slice(b)] for b in blocks}
     checks = [check_innovations(out.nis[0][upd[1:]], rows, fs / dec), check_estimate(values, cov, cfg0.gravity_m_s2)]
     if estimate:   # |f̂| = g at the rests, as calib run's joint filter checks its accelerometer
@@ -881,15 +957,19 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
         # 5.8 σ) — refused, but the advice about a hand's acceleration would mislead, so say what it is
-        notes.append("noise-free input: the sensor noise at rest sits at its numerical floor, so σ comes from that floor "
+        notes.append("noise-free input: the sensor noise at rest sits at its numerical floor, so σ comes from that "
+                     "floor "
                      "and does not cover the estimate's discretisation error (the rate integration of the motion, "
                      "typically ~1e-6 in S, G at 100 Hz): the estimate is close but its σ is not honest, hence "
                      f"'{status}'. Real data has noise; for a simulated check compare against the truth directly")
     if drift.q_rad2_s3 > 0:
-        modelled = (f"modelled as the bias's temperature coefficient c_b (diagnostics.temperature) and a random walk of "
-                    f"{math.sqrt(qb_factor) * drift.rrw_rad_s_sqrt_s:.2e} rad/s/√s ({qb_factor:g} × the rests' q_b for what "
-                    "c_b leaves: ½ unless the innovations reject it, QB_LADDER)" if layout.has("gyro_temp_bias") else
-                    f"modelled as a random walk of {drift.rrw_rad_s_sqrt_s:.2e} rad/s/√s (from the rests, bias_drift)")
+        modelled = (
+            f"modelled as the bias's temperature coefficient c_b (diagnostics.temperature) and a random walk of "
+            f"{math.sqrt(qb_factor) * drift.rrw_rad_s_sqrt_s:.2e} rad/s/√s ({qb_factor:g} × the rests' q_b for what "
+            "c_b leaves: ½ unless the innovations reject it, QB_LADDER)"
+            if layout.has("gyro_temp_bias")
+            else f"modelled as a random walk of {drift.rrw_rad_s_sqrt_s:.2e} rad/s/√s (from the rests, bias_drift)"
+        )
         notes.append(f"gyro bias drift: the rests' bias moved beyond their noise (χ² {drift.chi2:.0f} on {drift.dof}, "
                      f"95 % bound {drift.threshold:.1f}); {modelled}; a longer warm-up before the session or a "
                      "temperature-stable sensor gives a smaller σ")
@@ -914,9 +994,12 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                          "b_a(T)) or warm the sensor up first")
     dly = _delay_report(sens0, P, layout, infl.factor) if layout.models_acc_delay else None
     if dly is not None:
-        notes.append(f"timing: the accelerometer samples {dly['delay_s'] * 1e3:+.2f} ± {dly['std_s'] * 1e3:.2f} ms after the gyro "
-                     "(estimated; negative: before) — a skew between the triads or their low-pass filters' different delays, "
-                     "modelled so that it does not enter S and G")
+        notes.append(
+            f"timing: the accelerometer samples {dly['delay_s'] * 1e3:+.2f} ± {dly['std_s'] * 1e3:.2f} ms after the "
+            "gyro "
+            "(estimated; negative: before) — a skew between the triads or their low-pass filters' different delays, "
+            "modelled so that it does not enter S and G"
+        )
     r_hat = hand0[:3]
     # the lever arm's σ: its information sits at the turns' ω̇ and ω² (0.1–1 Hz, inside the sway band, where the
     # fitted model understates the power), above the < 0.125 Hz that κ̂'s 4-s blocks measure; the same one-sided
@@ -943,19 +1026,32 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                      "consistency test (3–5× small on a noise-free sensor with a line-spectrum sway; docs/hand.md, "
                      "'A band-limited sway model'), so its result is never 'ok'. Use kf_hand (calib run --method hand "
                      "--accelerometer calibrated) for an answer whose σ has been validated")
-    hand = {"lever_arm_m": r_hat.tolist(), "lever_arm_std_m": r_sd.tolist(),
-            "lever_arm_sigma_inflation": {**infl_r.to_dict(), "block_s": LEVER_INFLATION_BLOCK_S,
-                                          "covariance_factor": max(infl_test.factor, infl_r.factor)},
-            "external_acc_psd": {"model": "a_e = a first-order Gauss–Markov x (rms_m_s2, tau_s) per nav axis after the tremor "
-                                          "low-pass, high-passed (highpass_tau_s, highpass_order m; null: none): "
-                                          "one-sided PSD 4σ²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m",
-                                 "rms_m_s2": sigma_s, "tau_s": tau,
-                                 "highpass_tau_s": tau_hp if math.isfinite(tau_hp) else None,
-                                 "highpass_order": hp_order, "acc_rms_m_s2": cfg.ext_acc_rms_a_m_s2,
-                                 "psd_one_sided_0hz_m2_s4_per_hz": 4 * sigma_s**2 * tau if not math.isfinite(tau_hp) else 0.0,
-                                 "tremor_band_rms_m_s2": tremor_rms, "tremor_band_resolution_m_s2": tremor_resolution,
-                                 "tremor_band_resolved": tremor_resolved, "lowpass_hz": CUTOFF_HZ,
-                                 "update_every_samples": dec, **_band_report(band)}}
+    hand = {
+        "lever_arm_m": r_hat.tolist(),
+        "lever_arm_std_m": r_sd.tolist(),
+        "lever_arm_sigma_inflation": {
+            **infl_r.to_dict(),
+            "block_s": LEVER_INFLATION_BLOCK_S,
+            "covariance_factor": max(infl_test.factor, infl_r.factor),
+        },
+        "external_acc_psd": {
+            "model": "a_e = a first-order Gauss–Markov x (rms_m_s2, tau_s) per nav axis after the tremor "
+            "low-pass, high-passed (highpass_tau_s, highpass_order m; null: none): "
+            "one-sided PSD 4σ²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m",
+            "rms_m_s2": sigma_s,
+            "tau_s": tau,
+            "highpass_tau_s": tau_hp if math.isfinite(tau_hp) else None,
+            "highpass_order": hp_order,
+            "acc_rms_m_s2": cfg.ext_acc_rms_a_m_s2,
+            "psd_one_sided_0hz_m2_s4_per_hz": 4 * sigma_s**2 * tau if not math.isfinite(tau_hp) else 0.0,
+            "tremor_band_rms_m_s2": tremor_rms,
+            "tremor_band_resolution_m_s2": tremor_resolution,
+            "tremor_band_resolved": tremor_resolved,
+            "lowpass_hz": CUTOFF_HZ,
+            "update_every_samples": dec,
+            **_band_report(band),
+        },
+    }
     if spectral is not None:
         fsg = [v for k, v in spectral["sigma_factor"].items() if k.startswith(("gyro_scale", "gyro_nonorth"))]
         notes.append(f"σ of S, G follows the slow residual's own spectrum, not the fitted a_e model's: ×{min(fsg):.2f}–"
@@ -980,40 +1076,65 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
                  "gravity_fit": {"bias_m_s2": gf.bias_m_s2, "scale_factor": gf.scale_factor,
                                  "nonorthogonality": gf.nonorthogonality, "std": np.sqrt(np.diag(gf.covariance)),
                                  "residual_rms_m_s2": gf.residual_rms_m_s2, "samples": gf.samples}}
-    cal = Calibration.from_linear(gyro=gyro, accelerometer=acc_params, covariance=cov, status=status,
-                                  warnings=prep.warnings + tuple(obs_notes + notes), method=REGISTERED_NAME[accelerometer],
-                                  diagnostics={"hand": hand, "consistency": {**checks[0].to_dict(), "sigma_inflation": {**infl_test.to_dict(), "covariance_factor": infl.factor,
-                                                                     "sigma_factor": infl.sigma_factor,
-                                                                     "applied": "one-sided"},
-                                                               "spectral_covariance": spectral},
-                                                "noise": {"arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
-                                                          "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
-                                                          # the hand-blind filters' R allowance (calib run's JSON key):
-                                                          # none here, a_e is modelled (diagnostics.hand)
-                                                          "external_acc_allowance_m_s2": 0.0,
-                                                          "gravity_m_s2": cfg0.gravity_m_s2,
-                                                          # the rest's spectrum: the density above the tremor and at
-                                                          # 2–6 Hz, and whether an output low-pass rolled it off
-                                                          "gyro_white_density_check": wd_g.to_dict() if wd_g else None,
-                                                          "acc_white_density_check": wd_a.to_dict() if wd_a else None},
-                                                "rest_segments": prep.rest.to_list(),
-                                                "gyro_bias_drift": {**drift.to_dict(),
-                                                                    # the random walk the last pass used: q_b × this
-                                                                    "random_walk_factor_used": qb_factor,
-                                                                    **({"constant_bias_check": ambiguity}
-                                                                       if ambiguity is not None else {})},
-                                                "gyro_bias": rbias.to_dict(),
-                                                "temperature": {k: v for k, v in temperature.items() if k != "note"},
-                                                "scale_reference_rate": rate_ref,
-                                                **({"acc_scale_reference_force": force_ref} if force_ref is not None else {}),
-                                                **({"gyro_g_sensitivity": _g_sensitivity_report(sens0, P, layout, infl.factor)}
-                                                   if layout.models_g_sensitivity else {}),
-                                                **({"acc_delay": dly} if dly is not None else {}),
-                                                "assumptions": assumptions.to_dict(),
-                                                **extra,
-                                                "filter": {"states": list(layout.names), "passes": PASSES,
-                                                           "samples": int(n), "rate_hz": fs,
-                                                           "start_s": float(rec.t_s[a])}})
+    cal = Calibration.from_linear(
+        gyro=gyro,
+        accelerometer=acc_params,
+        covariance=cov,
+        status=status,
+        warnings=prep.warnings + tuple(obs_notes + notes),
+        method=REGISTERED_NAME[accelerometer],
+        diagnostics={
+            "hand": hand,
+            "consistency": {
+                **checks[0].to_dict(),
+                "sigma_inflation": {
+                    **infl_test.to_dict(),
+                    "covariance_factor": infl.factor,
+                    "sigma_factor": infl.sigma_factor,
+                    "applied": "one-sided",
+                },
+                "spectral_covariance": spectral,
+            },
+            "noise": {
+                "arw_rad_s_sqrt_hz": cfg0.arw_rad_s_sqrt_hz,
+                "vrw_m_s2_sqrt_hz": cfg0.vrw_m_s2_sqrt_hz,
+                # the hand-blind filters' R allowance (calib run's JSON key):
+                # none here, a_e is modelled (diagnostics.hand)
+                "external_acc_allowance_m_s2": 0.0,
+                "gravity_m_s2": cfg0.gravity_m_s2,
+                # the rest's spectrum: the density above the tremor and at
+                # 2–6 Hz, and whether an output low-pass rolled it off
+                "gyro_white_density_check": wd_g.to_dict() if wd_g else None,
+                "acc_white_density_check": wd_a.to_dict() if wd_a else None,
+            },
+            "rest_segments": prep.rest.to_list(),
+            "gyro_bias_drift": {
+                **drift.to_dict(),
+                # the random walk the last pass used: q_b × this
+                "random_walk_factor_used": qb_factor,
+                **({"constant_bias_check": ambiguity} if ambiguity is not None else {}),
+            },
+            "gyro_bias": rbias.to_dict(),
+            "temperature": {k: v for k, v in temperature.items() if k != "note"},
+            "scale_reference_rate": rate_ref,
+            **({"acc_scale_reference_force": force_ref} if force_ref is not None else {}),
+            **(
+                {"gyro_g_sensitivity": _g_sensitivity_report(sens0, P, layout, infl.factor)}
+                if layout.models_g_sensitivity
+                else {}
+            ),
+            **({"acc_delay": dly} if dly is not None else {}),
+            "assumptions": assumptions.to_dict(),
+            **extra,
+            "filter": {
+                "states": list(layout.names),
+                "passes": PASSES,
+                "samples": int(n),
+                "rate_hz": fs,
+                "start_s": float(rec.t_s[a]),
+            },
+        },
+    )
     if keep_history:   # the last pass's √P, θ̂, innovations and NIS per step (calib run --rrd shows P converge)
         cal = replace(cal, history=FilterHistory(rec.t_s[a + 1:], out.sd_history[0], out.theta_history[0],
                                                  out.innovation[0], out.nis[0], layout.names))
@@ -1032,15 +1153,16 @@ SPECTRAL_BLOCKS = ("gyro_scale", "gyro_nonorth", "lever_arm", "acc_bias", "acc_s
 
 def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, f_lp: np.ndarray, slow_f: np.ndarray,
                     slow_resid: np.ndarray, kreg: np.ndarray, fs: float, dec: int, r_var: float, estimate: bool):
-    """P with the σ of :data:`SPECTRAL_BLOCKS` from the slow residual's own spectrum (calib.session.spectral):
-    P_D = P + ΔP gives each state's variance, and P → D P D, D = diag(σ_D/σ) on those states (1 elsewhere), keeps
-    the model's correlations, so P stays positive definite (the temperatures where S and b_a are stated still come
-    from the filter's own P: kf_hand).  ``slow_f`` = f_lp − K r̂ (N, 3) and ``slow_resid`` = |slow_f| − g (N,): kf_hand's
-    slow residual.  Returns (P, the correction's report)."""
+    """P with the σ of :data:`SPECTRAL_BLOCKS` from the slow residual's own spectrum (calib.session.spectral): P_D = P +
+    ΔP gives each state's variance, and P → D P D, D = diag(σ_D/σ) on those states (1 elsewhere), keeps the model's
+    correlations, so P stays positive definite (the temperatures where S and b_a are stated still come from the filter's
+    own P: kf_hand).  ``slow_f`` = f_lp − K r̂ (N, 3) and ``slow_resid`` = |slow_f| − g (N,): kf_hand's slow residual.
+    Returns (P, the correction's report)."""
     sel = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in SPECTRAL_BLOCKS if layout.has(b)])
     wts = update_weights(out.record, layout, sel, cfg.ext_acc_highpass_order)
     u = slow_f / np.linalg.norm(slow_f, axis=1)[:, None]
-    # ∂e/∂β of the estimated terms in e: the lever arm (−uᵀK) and, estimated, the accelerometer's b, S, G (−uᵀ[I, diag f, J_G(f)])
+    # ∂e/∂β of the estimated terms in e: the lever arm (−uᵀK) and, estimated, the accelerometer's b, S, G (−uᵀ[I, diag
+    # f, J_G(f)])
     jac = [-np.einsum("ni,nij->nj", u, kreg)]
     blocks = [layout.offset("lever_arm")]
     if estimate:
@@ -1064,14 +1186,15 @@ def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, f_lp: np.ndarr
 
 def kf_hand_band(rec: Recording) -> Calibration:
     """``kf_hand`` with the band-limited sway model (``sway="band"``: a Gauss–Markov floor + a Butterworth band-pass,
-    :func:`_band_from_residual`); by import path ``calib.session.hand.filter:kf_hand_band`` (``calib montecarlo --methods``).
-    Opt-in: docs/hand.md, "A band-limited sway model"."""
+    :func:`_band_from_residual`); by import path ``calib.session.hand.filter:kf_hand_band`` (``calib montecarlo
+    --methods``). Opt-in: docs/hand.md, "A band-limited sway model"."""
     return kf_hand(rec, sway="band")
 
 
 def kf_hand_g_sensitivity(rec: Recording) -> Calibration:
     """``kf_hand`` with the gyro's g-sensitivity block on (:func:`hand_layout`); by import path
-    ``calib.session.hand.filter:kf_hand_g_sensitivity`` (``calib montecarlo --methods``, benchmarks/mpu9250_ablation.py)."""
+    ``calib.session.hand.filter:kf_hand_g_sensitivity`` (``calib montecarlo --methods``,
+    benchmarks/mpu9250_ablation.py)."""
     return kf_hand(rec, g_sensitivity=True)
 
 
@@ -1181,9 +1304,12 @@ def scale_reference_rate(omega_rad_s: np.ndarray) -> dict:
     (warmed-up MPU-9250, ideal hand, 200 seeds): the S error's regression on k_i gives m_eff 0.79, 0.94, 0.96 rad/s
     against m_i 0.92, 1.03, 1.10; scoring S at m_i takes NEES(6) 6.77 → 6.21 (band [5.52, 6.48]).  Also
     reported: the largest |ω_i| and the RMS of ω_i (rad/s), the span over which the statement was learnt."""
-    return {"rate_rad_s": _chord_point(omega_rad_s).tolist(), "max_abs_rate_rad_s": np.max(np.abs(omega_rad_s), axis=0).tolist(),
-            "rms_rate_rad_s": np.sqrt(np.mean(omega_rad_s**2, axis=0)).tolist(),
-            "rule": "m_i = Σ|ω_i|³/Σω_i²: S_i is the chord slope of the gyro's response over ±m_i"}
+    return {
+        "rate_rad_s": _chord_point(omega_rad_s).tolist(),
+        "max_abs_rate_rad_s": np.max(np.abs(omega_rad_s), axis=0).tolist(),
+        "rms_rate_rad_s": np.sqrt(np.mean(omega_rad_s**2, axis=0)).tolist(),
+        "rule": "m_i = Σ|ω_i|³/Σω_i²: S_i is the chord slope of the gyro's response over ±m_i",
+    }
 
 
 def acc_scale_reference_force(f_m_s2: np.ndarray) -> dict:
@@ -1195,8 +1321,11 @@ def acc_scale_reference_force(f_m_s2: np.ndarray) -> dict:
     counted k_i (g − m_i) as error: measured, the MPU-9250 joint's z RMS of S_a,x, S_a,y 1.32, 1.26, and 1.10, 1.11
     with the nonlinearity neutralised (ideal hand, 50 paired seeds)."""
     f = np.asarray(f_m_s2, float)
-    return {"specific_force_m_s2": _chord_point(f).tolist(), "max_abs_specific_force_m_s2": np.max(np.abs(f), axis=0).tolist(),
-            "rule": "m_i = Σ|f_i|³/Σf_i²: S_a,i is the chord slope of the accelerometer's response over ±m_i"}
+    return {
+        "specific_force_m_s2": _chord_point(f).tolist(),
+        "max_abs_specific_force_m_s2": np.max(np.abs(f), axis=0).tolist(),
+        "rule": "m_i = Σ|f_i|³/Σf_i²: S_a,i is the chord slope of the accelerometer's response over ±m_i",
+    }
 
 
 def _chord_point(x: np.ndarray) -> np.ndarray:
@@ -1226,7 +1355,8 @@ def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.nd
         cb_sd = np.sqrt(np.diag(P[ob:ob + 3, ob:ob + 3]) * inflation)
         out.update({"bias_temperature_coefficient_rad_s_per_c": c_b.tolist(),
                     "bias_temperature_coefficient_std_rad_s_per_c": cb_sd.tolist()})
-        note += (f"; the gyro bias is modelled as b_g + c_b (T − T₀): c_b = {np.array2string(np.degrees(c_b), precision=3)}"
+        note += ("; the gyro bias is modelled as b_g + c_b (T − T₀): c_b = "
+                 f"{np.array2string(np.degrees(c_b), precision=3)}"
                  f" ± {np.array2string(np.degrees(cb_sd), precision=3)} °/s/°C")
     o = layout.offset("gyro_temp_scale")
     if o >= 0:
@@ -1235,11 +1365,14 @@ def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.nd
         out.update({"scale_reference_temperature_c": np.asarray(t_ref_c).tolist(),
                     "scale_temperature_coefficient_per_c": s_t.tolist(),
                     "scale_temperature_coefficient_std_per_c": s_sd.tolist()})
-        note += (f"; the gyro scale factor is modelled as S + s_T (T − T₀) and reported at "
-                 f"{np.array2string(np.asarray(t_ref_c), precision=2)} °C (x, y, z: where this session's rotations about each axis "
-                 "determined it; a scale factor holds at a temperature); s_T = "
-                 f"{np.array2string(s_t * 1e6, precision=0)} ± {np.array2string(s_sd * 1e6, precision=0)} ppm/°C (a session "
-                 "spanning a degree cannot measure it: a calibration at two temperatures can)")
+        note += (
+            f"; the gyro scale factor is modelled as S + s_T (T − T₀) and reported at "
+            f"{np.array2string(np.asarray(t_ref_c), precision=2)} °C (x, y, z: where this session's rotations about "
+            "each axis "
+            "determined it; a scale factor holds at a temperature); s_T = "
+            f"{np.array2string(s_t * 1e6, precision=0)} ± {np.array2string(s_sd * 1e6, precision=0)} ppm/°C (a session "
+            "spanning a degree cannot measure it: a calibration at two temperatures can)"
+        )
     oc = layout.offset("acc_temp_bias")
     if oc >= 0 and t_ref_acc_c is not None:
         c_a = sens[9:12]
@@ -1248,9 +1381,12 @@ def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.nd
                     "acc_bias_temperature_coefficient_m_s2_per_c": c_a.tolist(),
                     "acc_bias_temperature_coefficient_std_m_s2_per_c": c_sd.tolist()})
         mg = 1e3 / 9.80665
-        note += (f"; the accelerometer bias is modelled as b_a + c_a (T − T₀) and reported at "
-                 f"{np.array2string(np.asarray(t_ref_acc_c), precision=2)} °C (x, y, z: where this session's attitudes "
-                 f"determined it); c_a = {np.array2string(c_a * mg, precision=2)} ± {np.array2string(c_sd * mg, precision=2)} mg/°C")
+        note += (
+            f"; the accelerometer bias is modelled as b_a + c_a (T − T₀) and reported at "
+            f"{np.array2string(np.asarray(t_ref_acc_c), precision=2)} °C (x, y, z: where this session's attitudes "
+            f"determined it); c_a = {np.array2string(c_a * mg, precision=2)} ± "
+            f"{np.array2string(c_sd * mg, precision=2)} mg/°C"
+        )
     out["note"] = note
     return out
 
@@ -1266,9 +1402,14 @@ def _g_sensitivity_report(sens: np.ndarray, P: np.ndarray, layout, inflation: fl
     sd = np.sqrt(np.clip(np.diag(P)[o:o + 3], 0.0, None) * inflation)
     to_deg_g = math.degrees(1.0) * 9.80665
     cov = P[o:o + 3, o:o + 3] * inflation
-    return {"model": "b_g,i = b_i + k_i f_i (f the specific force, body; diagonal g-sensitivity)",
-            "k_rad_s_per_m_s2": k.tolist(), "std_rad_s_per_m_s2": sd.tolist(), "covariance_rad2_s2_per_m2_s4": cov.tolist(),
-            "k_deg_s_per_g": (k * to_deg_g).tolist(), "std_deg_s_per_g": (sd * to_deg_g).tolist()}
+    return {
+        "model": "b_g,i = b_i + k_i f_i (f the specific force, body; diagonal g-sensitivity)",
+        "k_rad_s_per_m_s2": k.tolist(),
+        "std_rad_s_per_m_s2": sd.tolist(),
+        "covariance_rad2_s2_per_m2_s4": cov.tolist(),
+        "k_deg_s_per_g": (k * to_deg_g).tolist(),
+        "std_deg_s_per_g": (sd * to_deg_g).tolist(),
+    }
 
 
 def _delay_report(sens: np.ndarray, P: np.ndarray, layout, inflation: float) -> dict:
@@ -1280,21 +1421,22 @@ def _delay_report(sens: np.ndarray, P: np.ndarray, layout, inflation: float) -> 
     o = layout.offset("acc_delay")
     d = float(np.mean(sens[12:15]))
     sd = math.sqrt(max(float(P[o, o]), 0.0) * inflation)
-    return {"model": "f̃(t) = f(t − δ): the accelerometer samples δ after the gyro (first order in δ; one δ for the triad)",
+    return {"model": "f̃(t) = f(t − δ): the accelerometer samples δ after the gyro (first order in δ; one δ for the "
+                     "triad)",
             "delay_s": d, "std_s": sd}
 
 
 def _gravity_fit_lever_free(rec: Recording, prep, start: int, kreg: np.ndarray, r_m: np.ndarray,
                             theta_a: np.ndarray) -> GravityFit:
-    """The |f| = g fit of :func:`calib.session.paper.prepare` (same samples from the first rest on, weights,
-    prior) on f̃ − K(ω, ω̇) r̂ (the rest itself uncorrected: ω = 0 there): a hand's steady turn about a
-    pivot adds a constant centripetal ω × (ω × r) that a quasi-static |f| = g fit reads as accelerometer
-    bias (measured: b_y off by 0.05 m/s², 27 of its σ, with the typical hand's 6 cm).  The lever arm's
-    acceleration in raw units is M_a K r̂ ≈ K r̂ (the difference is second order: S_a · K r̂).  The hand's
-    sway and tremor stay in the residuals, correlated over seconds: the covariance is the fit's block-sum
-    sandwich over ``INFLATION_BLOCK_S`` blocks (Newey & West 1987's batch means; :func:`calib.session.gravityfit.fit_gravity`,
-    ``block_samples``), not the white-residual (Jᵀ W J)⁻¹, which was ~2× optimistic in σ for the accelerometer on
-    the independent generator's hand and, scaling as 1/N, made the joint's prior depend on the sample rate."""
+    """The |f| = g fit of :func:`calib.session.paper.prepare` (same samples from the first rest on, weights, prior) on
+    f̃ − K(ω, ω̇) r̂ (the rest itself uncorrected: ω = 0 there): a hand's steady turn about a pivot adds a constant
+    centripetal ω × (ω × r) that a quasi-static |f| = g fit reads as accelerometer bias (measured: b_y off by 0.05 m/s²,
+    27 of its σ, with the typical hand's 6 cm).  The lever arm's acceleration in raw units is M_a K r̂ ≈ K r̂ (the
+    difference is second order: S_a · K r̂).  The hand's sway and tremor stay in the residuals, correlated over seconds:
+    the covariance is the fit's block-sum sandwich over ``INFLATION_BLOCK_S`` blocks (Newey & West 1987's batch means;
+    :func:`calib.session.gravityfit.fit_gravity`, ``block_samples``), not the white-residual (Jᵀ W J)⁻¹, which was ~2×
+    optimistic in σ for the accelerometer on the independent generator's hand and, scaling as 1/N, made the joint's
+    prior depend on the sample rate."""
     ra, _ = prep.rest_range
     cfg = prep.config
     fs = rec.rate_hz
@@ -1319,11 +1461,14 @@ def _confounding(P: np.ndarray, ol: int, layout: StateLayout = HAND_BIAS) -> Non
                 bad.append(f"lever arm {names[i]} with {names[j]} (correlation {corr[i, j]:+.3f})")
     if bad:
         raise RecordingError(
-            "this session's motion cannot separate the hand's lever arm from the gyro errors: " + "; ".join(bad) +
-            ". The lever arm's acceleration grows with ω² and ω̇, a scale or axis error's attitude error with the "
+            "this session's motion cannot separate the hand's lever arm from the gyro errors: "
+            + "; ".join(bad)
+            + ". The lever arm's acceleration grows with ω² and ω̇, a scale or axis error's attitude error with the "
             "angle turned: repeat the rotations about each axis at two clearly different speeds (one at least "
-            "twice the other), including rotations about horizontal axes — or use --method kf_session if the device turned "
-            "about its own sensor (no lever arm)")
+            "twice the other), including rotations about horizontal axes — or use --method kf_session if the device "
+            "turned "
+            "about its own sensor (no lever arm)"
+        )
 
 
 CROSS_CHECK_TAIL = 0.001
@@ -1382,9 +1527,16 @@ def hand_cross_check(rec: Recording, gyro_params: np.ndarray, cov_sg: np.ndarray
     if not bad:
         return [], diag
     r_cm = np.array(h.diagnostics["hand"]["lever_arm_m"]) * 100
-    return [f"inconsistent: the hand-aware estimate ({h.method}) differs from this one by χ² {stat:.0f} on 6 S, G "
-            f"(99.9 % bound {thr:.1f}), up to {3 * under:.1f} σ"
-            + (f" (with {h.method}'s own 2σ the error may reach {bound:.1f} σ, beyond 3 σ)" if joint and bound > 3.0 else "")
-            + (f": σ is understated at least ×{under:.1f}" if under > 1.0 else "") + ". The hand "
-            f"turned the device about a point {np.array2string(r_cm, precision=1)} cm away (lever arm, body frame), "
-            f"whose acceleration this model reads as gravity; use {h.method} (calib run --method hand)"], diag
+    return [
+        f"inconsistent: the hand-aware estimate ({h.method}) differs from this one by χ² {stat:.0f} on 6 S, G "
+        f"(99.9 % bound {thr:.1f}), up to {3 * under:.1f} σ"
+        + (
+            f" (with {h.method}'s own 2σ the error may reach {bound:.1f} σ, beyond 3 σ)"
+            if joint and bound > 3.0
+            else ""
+        )
+        + (f": σ is understated at least ×{under:.1f}" if under > 1.0 else "")
+        + ". The hand "
+        f"turned the device about a point {np.array2string(r_cm, precision=1)} cm away (lever arm, body frame), "
+        f"whose acceleration this model reads as gravity; use {h.method} (calib run --method hand)"
+    ], diag
