@@ -1,3 +1,5 @@
+"""``python -m calib``: the ``calib`` command line (:func:`calib.app.cli.main`)."""
+
 import sys
 
 from calib.app.cli import main

@@ -1,3 +1,5 @@
+"""``python -m gyrosim``: the ``gyrosim`` command line (:func:`gyrosim.cli.main`)."""
+
 import sys
 
 from .cli import main
