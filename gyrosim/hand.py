@@ -207,7 +207,7 @@ class Hand:
         return asdict(self)
 
     def without(self, *parts: str) -> "Hand":
-        """This hand with the named imperfections switched off (:data:`IMPERFECTIONS`: ``tremor``,
+        """A copy of the hand with the named imperfections switched off (:data:`IMPERFECTIONS`: ``tremor``,
         ``tremor_rotation``, ``sway``, ``pivot``, ``wobble``), the others unchanged — for a robustness test of an
         estimator against each imperfection alone.  The child random streams are independent (module
         docstring), so a variant simulated with the same seed keeps the other imperfections' draws exactly.

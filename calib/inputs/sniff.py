@@ -1,7 +1,7 @@
-"""What a file is, from its content (never from its name): HDF5 or text, and for text the encoding
+r"""What a file is, from its content (never from its name): HDF5 or text, and for text the encoding
 (UTF-8, with or without a byte-order mark; UTF-16 with one) and the field separator.
 
-* HDF5: the 8-byte signature ``\\x89HDF\\r\\n\\x1a\\n`` at offset 0, 512, 1024, 2048, … (a user block
+* HDF5: the 8-byte signature ``\x89HDF\r\n\x1a\n`` at offset 0, 512, 1024, 2048, … (a user block
   may precede it; HDF5 spec §II.A).
 * Text: decodes as UTF-8 (a leading BOM is removed and named), or as UTF-16 when it starts with a
   UTF-16 BOM, or as Latin-1 when it is printable in it (old Windows exports with "°"); anything

@@ -284,7 +284,7 @@ class Effect:
         return None
 
     def ieee952_terms(self) -> dict[str, np.ndarray]:
-        """This effect's share of the IEEE Std 952 three-term noise model, per axis (SI):
+        """The effect's share of the IEEE Std 952 three-term noise model, per axis (SI):
         ``arw`` N (white: σ_A = N/√τ), ``bias_instability`` B (flicker: σ_A = 0.664 B),
         ``rate_random_walk`` K (Wiener: σ_A = K√(τ/3)).  {} for everything else, so a caller
         (e.g. the covariance of window means in calib.noise.window_means) can sum over a triad's effects
