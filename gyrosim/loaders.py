@@ -5,13 +5,21 @@ Measured data are never part of the project: they are read from a folder, by def
 ``GYROSIM_DATA``.  Every loader keeps the source's attribution (``meta['source']``,
 ``meta['licence']``) and states its unit conversions in ``meta['conversion']``.
 
-| name                   | loader                     | notes                                                     |
-|------------------------|----------------------------|-----------------------------------------------------------|
-| ``broad/<trial>``      | :func:`load_broad`         | rad/s, m/s², µT; truth: optical ``opt_quat`` (ENU), position, ``movement`` mask |
-| ``imu_tk_xsens``       | :func:`load_imu_tk`        | raw 16-bit counts; nominal gyro 1/6258 rad/s per count about 32768; acc scaled so the first rest reads g |
-| ``imucal_ferraris``    | :func:`load_ferraris`      | °/s, m/s² at 102.4 Hz; protocol segments in ``meta['segments']`` |
-| ``xio_fusion``         | :func:`load_xio_fusion`    | °/s, g, µT; own timestamps                                |
-| ``xio_ximu_thermometer`` | :func:`load_xio_thermometer` | °/s, g, G at 256 Hz; 4 Hz thermometer resampled onto the inertial clock by packet number |
+The data sets, by name (loader: units and notes):
+
+``broad/<trial>``
+    :func:`load_broad`: rad/s, m/s², µT; truth: optical ``opt_quat`` (ENU), position, ``movement``
+    mask.
+``imu_tk_xsens``
+    :func:`load_imu_tk`: raw 16-bit counts; nominal gyro 1/6258 rad/s per count about 32768; acc
+    scaled so the first rest reads g.
+``imucal_ferraris``
+    :func:`load_ferraris`: °/s, m/s² at 102.4 Hz; protocol segments in ``meta['segments']``.
+``xio_fusion``
+    :func:`load_xio_fusion`: °/s, g, µT; own timestamps.
+``xio_ximu_thermometer``
+    :func:`load_xio_thermometer`: °/s, g, G at 256 Hz; 4 Hz thermometer resampled onto the inertial
+    clock by packet number.
 """
 
 from __future__ import annotations

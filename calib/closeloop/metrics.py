@@ -3,12 +3,21 @@
 Every metric is a mean square over the held-out groups (the odd 4 s stretches of the split; the
 rest poses of the gravity reference), kept per group: Σ squares SS_g and count n_g.
 
-| metric | reference | rows | weighs |
-|---|---|---|---|
-| ``held_out_residual_rms`` (°/s) | truth / optical / static rate | rate residual rows | fast structure: timing, the rate's high frequencies |
-| ``held_out_strapdown_orientation_rms_deg`` (°) | the reference attitude | the corrected gyro integrated over each held-out stretch from the reference attitude at its start, angle to the reference | slow errors integrated over a stretch: bias, scale, frame alignment |
-| ``held_out_rest_rate_rms_deg_s`` (°/s) | zero rate at rest | gravity reference's rest rows | the bias (and a hand not quite still) |
-| ``held_out_tilt_rms_deg`` (°) | gravity carried pose to pose | gravity reference's tilt rows (the gravity residual) | the rate integrated over the moves: scale, axes |
+The metrics (reference; rows; what they weigh):
+
+``held_out_residual_rms`` (°/s)
+    Reference: truth / optical / static rate.  Rows: the rate residual rows.  Weighs fast
+    structure: timing, the rate's high frequencies.
+``held_out_strapdown_orientation_rms_deg`` (°)
+    Reference: the reference attitude.  Rows: the corrected gyro integrated over each held-out
+    stretch from the reference attitude at its start, angle to the reference.  Weighs slow errors
+    integrated over a stretch: bias, scale, frame alignment.
+``held_out_rest_rate_rms_deg_s`` (°/s)
+    Reference: zero rate at rest.  Rows: the gravity reference's rest rows.  Weighs the bias (and a
+    hand not quite still).
+``held_out_tilt_rms_deg`` (°)
+    Reference: gravity carried pose to pose.  Rows: the gravity reference's tilt rows (the gravity
+    residual).  Weighs the rate integrated over the moves: scale, axes.
 
 **Noise of a change.**  Two models A (before) and B (after) are scored on the same held-out
 groups, so the change is judged group by group: d_g = (SS_B,g − SS_A,g) / n_g, the change of the

@@ -10,7 +10,7 @@ noise — then the size is the schedule's detection limit, which is itself a fin
 |---|---|---|
 | time_offset | 3.4 ms | 1–10 ms filter/bus latency |
 | g_sensitivity | 0.08–0.12 °/s/g (diagonal) | MPU-9250 0.1 °/s/g |
-| scale_nonlinearity | 1.5–2.5e-3 1/(rad/s) (≈ 1.7 % at 500 °/s) | 0.1–0.5 % FS; smaller is below this schedule's reach |
+| scale_nonlinearity | 1.5–2.5e-3 1/(rad/s) (≈ 1.7 % at 500 °/s) | 0.1–0.5 % FS; smaller: below this schedule's reach |
 | misalignment | 2–6 mrad | cross-axis 1–2 % |
 | temperature_bias | 0.02–0.03 °/s/°C over an 8 °C warm-up | MPU-9250 ±0.24 °/s/°C worst |
 | temperature_scale | 2–3e-4 /°C | MPU-9255 ±4 % over 125 °C |

@@ -8,11 +8,14 @@ checks every adapter on a tilted, turned board from the independent generator):
 | name | package | output of the package | conversion to body → ENU |
 |---|---|---|---|
 | ``vqf`` / ``vqf_9d`` | ``vqf`` (Laidig & Seel 2023) | ``quat6D``/``quat9D``: sensor → ENU, w first | none |
-| ``madgwick`` / ``_9d`` | ours, compiled (:mod:`calib.orientation.kernels`) | body → NWU (x along the field) | q_z(+90°) ⊗ q |
+| ``madgwick`` / ``_9d`` | ours, compiled | body → NWU (x along the field) | q_z(+90°) ⊗ q |
 | ``mahony`` / ``_9d`` | ours, compiled | body → NWU | q_z(+90°) ⊗ q |
-| ``fusion`` / ``_9d`` | ``imufusion`` (x-io Fusion), ``CONVENTION_ENU`` | body → ENU, w first; gyro in °/s, acc in g | units only |
-| ``madgwick_ahrs`` | ``ahrs`` 0.4 ``Madgwick`` (6-axis), the peer for ``madgwick`` | body → earth z up | q_z(+90°) ⊗ q |
-| ``mahony_ahrs`` | ``ahrs`` 0.4 ``Mahony`` (6-axis), the peer for ``mahony`` | body → earth z up | q_z(+90°) ⊗ q |
+| ``fusion`` / ``_9d`` | ``imufusion`` (x-io Fusion), ``CONVENTION_ENU`` | body → ENU, w first | units only (°/s, g) |
+| ``madgwick_ahrs`` | ``ahrs`` 0.4 ``Madgwick`` (6-axis) | body → earth z up | q_z(+90°) ⊗ q |
+| ``mahony_ahrs`` | ``ahrs`` 0.4 ``Mahony`` (6-axis) | body → earth z up | q_z(+90°) ⊗ q |
+
+Ours are compiled in :mod:`calib.orientation.kernels`; ``madgwick_ahrs`` and ``mahony_ahrs`` are the
+peers for ``madgwick`` and ``mahony``.
 
 Gains: Madgwick β = 0.12 and Mahony k_P = 0.74, k_I = 0.0012 are the BROAD benchmark's TAGP
 values, the one setting that minimises the mean total error over its 39 trials (Laidig et al.

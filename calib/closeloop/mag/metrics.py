@@ -4,12 +4,16 @@ Metrics (mean squares per held-out stretch, compared by :func:`calib.closeloop.m
 Wilcoxon signed rank over the stretches, family-wise 1 %), with m_c = R(θ) A⁻¹ (m − h) the
 corrected field (IMU axes) and B_n the fitted ENU field:
 
-| metric | reference | weighs |
-|---|---|---|
-| ``held_out_field_residual_rms`` (µT) | the model's residual rows | everything the model predicts |
-| ``held_out_field_magnitude_rms`` (µT) | |m_c| − |B| (attitude ref.) | hard and soft iron; blind to the misalignment |
-| ``held_out_heading_rms_deg`` (°) | heading of C_kᵀ m_c against that of B_n | what a compass shows: hard/soft iron and the rotation about up |
-| ``held_out_inclination_rms_deg`` (°) | angle of m_c to the reference up against B_n's | tilt of the axes: misalignment, soft iron |
+``held_out_field_residual_rms`` (µT)
+    Reference: the model's residual rows.  Weighs everything the model predicts.
+``held_out_field_magnitude_rms`` (µT)
+    Reference: |m_c| − |B| (attitude ref.).  Weighs hard and soft iron; blind to the misalignment.
+``held_out_heading_rms_deg`` (°)
+    Reference: heading of C_kᵀ m_c against that of B_n.  Weighs what a compass shows: hard/soft iron
+    and the rotation about up.
+``held_out_inclination_rms_deg`` (°)
+    Reference: angle of m_c to the reference up against B_n's.  Weighs tilt of the axes:
+    misalignment, soft iron.
 
 On a magnitude reference only the first exists (it is the magnitude residual).
 
