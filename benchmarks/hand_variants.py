@@ -77,7 +77,8 @@ def table(data: dict) -> str:
     """docs/hand.md's table: one row per (variant, sensor, method)."""
     lines = [
         f"base hand: {data['base']}, {data['seeds']} seeds per row",
-        "| switched off | sensor | method | NEES(6) | 95 % band | side | err/σ RMS S_x S_y S_z G_x G_y G_z | statuses |",
+        "| switched off | sensor | method | NEES(6) | 95 % band | side "
+        "| err/σ RMS S_x S_y S_z G_x G_y G_z | statuses |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for r in data["rows"].values():

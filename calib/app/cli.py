@@ -126,7 +126,9 @@ def _print_calibration(cal, truth) -> None:
                 "  accelerometer error vs truth: b "
                 f"{np.round(cal.value('accelerometer', 'bias') - truth.value('accelerometer', 'bias'), 4).tolist()} "
                 "m/s², "
-                f"S {np.round(cal.value('accelerometer', 'scale_factor') - truth.value('accelerometer', 'scale_factor'), 5).tolist()}"
+                f"""S {np.round(
+                    cal.value('accelerometer', 'scale_factor') - truth.value('accelerometer', 'scale_factor'), 5
+                ).tolist()}"""
             )
 
 

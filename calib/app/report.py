@@ -74,7 +74,8 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
     lines = [
         f"# Hand-held calibration session: {schedule.name}, hand `{hand.name}`, sensor `{sensor.name}`, seed {seed}",
         "",
-        f"{rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo (`session.h5`), calibrated "
+        f"{rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo (`session.h5`), "
+        "calibrated "
         ""
         ""
         ""

@@ -459,7 +459,10 @@ class EarthRateFamily(CandidateFamily):
 
     def summary(self, kind, values, sigmas):
         e = earth_rate_summary(values)
-        return f"a rate fixed in ENU: latitude {e['latitude_deg']:.1f}°, |ω| = {e['magnitude_over_wgs84']:.2f} × Earth rate"
+        return (
+            f"a rate fixed in ENU: latitude {e['latitude_deg']:.1f}°, "
+            f"|ω| = {e['magnitude_over_wgs84']:.2f} × Earth rate"
+        )
 
 
 # ================================================================ time (the catch-all)

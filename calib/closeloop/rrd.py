@@ -113,7 +113,10 @@ def _short(trace: str) -> str:
 def closeloop_story(res: CloseloopResult) -> str:
     """The findings in one paragraph (markdown), or why there are none."""
     _, unit = _scale(res)
-    head = f"**Close-the-loop, reference {res.reference}** — {res.reference_description}. Declared: {', '.join(res.declared)}."
+    head = (
+        f"**Close-the-loop, reference {res.reference}** — {res.reference_description}. "
+        f"Declared: {', '.join(res.declared)}."
+    )
     lines = [head, ""]
     if not _has_rows(res):
         lines.append("**Nothing analysed:** this recording has no reference the residual could be computed against, so "

@@ -383,7 +383,8 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
         if req.motion == "required" and motion.gravity_swing_deg < 10.0 and motion.peak_rate_rad_s < 0.2:
             fail(
                 MotionError(
-                    f"{where}: the board never turns (gravity stays within {motion.gravity_swing_deg:.1f}° and the rate "
+                    f"{where}: the board never turns (gravity stays within {motion.gravity_swing_deg:.1f}° "
+                    "and the rate "
                     ""
                     ""
                     ""
