@@ -1,12 +1,13 @@
 """The hand campaign: method × hand → RMS error, efficiency (ideal and hand-aware bound), NEES.
 
-    python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 --out docs/hand_zhou2020_sim_consumer.json
+    python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 \
+        --out docs/hand_zhou2020_sim_consumer.json
     python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf_hand --seeds 50 --out docs/hand_mpu9250.json
     python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf --seeds 20 --out docs/hand_kf_mpu9250.json
     python benchmarks/hand_campaign.py --table docs/hand_*.json --plot docs/hand_rmse.png   # docs/hand.md's table
     python benchmarks/hand_campaign.py --sensor mpu9250 --accelerometer estimate --methods kf_hand_joint,kf_session \
         --seeds 20 --out docs/hand_joint_mpu9250.json          # raw sensor: the joint methods (calib run's setting)
-    python benchmarks/hand_campaign.py --accelerometer-table docs/hand_joint_*.json   # their gyro bias, accelerometer, NEES(15)
+    python benchmarks/hand_campaign.py --accelerometer-table docs/hand_joint_*.json   # their gyro bias, acc., NEES(15)
 
 (cells already in --out are kept: a campaign can be run hand by hand; ``--methods kf_hand`` runs the
 hand-aware method's cells alone — each cell's bounds cost one Riccati recursion, ~1 s, beside its seeds)
