@@ -119,6 +119,9 @@ class FittedTerm:
 
 @dataclass(frozen=True)
 class ReportedTerm:
+    """What the report says of a term the loop added (:meth:`CandidateFamily.report`): its parameters
+    (value and 1σ, SI), the effect the simulator can inject, and a one-line summary."""
+
     params: dict[str, dict[str, float]]
     effect: Effect
     summary: str

@@ -72,6 +72,9 @@ class MemberEvidence:
 
 @dataclass(frozen=True)
 class ConfoundedGroup(JsonView):
+    """Candidates that explain the same part of the held-out residual in one round: the member chosen, the
+    evidence for each, the rule that chose, what would separate them, and why, in words."""
+
     round: int
     chosen: str
     members: tuple[MemberEvidence, ...]

@@ -128,6 +128,8 @@ class Pick(Generic[S]):
 
 @dataclass(frozen=True)
 class Selection(Generic[S]):
+    """A round's select step: the pick the acceptance kept (None: none) and the picks it refused before."""
+
     pick: Pick[S] | None
     rejections: tuple[Rejection, ...]
 

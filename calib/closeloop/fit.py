@@ -55,6 +55,10 @@ CHUNK_ROWS = 20_000
 
 @dataclass(frozen=True)
 class FitResult:
+    """A model fitted on the reference's residual rows: θ and its covariance, the residual of all rows at
+    θ, and the fit rows' rank, autocorrelation time and residual σ (plus the reduced factor of a linear
+    reference, kept for the gate)."""
+
     theta: np.ndarray        # (P,) parameters in the candidates' units
     cov: np.ndarray          # (P, P) covariance, inflated by τ_int (see also cluster_robust)
     residual: np.ndarray     # (M,) residual rows of all rows at θ
@@ -135,10 +139,12 @@ def design_rows(ref: Reference, terms: Sequence[Candidate], gyro_rad_s: np.ndarr
 
 
 def stack_regressors(terms: Sequence[Candidate]) -> np.ndarray:
+    """(N, 3, P) ∂y/∂θ per sample of the stacked terms (rad/s per parameter unit), in the terms' order."""
     return np.concatenate([t.sample_regressors() for t in terms], axis=2)
 
 
 def stack_bounds(terms: Sequence[Candidate]) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) box of the stacked terms' parameters for a nonlinear fit (±the families' bound)."""
     if not terms:
         return np.zeros(0), np.zeros(0)
     lo, hi = zip(*(t.bounds() for t in terms))
@@ -199,6 +205,9 @@ def fit_model(ref: Reference, terms: Sequence[Candidate], gyro_rad_s: np.ndarray
 
 @dataclass(frozen=True)
 class HeldOutScore:
+    """What adding terms to the current model gains on the held-out rows: G (module docstring), the
+    held-out residual sums of squares before and after, and the extended model fitted on the fit rows."""
+
     gain: float            # G (see module docstring); > 0: worth adding
     rss_before: float      # held-out residual sum of squares of the current model (row units²)
     rss_after: float       # ... with the new terms

@@ -33,6 +33,9 @@ AXES = "xyz"
 
 @dataclass(frozen=True)
 class SpectralLine:
+    """A narrow line in one residual axis's PSD: its frequency (Hz), sinusoid amplitude (rad/s) and
+    PSD-to-background ratio against the false-alarm threshold (module docstring)."""
+
     axis: str
     frequency_hz: float
     amplitude_rad_s: float    # sinusoid amplitude (rad/s)
@@ -42,6 +45,9 @@ class SpectralLine:
 
 @dataclass(frozen=True)
 class ChannelCorrelation:
+    """A significant correlation ρ of one residual axis with a channel of the recording, with its
+    statistic z = |ρ|·√n_eff and the threshold it exceeds (module docstring)."""
+
     axis: str
     channel: str
     rho: float

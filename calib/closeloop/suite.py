@@ -253,6 +253,10 @@ def _recording(case: SuiteCase, truth: Recording | None, seed: int) -> Recording
 
 @dataclass(frozen=True)
 class CaseResult:
+    """One suite case on one seed: what the loop added against what it was expected to name, the
+    estimates' worst error in σ, and the held-out residual RMS of the declared, the loop's and the correct
+    model (°/s; µT, the field residual, in a magnetometer case)."""
+
     case: str
     found: list[str]                 # in the order the loop added them
     expected: tuple[str, ...]
