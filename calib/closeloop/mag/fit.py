@@ -42,6 +42,10 @@ RANK_TOL = 1e-7
 
 @dataclass(frozen=True)
 class MagFit:
+    """A magnetometer model fitted on chosen samples: its term kinds, θ = [base, terms in order] (module
+    docstring), the residual (µT) at every sample, θ's block-sandwich covariance, its rank and whether
+    the minimiser converged."""
+
     kinds: tuple[str, ...]
     theta: np.ndarray
     residual: np.ndarray        # (N, k) every sample (NaN where not valid), k = 3 (attitude) or 1 (magnitude)
@@ -55,10 +59,13 @@ class MagFit:
 
 
 def base_size(ref: MagReference) -> int:
+    """Number of base-field parameters at the head of θ: 3 (B_n, µT, ENU) on an attitude reference, 1
+    (F, µT) on a magnitude one."""
     return 3 if ref.has_attitude else 1
 
 
 def split_theta(ref: MagReference, kinds: tuple[str, ...], theta: np.ndarray) -> dict[str, np.ndarray]:
+    """θ by name: ``base`` (the reference field) and one slice per kind, in the order of ``kinds``."""
     out = {"base": theta[: base_size(ref)]}
     i = base_size(ref)
     for k in kinds:
@@ -132,6 +139,8 @@ def model_function(ref: MagReference, kinds: tuple[str, ...], idx: np.ndarray):
 
 
 def initial_base(ref: MagReference, rows: np.ndarray) -> np.ndarray:
+    """Start of the base field from the samples ``rows``: on an attitude reference the measured field
+    turned to ENU (C_kᵀ m_k, µT) and averaged, on a magnitude one the median |m_k| (µT)."""
     idx = np.flatnonzero(rows)
     if ref.has_attitude:
         return np.mean(np.einsum("kji,kj->ki", ref.c_bn[idx], ref.mag_ut[idx]), axis=0)   # Cᵀ m averaged

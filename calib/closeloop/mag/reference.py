@@ -33,6 +33,10 @@ __all__ = ["MagReference", "build_mag_reference"]
 
 @dataclass(frozen=True, eq=False)
 class MagReference:
+    """What the magnetometer loop fits against: the measured field (µT, body frame), the reference
+    attitude C_k (body←ENU) when there is one, the usable samples, the held-out stretches and the
+    white-noise level σ_w (module docstring)."""
+
     kind: str                           # "attitude" or "magnitude"
     source: str                         # where the attitude comes from ("truth", "optical", "none")
     description: str

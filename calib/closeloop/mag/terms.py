@@ -135,10 +135,12 @@ MAG_TERMS: dict[str, MagTerm] = {
 
 
 def is_mag_kind(kind: str) -> bool:
+    """Whether ``kind`` is one of the magnetometer terms the loop knows (:data:`MAG_TERMS`)."""
     return kind in MAG_TERMS
 
 
 def mag_term(kind: str) -> MagTerm:
+    """The :class:`MagTerm` of ``kind``; raises KeyError naming the known kinds."""
     try:
         return MAG_TERMS[kind]
     except KeyError:
