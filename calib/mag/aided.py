@@ -45,6 +45,10 @@ __all__ = ["AidedFit", "fit_aided"]
 
 @dataclass(frozen=True)
 class AidedFit:
+    """The attitude-aided fit (module docstring): L = A⁻¹ at unit radius, the hard iron h (µT) and sin I,
+    the block-sandwich covariance of θ = (L row-major, h, sin I), the two residuals with their noise
+    levels σ₁, σ₂, and the L entries the data leave weak."""
+
     l_matrix: np.ndarray  # general L = A⁻¹ (unit radius)
     centre: np.ndarray
     sin_incl: float

@@ -83,6 +83,9 @@ def _model(s: FilterSettings, dt: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 class KalmanHeading(HeadingFilter):
+    """The Kalman filter of the heading (module docstring, **KF**): the state is ψ (rad), plus the gyro's
+    bias about the vertical (rad/s) under the ``gyro`` process model."""
+
     name = "kf"
     description = "Kalman filter (§2.1 of the electronic-compass note)"
     adaptive: ClassVar[bool] = False
@@ -122,12 +125,18 @@ class KalmanHeading(HeadingFilter):
 
 
 class SageHusaHeading(KalmanHeading):
+    """The Kalman filter with the measurement variance R estimated from the innovations, Sage–Husa with a
+    forgetting factor (module docstring, **AKF**)."""
+
     name = "akf"
     description = "adaptive Kalman filter, Sage–Husa with forgetting factor (§2.2 of the electronic-compass note)"
     adaptive = True
 
 
 class ParticleHeading(HeadingFilter):
+    """The bootstrap particle filter of the heading (module docstring, **PF**): a Student-t likelihood,
+    systematic resampling and roughening; its random draws need the ``rng`` argument."""
+
     name = "pf"
     description = "bootstrap particle filter with systematic resampling (§2.3 of the electronic-compass note)"
 

@@ -40,6 +40,7 @@ __all__ = [
 
 
 def wrap_pi(a: np.ndarray) -> np.ndarray:
+    """The angles ``a`` (rad) wrapped into [−π, π)."""
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 

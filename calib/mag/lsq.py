@@ -23,6 +23,9 @@ __all__ = ["LsqResult", "levenberg_marquardt", "sandwich_covariance", "block_ind
 
 @dataclass(frozen=True)
 class LsqResult:
+    """Where :func:`levenberg_marquardt` stopped: θ, the weighted residual and Jacobian there, the
+    iterations taken and whether the cost decrease fell below the tolerance."""
+
     theta: np.ndarray
     residual: np.ndarray  # weighted residual at θ (M,)
     jacobian: np.ndarray  # weighted Jacobian at θ (M, P)

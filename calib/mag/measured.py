@@ -29,6 +29,10 @@ __all__ = ["MeasuredRow", "measured_rows", "measured_table", "optical_heading_er
 
 @dataclass(frozen=True)
 class MeasuredRow:
+    """One row of the measured recordings' table: a data set and stretch, the calibration's status and
+    samples (used, disturbed), the spread of |B| (µT) and the heading RMS against the optical attitude
+    (°), each before and after the calibration."""
+
     dataset: str
     window: str
     status: str
@@ -76,6 +80,9 @@ def _optical_position(rec: Recording) -> np.ndarray | None:
 
 
 def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
+    """Calibrate every available measured recording with a magnetometer by ``method`` and judge it (module
+    docstring): one row per recording (a refused one included), plus one for the disturbed stretches of a
+    stationary recording and one for the magnet-on stretch of a recording with an attached magnet."""
     rows = []
     for name in available_datasets():
         rec = load_dataset(name)
@@ -123,6 +130,7 @@ def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
 
 
 def measured_table(method: str = "ellipsoid") -> str:
+    """:func:`measured_rows` as a Markdown table."""
     rows = measured_rows(method)
     out = ["| recording | stretch | status | samples used / disturbed | std |B| µT before → after | "
            "heading RMS vs optical ° before → after | notes |", "|---|---|---|---|---|---|---|"]

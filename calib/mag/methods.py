@@ -110,6 +110,9 @@ def _sym_unpack(theta):
 
 
 class EllipsoidMethod(MagMethod):
+    """The ellipsoid fit (:mod:`calib.mag.ellipsoid`): hard iron and a symmetric soft iron from the field
+    magnitude alone; blind to the misalignment."""
+
     name = "ellipsoid"
     description = ("Li & Griffiths' ellipsoid-specific algebraic fit (constraint 4J − I² = 1), refined geometrically: "
                    "|A⁻¹(m − h)| = F, A symmetric, det A = 1 (calib.mag.ellipsoid)")
@@ -122,6 +125,10 @@ class EllipsoidMethod(MagMethod):
 
 
 class AidedMethod(MagMethod):
+    """The attitude-aided fit (:mod:`calib.mag.aided`): the ellipsoid fit's start refined with the
+    inclination against the gravity reference, so the misalignment is estimated too; raises
+    :class:`MisalignmentUnobservable` when the recording holds still too briefly or in one pose only."""
+
     name = "aided"
     description = ("attitude-aided: |A⁻¹(m − h)| = F and the inclination against the gravity reference "
                    "(gyro + accelerometer) constant; A general, so the misalignment is estimated (calib.mag.aided)")
