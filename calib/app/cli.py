@@ -1151,6 +1151,8 @@ def _input_options(p: argparse.ArgumentParser, decimate: bool = False) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``calib`` command line's parser: one subcommand per job (``run``, ``demo``, ``closeloop``, ``mag``,
+    …), each bound to the ``cmd_*`` function that runs it."""
     p = argparse.ArgumentParser(prog="calib", description="Gyroscope calibration from hand rotation.")
     p.add_argument("--version", action="version", version=f"calib {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -1502,6 +1504,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``calib`` command line on ``argv`` (default ``sys.argv[1:]``) and return its exit code
+    (:func:`gyrosim.cli.run_cli`)."""
     from gyrosim.cli import run_cli
 
     return run_cli(build_parser(), argv)

@@ -92,6 +92,9 @@ def temperature_story(rows: list[Metrics], held_out: list[tuple[float, float]], 
 
 def temperature_blueprint(span: Span, methods: list[str], residual_range: tuple[float, float] | None,
                           raw_range: tuple[float, float] | None) -> rrb.Blueprint:
+    """The viewer layout of the comparison (module docstring): the story on top; the temperature and raw
+    drift, the models' residuals per axis on the shared ``residual_range`` (°/h), and bias against
+    temperature per axis side by side."""
     left = rrb.Vertical(
         series_view("chamber", "sensor temperature (°C), held-out cycles ●", span),
         series_view("temperature/raw", "uncompensated drift, 10 s means (°/h)", span, y_range=raw_range),

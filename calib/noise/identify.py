@@ -48,6 +48,9 @@ class NoiseParameter:
 
 @dataclass(frozen=True)
 class AxisNoise:
+    """The noise model chosen for one axis: its parameters with intervals, the model selection behind it,
+    and whether the objective is consistent with the model (its p-value; module docstring)."""
+
     axis: str
     selection: AxisSelection = field(repr=False)
     parameters: tuple[NoiseParameter, ...]

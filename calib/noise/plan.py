@@ -55,6 +55,9 @@ def predicted_relative_sigma(kinds: tuple[str, ...], log_params: np.ndarray, rat
 
 @dataclass(frozen=True)
 class PlanRow:
+    """One noise parameter's plan: its value (SI), the target relative 1σ, the shortest static record
+    (s) that reaches it, and the predicted relative σ against record length."""
+
     triad: str
     term: str
     parameter: str

@@ -30,6 +30,8 @@ def _best_interleaved(fns: list, repeats: int) -> list[float]:
 
 
 def run_mag_bench(repeats: int = 5, seed: int = 1) -> dict[str, float]:
+    """Time the magnetometer fits (module docstring) on one simulated session, print the table and
+    return the best time (s) of each row by name."""
     from gyrosim.simulate import simulate
 
     from calib.mag.aided import fit_aided

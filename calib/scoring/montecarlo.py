@@ -110,6 +110,9 @@ class MethodStats:
 
 @dataclass(frozen=True)
 class MonteCarloResult:
+    """What :func:`monte_carlo` found for one schedule, hand and sensor: the parameters' mean truth, the
+    ideal and hand-aware √CRLB, and each method's statistics over the seeds (SI)."""
+
     schedule: str
     hand: str
     sensor: str

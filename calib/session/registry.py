@@ -199,6 +199,7 @@ def kf_gated(rec: Recording) -> Calibration:
 
 
 def kf_adaptive_gated(rec: Recording) -> Calibration:
+    """R per sample from the low-passed (|f| − g)², and innovation gating at χ²₂(0.999)."""
     return _run(rec, adaptive=True, gate=GATE_NIS, name="kf_adaptive_gated")
 
 
