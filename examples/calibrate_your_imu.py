@@ -24,6 +24,8 @@ from calib.session.paper import calibrate
 
 
 def main() -> None:
+    """Calibrate the CSV given on the command line (or a simulated session), print the verdict and the
+    scale factors with their σ, compensate the recording, and save and reload the calibration."""
     ap = argparse.ArgumentParser()
     ap.add_argument("recording", nargs="?")
     ap.add_argument("--gyro-unit", default="rad/s")
