@@ -29,6 +29,8 @@ def _check_writable(out: Path, *inputs: str | None, option: str = "--out") -> No
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    """Simulate a hand-held session (schedule, hand, optionally a sensor) and write it as an HDF5
+    recording; prints what was written and the hand's disturbance RMS (m/s², °/s)."""
     from tqdm import tqdm
 
     from .magnetic import environment_from_text
@@ -61,6 +63,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_hands(args: argparse.Namespace) -> int:
+    """List the hand presets with the external acceleration (m/s²) and rate disturbance (°/s) each is
+    expected to produce over a schedule, smallest first."""
     schedule = load_schedule(args.schedule)
     print(f"hand presets on schedule {schedule.name} (expected RMS over the session)")
     print(f"{'preset':<9} {'ext acc m/s²':>13} {'of which pivot':>15} {'rate dist °/s':>14}  description")
@@ -76,6 +80,7 @@ def cmd_hands(args: argparse.Namespace) -> int:
 
 
 def cmd_schedules(args: argparse.Namespace) -> int:
+    """List the built-in schedules (duration, segments, description); ``--show`` prints one as JSON."""
     for name in builtin_schedule_names():
         s = load_schedule(name)
         print(f"{name:<14} {s.duration_s:7.1f} s  {len(s.segments):3d} segments  {s.description}")
@@ -86,6 +91,7 @@ def cmd_schedules(args: argparse.Namespace) -> int:
 
 
 def cmd_sensors(args: argparse.Namespace) -> int:
+    """List the sensor presets with each triad's effects; ``--show`` prints one as JSON."""
     from .sensor_model import load_sensor, sensor_preset_names
 
     for name in sensor_preset_names():
@@ -101,6 +107,7 @@ def cmd_sensors(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    """Simulation speed: the MuJoCo scene, the sensor error model, or both (gyrosim.bench)."""
     from .bench import run_bench, run_sensor_bench
 
     if args.what in ("all", "scene"):
@@ -332,6 +339,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign_bench(args: argparse.Namespace) -> int:
+    """Campaign throughput: sessions per second in-process and on 1 and 2 Dask workers; with
+    ``--orientation``, the orientation campaign's CPU seconds per session."""
     if args.orientation:
         from .orientation_campaign import bench_throughput
 
@@ -356,6 +365,8 @@ def cmd_campaign_bench(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``gyrosim`` command line's parser: one subcommand per job (``simulate``, ``campaign``, ``chamber``,
+    …), each bound to the ``cmd_*`` function that runs it."""
     p = argparse.ArgumentParser(prog="gyrosim", description="Virtual hand-held IMU in MuJoCo.")
     p.add_argument("--version", action="version", version=f"gyrosim {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -579,6 +590,8 @@ def run_cli(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``gyrosim`` command line on ``argv`` (default ``sys.argv[1:]``) and return its exit code
+    (:func:`run_cli`)."""
     return run_cli(build_parser(), argv)
 
 
