@@ -38,6 +38,7 @@ def error_quat_earth(q_est: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
 
 
 def total_error_rad(q_e: np.ndarray) -> np.ndarray:
+    """BROAD's total error 2 arccos|w_e| (rad, in [0, π]) of the error quaternions ``q_e`` (…, 4)."""
     return 2.0 * np.arccos(np.clip(np.abs(q_e[..., 0]), 0.0, 1.0))
 
 
@@ -51,6 +52,8 @@ def heading_error_rad(q_e: np.ndarray, signed: bool = False) -> np.ndarray:
 
 
 def inclination_error_rad(q_e: np.ndarray) -> np.ndarray:
+    """BROAD's inclination (tilt) error 2 arccos √(w_e² + z_e²) (rad, in [0, π]) of the error
+    quaternions ``q_e`` (…, 4): the part of the error that is not about the vertical."""
     return 2.0 * np.arccos(np.clip(np.sqrt(q_e[..., 0] ** 2 + q_e[..., 3] ** 2), 0.0, 1.0))
 
 

@@ -216,6 +216,9 @@ def load_campaign(path: str | Path, **overrides) -> CampaignSpec:
 
 @dataclass(frozen=True)
 class Task:
+    """One session of a campaign: the hand at a severity, a seed, the sensor, schedule and rate, and the
+    estimators to run on it; ``task_id`` is ``hand|severity|seed``."""
+
     task_id: str
     hand: str
     severity: float
@@ -228,6 +231,7 @@ class Task:
 
 
 def make_tasks(spec: CampaignSpec) -> list[Task]:
+    """The campaign's sessions: one :class:`Task` per hand × severity × seed, in that order."""
     return [
         Task(
             f"{h}|{sev:g}|{seed}",

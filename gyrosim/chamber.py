@@ -110,6 +110,7 @@ def profile_from_dict(data: dict, name: str) -> ChamberProfile:
 
 
 def chamber_preset_names() -> list[str]:
+    """Names of the chamber profiles shipped in ``gyrosim/presets/chambers/*.toml``."""
     return builtin_names("presets", "chambers")
 
 

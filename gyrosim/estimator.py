@@ -78,6 +78,9 @@ def as_user_file(rec: Recording) -> Recording:
 
 
 class Estimator(Protocol):
+    """What a campaign calls an estimator: any callable that maps a Recording (as a user's file,
+    :func:`as_user_file`) to a Calibration."""
+
     def __call__(self, rec: Recording) -> Calibration: ...
 
 

@@ -76,6 +76,9 @@ class Attitude:
 
 
 class OrientationEstimator(Protocol):
+    """An orientation estimator: any callable that maps a Recording to an :class:`Attitude`, or to its
+    (N, 4) quaternions (w, x, y, z) body RFU → nav ENU."""
+
     def __call__(self, rec: Recording) -> Attitude | np.ndarray: ...
 
 

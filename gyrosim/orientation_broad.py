@@ -77,6 +77,8 @@ DEFAULT_ESTIMATORS = ("vqf_9d", "vqf", "madgwick_9d", "madgwick_c2011_9d", "maho
 
 
 def broad_trials(root: Path | None = None) -> list[Path]:
+    """The BROAD trials (``*.hdf5``) in the ``broad`` folder under ``root`` (default the data folder,
+    :func:`gyrosim.loaders.data_root`), sorted; empty when there is none."""
     from .loaders import data_root
 
     folder = (root or data_root()) / "broad"
@@ -127,6 +129,8 @@ def score_broad(estimators: tuple[str, ...] | None = None, root: Path | None = N
 
 
 def format_table(result: dict) -> str:
+    """:func:`score_broad`'s result as a plain-text table: per trial and estimator the total, heading
+    and inclination RMSE (°) beside the published values, then the means over the trials."""
     lines = [f"{'trial':<44} {'estimator':<12} {'total °':>8} {'heading °':>9} {'incl. °':>8}   published "
              "(tot/head/incl)"]
     for r in result["rows"]:

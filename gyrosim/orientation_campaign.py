@@ -93,6 +93,9 @@ class OrientationSpec:
 
 @dataclass(frozen=True)
 class OrientationTask:
+    """One session of an orientation campaign: the hand at a severity and a seed, under the campaign's
+    spec; ``task_id`` is ``hand|severity|seed``."""
+
     task_id: str
     hand: str
     severity: float
@@ -101,6 +104,7 @@ class OrientationTask:
 
 
 def make_tasks(spec: OrientationSpec) -> list[OrientationTask]:
+    """The campaign's sessions: one :class:`OrientationTask` per hand × severity × seed, in that order."""
     return [
         OrientationTask(f"{h}|{sev:g}|{seed}", h, float(sev), seed, spec)
         for h in spec.hands

@@ -144,6 +144,7 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
 
 
 def write_bytes_atomic(path: PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_path`) and return the path."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
     return Path(os.fspath(path))

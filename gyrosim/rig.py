@@ -51,6 +51,7 @@ class Knock:
 
 
 def axis_vector(axis: str) -> np.ndarray:
+    """The unit vector (3,) of the body axis ``x``, ``y`` or ``z`` (Right, Forward, Up)."""
     v = np.zeros(3)
     v[_AXES[axis]] = 1.0
     return v

@@ -278,6 +278,7 @@ def sensor_from_toml_dict(data: dict[str, Any], default_name: str) -> SensorMode
 
 
 def sensor_preset_names() -> list[str]:
+    """Names of the sensor presets shipped in ``gyrosim/presets/sensors/*.toml``."""
     return builtin_names("presets", "sensors")
 
 

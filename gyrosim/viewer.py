@@ -225,6 +225,7 @@ def log_story(stream: rr.RecordingStream, markdown: str, path: str = STORY_PATH)
 
 
 def story_view(path: str = STORY_PATH, name: str = "what this recording shows") -> rrb.TextDocumentView:
+    """The view of the story logged by :func:`log_story` at ``path``, word-wrapped."""
     return rrb.TextDocumentView(
         origin=path, name=name, format_options=rrb.archetypes.TextDocumentFormat(word_wrap=True)
     )
