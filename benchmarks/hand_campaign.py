@@ -127,8 +127,7 @@ def accelerometer_table(paths: list[str]) -> str:
                 rows.append(
                     f"| {d['sensor']} | {hand} | {m} | {max(r[0:3]):.1e} | {max(r[9:12]):.1e} | {max(r[12:15]):.1e} | "
                     f"{max(r[15:18]):.1e} | {min(z[9:18]):.1f}–{max(z[9:18]):.1f} | {nf:.2f} | {bf[0]:.2f}–{bf[1]:.2f} "
-                    "| "
-                    f"{_where(nf, bf)} | {st.get('ok_wrong', 'n/a')} |"
+                    f"| {_where(nf, bf)} | {st.get('ok_wrong', 'n/a')} |"
                 )
     return "\n".join(rows)
 

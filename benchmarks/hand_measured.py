@@ -113,14 +113,7 @@ def _agreement(a, b):
 def markdown(rows):
     out = [
         "| file | method | status (exit) | S ± σ | G ± σ | lever arm r (cm) ± σ | slow a_e RMS (m/s²), τ (s); > 4 Hz "
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
-        "RMS | "
-        "agreement with kf_hand (χ²₆, max \\|δ\\|/σ) | attitude vs optical before → after (°) |",
+        "RMS | agreement with kf_hand (χ²₆, max \\|δ\\|/σ) | attitude vs optical before → after (°) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     hand = {r["file"]: r for r in rows if r.get("method") == "kf_hand" and "sg" in r}
@@ -150,12 +143,6 @@ def markdown(rows):
             att = f"{r['attitude_before_deg']:.2f} → {r['attitude_after_deg']:.2f}"
         out.append(
             f"| {r['file']} | {r['method']} | {r['status']} ({r['exit']}) | {s} | {g} | {lever} | {ae} | {agree} "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             f"| {att} |"
         )
     return "\n".join(out)

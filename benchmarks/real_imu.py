@@ -60,13 +60,6 @@ def noise_free() -> str:
         e = np.abs(c.parameters() - _truth(d))
         rows.append(
             f"| {name} | {e[3:9].max():.1e} | {e[0:3].max():.1e} | {e[12:18].max():.1e} | {e[9:12].max():.1e} | "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             f"{c.status} |"
         )
     return "\n".join(rows)
@@ -223,13 +216,6 @@ def ferraris() -> str:
                 "ours (iterated)": cals["iterated"].compensate(rec)}
     lines.append(
         "Residual |f| − g (mg) at the six poses, and the angle each 360° turn integrates to (imucal's measure, "
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
         "Σ ω Δt along the turn's axis; the protocol turns by −360°):"
     )
     lines.append("")
@@ -328,13 +314,6 @@ def broad() -> str:
         return "BROAD is not in the data folder: skipped."
     lines = [
         "| trial | status | accelerometer bias (mg) | accelerometer S | |f| − g at rest before → after (mg, RMS) | "
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
         "gravity direction vs optical truth at rest, before → after (°, RMS) |",
         "|---|---|---|---|---|---|",
     ]

@@ -3,9 +3,18 @@
 A profile is written in TOML as a start temperature and a list of steps, each a hold or a ramp,
 optionally repeated (``repeat``) — the way a chamber programme is written:
 
-    start_c = -40.0 repeat = 5 [[step]] hold_s = 3600            # soak [[step]] ramp_to_c = 85.0 rate_c_per_h = 18.0
-    # heating at 18 °C/h ("Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros", §3.1)
-    [[step]] hold_s = 3600 [[step]] ramp_to_c = -40.0 rate_c_per_h = 18.0      # cooling
+    start_c = -40.0
+    repeat = 5
+    [[step]]
+    hold_s = 3600            # soak
+    [[step]]
+    ramp_to_c = 85.0
+    rate_c_per_h = 18.0      # heating at 18 °C/h (the MTEA temperature-drift paper, §3.1)
+    [[step]]
+    hold_s = 3600
+    [[step]]
+    ramp_to_c = -40.0
+    rate_c_per_h = 18.0      # cooling
 
 The ambient is piecewise linear between the corners.  Built-ins (``gyrosim/presets/chambers``):
 ``tde_cycles_003`` (the MTEA paper's −40→85 °C cycles at 18 °C/h, five times) and ``points_001``

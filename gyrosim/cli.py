@@ -179,13 +179,6 @@ def cmd_northfind(args: argparse.Namespace) -> int:
     nf = rec.meta["northfind"]
     print(
         f"wrote {out}: {rec.n} samples at {args.rate:g} Hz ({rec.duration_s / 60:.1f} min), {args.sensor} at latitude "
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
         f"{args.latitude:g}°, {seq.positions} position(s) × {seq.hold_s:g} s, true headings "
         + ", ".join(f"{h['truth_heading_deg']:.3f}°" for h in nf["holds"])
     )
@@ -349,8 +342,7 @@ def cmd_campaign_bench(args: argparse.Namespace) -> int:
         for label in ("raw_and_calibrated", "raw_only"):
             cpu = r[label]["cpu_s_per_session"]
             print(f"{label}: {cpu:.2f} CPU s/session in-process; 1000 sessions on 2 cores ≈ {1000 * cpu / 2 / 60:.1f} "
-                  "min "
-                  f"(× 1.3 for Dask workers, README: {1000 * cpu / 2 / 60 * 1.3:.1f} min)")
+                  f"min (× 1.3 for Dask workers, README: {1000 * cpu / 2 / 60 * 1.3:.1f} min)")
         return 0
     from .campaign import bench_scaling
 

@@ -71,13 +71,6 @@ def kalibr_imu_yaml(cal: Calibration, update_rate_hz: float, *, rostopic: str = 
     if missing:
         raise GyrosimError(
             f"a Kalibr imu.yaml needs {', '.join(missing)}; the calibration does not carry it: a session "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             "of minutes cannot measure a bias random walk — take it from an Allan deviation of a long "
             "static recording (calib allan) or the datasheet and pass it"
         )

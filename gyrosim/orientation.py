@@ -131,13 +131,6 @@ def run_orientation(
     if q.shape != (rec.n, 4):
         raise OrientationFailure(
             f"{name or 'estimator'} returned quaternions of shape {q.shape}, expected ({rec.n}, 4) "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             "(one (w, x, y, z) per sample)"
         )
     bad = ~np.isfinite(q).all(axis=1)

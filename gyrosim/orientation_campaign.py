@@ -395,13 +395,6 @@ def summary_markdown(summary: list[dict]) -> str:
         if "tilt_rms_deg" not in r:
             lines.append(
                 f"| `{r['estimator']}` | {r['hand']} | {r['variant']} | {r['n']} | {r['failed']} | all failed: "
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
                 f"{r['first_error'][:80]} | | |"
             )
             continue

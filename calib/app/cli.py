@@ -108,12 +108,6 @@ def _print_calibration(cal, truth) -> None:
         top = np.degrees(ref["max_abs_rate_rad_s"])
         print(
             f"  scale factor holds at ±{', '.join(f'{v:.0f}' for v in m)} °/s (x, y, z: the chord over the rates this "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             f"session turned at, up to {', '.join(f'{v:.0f}' for v in top)} °/s); at other rates a gyro's scale "
             "nonlinearity adds to it — calibrate at the rates you will use"
         )
@@ -223,12 +217,6 @@ def cmd_apply(args: argparse.Namespace) -> int:
     if cal.status == "diverged" and not args.force:
         raise GyrosimError(
             f"{args.calibration} has status 'diverged': its numbers are no calibration; re-run calib run "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             "(see its warnings) or pass --force to apply it anyway"
         )
     if cal.status != "ok":
@@ -454,13 +442,7 @@ def cmd_noise(args: argparse.Namespace) -> int:
     trend_msg = None
     if trend is not None and abs(trend) >= args.max_temperature_trend:
         trend_msg = (
-            f"the temperature changes by {trend:+.2f} °C over the {rec.duration_s:.0f}-s record (straight-line "
-            ""
-            ""
-            ""
-            ""
-            ""
-            "fit): "
+            f"the temperature changes by {trend:+.2f} °C over the {rec.duration_s:.0f}-s record (straight-line fit): "
             "the bias follows the temperature, so its drift would be read as random walk (or rate ramp) and "
             "that estimate biased high"
         )
@@ -468,12 +450,6 @@ def cmd_noise(args: argparse.Namespace) -> int:
         if asked_slow and not args.allow_temperature_trend:
             raise TemperatureTrendError(
                 f"{args.recording}: {trend_msg}; record at a stable temperature, compensate the "
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
                 "temperature first (calib temperature), or pass --allow-temperature-trend"
             )
         warnings.append(trend_msg)
@@ -761,12 +737,6 @@ def cmd_northfind(args: argparse.Namespace) -> int:
         )
         print(
             f"  bias residual σ_res = {res.bias_residual_sigma_deg_h:.4f} °/h ⊥ North; limit σ_ψ = σ_res/(Ω_E cos L); "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             f"horizontal rate {res.horizontal_rate_deg_h:.4f} ± {res.horizontal_rate_sigma_deg_h:.4f} °/h "
             f"(Earth: {res.horizontal_rate_expected_deg_h:.4f}); table tilt {res.table_tilt_deg:.4f}°; "
             f"index angles from the {res.index_source}; noise {res.noise_source}"
@@ -1095,8 +1065,7 @@ def cmd_mag_compare(args: argparse.Namespace) -> int:
 
     c = simulated_comparison(args.sensor, seed=args.seed, hand=args.hand, method=args.method)
     print(f"sensor {c.sensor} (seed {args.seed}), calibrated on multiposition ({c.calibration.status}), used on "
-          "'compass'; "
-          "heading error against the truth, tilt from the accelerometer:")
+          "'compass'; heading error against the truth, tilt from the accelerometer:")
     print(comparison_table(c.rows))
     print("the same with the true tilt (the magnetometer alone):")
     print(comparison_table(c.rows_true_tilt))
@@ -1284,12 +1253,6 @@ def build_parser() -> argparse.ArgumentParser:
     no = sub.add_parser(
         "noise",
         help="stochastic model of a static record: wavelet variance, GMWM fit, model chosen by "
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
         "WIC, 95 %% intervals, every unit, noise-inflation figure",
     )
     no.add_argument("recording", help=RECORDING_HELP + "; static (a moving record is refused unless "
@@ -1476,8 +1439,7 @@ def build_parser() -> argparse.ArgumentParser:
     mc2 = sub.add_parser(
         "mag-compare",
         help="in-motion heading compensation (Soft Magnetic Error Compensation Method "
-        "of Electronic Compass): KF / adaptive KF / particle filter vs calibration "
-        "(simulated)",
+        "of Electronic Compass): KF / adaptive KF / particle filter vs calibration (simulated)",
     )
     mc2.add_argument(
         "--sensor", default="phone", help="sensor preset with a magnetometer, or TOML path (default phone)"

@@ -75,16 +75,7 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
         f"# Hand-held calibration session: {schedule.name}, hand `{hand.name}`, sensor `{sensor.name}`, seed {seed}",
         "",
         f"{rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo (`session.h5`), "
-        "calibrated "
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
-        ""
-        "with "
+        "calibrated with "
         f"the Zhou 2020 filter (method `{result.method}`). Open `session.rrd` with `rerun session.rrd` to watch P "
         "converge.",
         "",

@@ -244,13 +244,6 @@ def accept_on_every_metric(current: dict[str, MetricSums], declared: dict[str, M
         if worse:
             why = (
                 f"adding {kind} makes {', '.join(c.describe() for c in worse)} worse than {against} beyond its noise "
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
                 f"(z > {worse[0].threshold:.2f})"
             )
             return against_current, Rejection(rnd, kind, against, changes,

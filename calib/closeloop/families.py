@@ -115,8 +115,7 @@ class _AxisMatrix(_RateDriven):
     def implausible(self, kind, theta, sigma, ctx):
         if np.any(np.abs(theta) >= 0.99 * self.bound):
             return (f"fitted {kind} reaches ±{self.bound:g} (a {self.bound * 100:.0f} % axis error): not a sensor "
-                    "defect "
-                    "but a different solution of the self-consistency equations")
+                    "defect but a different solution of the self-consistency equations")
         return super().implausible(kind, theta, sigma, ctx)
 
 

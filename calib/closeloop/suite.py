@@ -455,13 +455,6 @@ def format_suite(rows: Sequence[SuiteRow]) -> str:
             continue
         out.append(
             f"| {r.case} | {r.named_all}/{r.seeds} | {r.named_first}/{r.seeds} | {r.forbidden_added}/{r.seeds} | "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             f"{r.added_anything}/{r.seeds} | {r.z_max:.2f} | {r.error_declared:.4f} → {r.error_loop:.4f} | "
             f"{r.ratio_to_correct:.3f} |"
         )

@@ -266,13 +266,6 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
             fail(
                 SpikeError(
                     f"{where}: {_describe_spikes(spk, rec.t_s)} — more than {req.max_spike_fraction:.0%} of the "
-                    ""
-                    ""
-                    ""
-                    ""
-                    ""
-                    ""
-                    ""
                     "samples: the data are corrupt, not occasionally glitched; fix the logger or the export"
                 )
             )
@@ -374,8 +367,7 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
             fail(
                 MotionError(
                     f"{where}: the board moves in {motion.moving_fraction:.0%} of its 1-s windows (gravity turns by up "
-                    "to "
-                    f"{motion.gravity_swing_deg:.0f}°, the rate departs from its level by up to "
+                    f"to {motion.gravity_swing_deg:.0f}°, the rate departs from its level by up to "
                     f"{motion.peak_rate_rad_s:.2f} "
                     f"rad/s; first at t = {motion.first_motion_s():.1f} s): {req.name} needs a static recording{hint}"
                 )
@@ -384,16 +376,7 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
             fail(
                 MotionError(
                     f"{where}: the board never turns (gravity stays within {motion.gravity_swing_deg:.1f}° "
-                    "and the rate "
-                    ""
-                    ""
-                    ""
-                    ""
-                    ""
-                    ""
-                    ""
-                    ""
-                    "within "
+                    "and the rate within "
                     f"{motion.peak_rate_rad_s:.3f} rad/s of its level): {req.name} estimates scale factors and "
                     "non-orthogonality from rotations; for the noise of a static record use calib allan"
                 )
@@ -468,13 +451,6 @@ def check_recording(
     elif gaps.count:
         raise GapError(
             f"{gaps.describe(rec.t_s)}; the strapdown integration cannot cross a gap: split the recording or "
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
-            ""
             "fill it (calib.inputs.open_recording bridges gaps of a few samples)"
         )
     checked = rec.meta.get("input_checked")
@@ -486,13 +462,6 @@ def check_recording(
         if spk.count or spk.stretches:
             raise SpikeError(
                 f"{_describe_spikes(spk, rec.t_s) if spk.count else 'a corrupt stretch'} in the recording: "
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
                 "load it through calib.inputs.open_recording / prepare_recording, which excludes isolated "
                 "spikes, or remove them"
             )

@@ -50,13 +50,6 @@ def degenerate_problems(rec: Recording, sensors: tuple[str, ...] = ("gyro", "acc
             what = "gyroscope" if name == "gyro" else "accelerometer"
             out.append(
                 f"the {what} is constant: every one of the {n} samples reads ({vals}); that is a dead sensor, an "
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
-                ""
                 "unconnected channel or the wrong columns, not a measurement"
             )
         elif dead:

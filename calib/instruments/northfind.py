@@ -355,8 +355,7 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
             "inconsistent",
             (
                 f"the horizontal rate that turns with the board is {w_mag * DEG_H:.4g} ± {sig_rad * DEG_H:.2g} °/h but "
-                "the "
-                f"Earth's at {latitude_deg:g}° is {omega_h * DEG_H:.4g} °/h: wrong latitude, a gyro scale error, "
+                f"the Earth's at {latitude_deg:g}° is {omega_h * DEG_H:.4g} °/h: wrong latitude, a gyro scale error, "
                 "motion, or a "
                 "world-fixed disturbance (e.g. the magnetic sensitivity of an unshielded FOG coil); the heading is not "
                 "trusted"

@@ -79,8 +79,7 @@ def rest_time_needed(noise: tuple[NoiseTerms, ...], latitude_deg: float, accurac
     best_deg = math.degrees(sig[best] / (EARTH_RATE_RAD_S * math.cos(math.radians(latitude_deg))))
     if sig[best] > target:
         return None, (f"no rest time reaches {accuracy_deg:g}° at latitude {latitude_deg:g}° with this gyro: the best "
-                      "within "
-                      f"{positions} positions × ≤ {HOLD_GRID_S[-1] / 3600:.0f} h is {best_deg:.3g}° "
+                      f"within {positions} positions × ≤ {HOLD_GRID_S[-1] / 3600:.0f} h is {best_deg:.3g}° "
                       f"({positions} × {HOLD_GRID_S[best]:.0f} s); a better gyro is needed")
     k = int(np.argmax(sig <= target))
     if k == 0:

@@ -186,8 +186,7 @@ def tilt_test(rec: Recording, holds: list[TiltHold] | None = None, *, noise: tup
     holds = [TiltHold(h.sweep, h.kind, h.angle_deg, h.start, h.stop, h.excluded or m) for h, m in zip(holds, motion)]
     used = [h for h in holds if not h.excluded]
     warnings = [f"left out: {h.sweep} {h.kind} {h.angle_deg:g}° (t = {rec.t_s[h.start]:.0f}–{rec.t_s[h.stop - 1]:.0f} "
-                "s): "
-                f"{h.excluded}" for h in holds if h.excluded]
+                f"s): {h.excluded}" for h in holds if h.excluded]
     if not used:
         return TiltTest(
             "refused", "no still hold: the board moved in every hold", holds=tuple(holds), warnings=tuple(warnings)

@@ -178,8 +178,7 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
         notes.append(
             f"inconsistent: {tremor_band_rms_m_s2:.2f} m/s² RMS of acceleration above the 4-Hz pre-filter is "
             f"not a hand's tremor (at most 0.35 m/s² peak; this check's limit {TREMOR_MAX_M_S2:.1f} m/s²): impacts, "
-            "vibration or "
-            "fast motion, whose bursts the hand model averages over the session — S, G and σ are not "
+            "vibration or fast motion, whose bursts the hand model averages over the session — S, G and σ are not "
             "trustworthy. Record the rotations by hand without tapping or shaking the device"
         )
     r = np.asarray(lever_arm_m, float)

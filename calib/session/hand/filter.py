@@ -1368,8 +1368,7 @@ def _temperature_report(thermal: tuple[np.ndarray, float] | None, t_ref_c: np.nd
         note += (
             f"; the gyro scale factor is modelled as S + s_T (T − T₀) and reported at "
             f"{np.array2string(np.asarray(t_ref_c), precision=2)} °C (x, y, z: where this session's rotations about "
-            "each axis "
-            "determined it; a scale factor holds at a temperature); s_T = "
+            "each axis determined it; a scale factor holds at a temperature); s_T = "
             f"{np.array2string(s_t * 1e6, precision=0)} ± {np.array2string(s_sd * 1e6, precision=0)} ppm/°C (a session "
             "spanning a degree cannot measure it: a calibration at two temperatures can)"
         )
@@ -1466,8 +1465,7 @@ def _confounding(P: np.ndarray, ol: int, layout: StateLayout = HAND_BIAS) -> Non
             + ". The lever arm's acceleration grows with ω² and ω̇, a scale or axis error's attitude error with the "
             "angle turned: repeat the rotations about each axis at two clearly different speeds (one at least "
             "twice the other), including rotations about horizontal axes — or use --method kf_session if the device "
-            "turned "
-            "about its own sensor (no lever arm)"
+            "turned about its own sensor (no lever arm)"
         )
 
 
