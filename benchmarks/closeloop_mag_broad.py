@@ -1,6 +1,6 @@
 """The closeloop's magnetometer part on BROAD trials 30 and 34, as in docs/magnetometer.md.
 
-    OMP_NUM_THREADS=1 python benchmarks/closeloop_mag_broad.py > docs/magnetometer_closeloop_broad.json
+    OMP_NUM_THREADS=1 python benchmarks/closeloop_mag_broad.py > docs/results/magnetometer_closeloop_broad.json
 
 Runs the whole loop (gyro + magnetometer) on both trials as ``calib closeloop`` does, and the
 magnetometer loop alone on trial 34's stretch with the magnet on the board (44–101 s, found by

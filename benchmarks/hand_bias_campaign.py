@@ -16,7 +16,7 @@ Prints per cell the bias RMSE (rad/s, per axis) against both truths and err/σ R
 cell's pooled RMS leaves it.
 
     nice -n 10 python benchmarks/hand_bias_campaign.py --sensors zhou2020_sim_consumer,mpu9250 \
-        --hands ideal,steady,typical,shaky --seeds 50 --out docs/hand_bias.json
+        --hands ideal,steady,typical,shaky --seeds 50 --out docs/results/hand_bias.json
 
 Seeds and sessions as :func:`calib.scoring.montecarlo.monte_carlo` (truth seed k, sensor draw 10 000 + k, 100 Hz,
 accelerometer calibrated unless ``--accelerometer estimate``).

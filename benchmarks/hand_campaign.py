@@ -1,13 +1,15 @@
 """The hand campaign: method × hand → RMS error, efficiency (ideal and hand-aware bound), NEES.
 
-    python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --seeds 50 \
-        --out docs/hand_zhou2020_sim_consumer.json
-    python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf_hand --seeds 50 --out docs/hand_mpu9250.json
-    python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf --seeds 20 --out docs/hand_kf_mpu9250.json
-    python benchmarks/hand_campaign.py --table docs/hand_*.json --plot docs/hand_rmse.png   # docs/hand.md's table
+    python benchmarks/hand_campaign.py --sensor zhou2020_sim_consumer --methods kf_hand --seeds 50 --out X.json
+    python benchmarks/hand_campaign.py --sensor mpu9250 --methods kf --seeds 20 --out Y.json
+    python benchmarks/hand_campaign.py --table X.json Y.json --plot rmse.png         # the method × hand table
     python benchmarks/hand_campaign.py --sensor mpu9250 --accelerometer estimate --methods kf_hand_joint,kf_session \
-        --seeds 20 --out docs/hand_joint_mpu9250.json          # raw sensor: the joint methods (calib run's setting)
-    python benchmarks/hand_campaign.py --accelerometer-table docs/hand_joint_*.json   # their gyro bias, acc., NEES(15)
+        --seeds 20 --out Z.json                 # raw sensor: the joint methods (calib run's setting)
+    python benchmarks/hand_campaign.py --accelerometer-table Z.json     # their gyro bias, acc., NEES(15)
+
+The campaigns and tables of docs/hand.md are results of ``python -m benchmarks.results`` (``--list`` names them:
+hand_zhou2020_sim_consumer, hand_mpu9250, hand_kf_*, hand_campaign, hand_joint_*, hand_joint), which runs these
+commands and stamps what they write.
 
 (cells already in --out are kept: a campaign can be run hand by hand; ``--methods kf_hand`` runs the
 hand-aware method's cells alone — each cell's bounds cost one Riccati recursion, ~1 s, beside its seeds)

@@ -5,7 +5,7 @@ then both checks on its "ok" answers.  A *wrong ok* is an "ok" whose 6 gyro S, G
 3σ.
 
     python benchmarks/hand_cross_check_campaign.py --sensor zhou2020_sim_consumer --hand shaky --seeds 50 \
-        --out docs/hand_cross_check_zhou2020_sim_consumer.json
+        --out docs/results/hand_cross_check_zhou2020_sim_consumer.json
 
 Seeds and sessions as :func:`calib.scoring.montecarlo.monte_carlo` (truth seed k, sensor draw 10 000 + k, 100 Hz).
 """
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 import numpy as np
 from scipy import stats
@@ -87,14 +88,32 @@ def cell(schedule: str, hand: str, sensor: str, seeds: int, rate_hz: float = 100
             "chi2_6_99_9": thr, "summary": summary, "rows": rows}
 
 
+def table(paths: list[str]) -> str:
+    """The campaigns' summaries as one Markdown table, a row per sensor and hand."""
+    lines = ["| sensor | hand | sessions | \"ok\" without the check | wrong among them | \"ok\" with the old check "
+             "(wrong) | \"ok\" with the check (wrong) | right answers flagged |", "|" + "---|" * 8]
+    for p in paths:
+        data = json.loads(Path(p).read_text())
+        for c in data["rows"] if isinstance(data, dict) else data:
+            s = c["summary"]
+            lines.append(f"| {c['sensor']} | {c['hand']} | {s['sessions']} | {s['ok_without_check']} | "
+                         f"{s['wrong_ok_without_check']} | {s['ok_before']} ({s['wrong_ok_before']}) | "
+                         f"{s['ok_after']} ({s['wrong_ok_after']}) | {s['right_ok_flagged_after']} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--table", nargs="+", help="print the Markdown table of these campaigns' JSON instead")
     ap.add_argument("--schedule", default="zhou2020")
     ap.add_argument("--sensor", default="zhou2020_sim_consumer")
     ap.add_argument("--hand", nargs="+", default=["shaky", "typical", "ideal"])
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
+    if a.table:
+        print(table(a.table))
+        return
     out = []
     for h in a.hand:
         r = cell(a.schedule, h, a.sensor, a.seeds)

@@ -1,7 +1,7 @@
 """Hands we did not tune for: each imperfection of a hand preset switched off alone, and the estimators' σ there.
 
-    python benchmarks/hand_variants.py --seeds 50 --out docs/hand_variants.json        # the table in docs/hand.md
-    python benchmarks/hand_variants.py --table docs/hand_variants.json                 # print it again
+    python benchmarks/hand_variants.py --seeds 50 --out X.json       # ~1 h (results: hand_variants)
+    python benchmarks/hand_variants.py --table X.json                  # its Markdown table
     python benchmarks/hand_variants.py --seeds 2 --variants wobble --cells zhou2020_sim_consumer:kf_hand   # a smoke run
 
 The presets (ideal, steady, typical, shaky) scale all imperfections together, and every estimator in this

@@ -1,7 +1,7 @@
 """Which of the MPU-9250 preset's gyro effects sets kf_hand's excess over the hand-aware bound (docs/hand.md,
 "mpu9250: which effect set the excess").
 
-    python benchmarks/mpu9250_ablation.py --seeds 50 --out docs/mpu9250_ablation.json
+    python benchmarks/mpu9250_ablation.py --seeds 50 --out docs/results/mpu9250_ablation.json
     python benchmarks/mpu9250_ablation.py --base warmup,g_sensitivity --method kf_hand --seeds 200 \
         --variants full,-bias_instability,-scale_nonlinearity,-scale_nonlinearity-bias_instability,... --out X.json
 
@@ -16,8 +16,10 @@ per effect, by position) stays the same: the rows are paired.  Each row is :func
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -76,17 +78,39 @@ def variant(drop: tuple[str, ...]):
     return replace(m, name=f"mpu9250 (accelerometer calibrated) {'-'.join(drop) or 'full'}")
 
 
+def table(path: str) -> str:
+    """A run's JSON as a Markdown table, one row per variant."""
+    d = json.loads(Path(path).read_text())
+    base = f" (removed from every row: {d['base_removed']})" if d.get("base_removed") else ""
+    lines = [f"{d['sensor']}, {d['hand']} hand, {d['seeds']} paired seeds, {d['method']}{base}", "",
+             "| variant | S, G RMSE max | eff. vs hand bound, max S, G | NEES(6) | 95 % band | err/σ RMS S_x … G_z | "
+             "q_b (rad/s/√s) | statuses |", "|" + "---|" * 8]
+    for name, r in d["rows"].items():
+        st = ", ".join(f"{k} {v}" for k, v in sorted(r["statuses"].items()))
+        qb = r.get("bias_rw_rad_s_sqrt_s")
+        lines.append(f"| {name} | {max(r['rmse']):.2e} | {max(r['efficiency_hand']):.2f} | {r['nees']:.2f} | "
+                     f"{r['nees_band'][0]:.2f}–{r['nees_band'][1]:.2f} | {' '.join(f'{v:.2f}' for v in r['z_rms'])} | "
+                     f"{qb if qb is None else f'{qb:.1e}'} | {st} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--table", help="print the Markdown table of this run's JSON instead")
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--base", default="",
                     help="effects removed from every row too, e.g. 'warmup,g_sensitivity': the warmed-up MPU-9250 of "
                          "docs/hand.md (a board powered long before the session, without its g-sensitivity)")
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out")
     ap.add_argument("--method", default="calib.session.hand.filter:kf_hand_g_sensitivity",
                     help="the estimator (docs/hand.md's table: kf_hand with the g-sensitivity block on)")
     a = ap.parse_args()
+    if a.table:
+        print(table(a.table))
+        return
+    if not a.out:
+        ap.error("--out is required for a run")
     rows = {}
     for name in a.variants.split(","):
         t0 = time.time()

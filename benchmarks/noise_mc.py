@@ -1,8 +1,8 @@
 """Monte Carlo campaigns behind docs/noise.md.  Noise drawn with the effect vocabulary's
 own code (``Effect.delta``: static record, no MuJoCo needed), identified by calib.noise.
 
-    python benchmarks/noise_mc.py avr --seeds 20 --out docs/noise_avr.json
-    python benchmarks/noise_mc.py selection --seeds 70 --out docs/noise_selection.json
+    python benchmarks/noise_mc.py avr --seeds 20 --out docs/results/noise_avr.json
+    python benchmarks/noise_mc.py selection --seeds 70 --out docs/results/noise_selection.json
 
 * ``avr``: allan_variance_ros's simulation configuration (config/simulation/imu_simulator.yaml,
   400 Hz, 11 000 s, white noise + bias random walk on both triads; ori-drs/allan_variance_ros
@@ -35,7 +35,7 @@ from calib.noise.plan import noise_terms_of, predicted_relative_sigma  # noqa: E
 # ori-drs/allan_variance_ros config/simulation/imu_simulator.yaml (Kalibr continuous units)
 AVR = {"accelerometer": {"white_noise": 0.0025019929573561175, "random_walk": 6.972435158192731e-05},
        "gyro": {"white_noise": 0.0001888339269965301, "random_walk": 2.5565313322052523e-06}}
-# their issue #28: estimates from one simulated bag
+# github.com/ori-drs/allan_variance_ros/issues/28: their estimates from one simulated bag
 AVR_THEIRS = {"accelerometer": {"white_noise": 0.0017989768146338795, "random_walk": 5.073249247970349e-05},
               "gyro": {"white_noise": 0.00013494835013762752, "random_walk": 2.324462789522549e-06}}
 
@@ -81,7 +81,8 @@ def avr(seeds: int, first: int) -> dict:
                     rows[tri]["auto"].append(np.exp(a.log_params).tolist())
             del y
     out = {"config": {"rate_hz": rate, "duration_s": dur, "seeds": seeds, "first_seed": first,
-                      "source": "ori-drs/allan_variance_ros config/simulation/imu_simulator.yaml; issue #28"},
+                      "source": "ori-drs/allan_variance_ros config/simulation/imu_simulator.yaml; "
+                                "github.com/ori-drs/allan_variance_ros/issues/28"},
            "triads": {}}
     for tri, r in rows.items():
         est = np.array(r["fixed"])                          # (3·seeds, 2): N, K per axis realisation
@@ -146,8 +147,61 @@ def selection(seeds: int, first: int, rate: float = 100.0, dur: float = 3600.0) 
             "plan_over_mc": (pred / est.std(axis=0, ddof=1)).tolist(),
             "cpu_s_per_axis": (time.process_time() - t0) / (3 * seeds),
         }
-        print(json.dumps({name: out["models"][name]}, indent=1), flush=True)
+        print(json.dumps({name: out["models"][name]}, indent=1), file=sys.stderr, flush=True)
     return out
+
+
+KALIBR = {("accelerometer", 0): "accelerometer_noise_density", ("accelerometer", 1): "accelerometer_random_walk",
+          ("gyro", 0): "gyroscope_noise_density", ("gyro", 1): "gyroscope_random_walk"}
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:+.2f} %"
+
+
+def avr_table(d: dict) -> str:
+    """``avr``'s JSON as a Markdown table (Kalibr's parameter names)."""
+    c = d["config"]
+    lines = [f"{c['seeds']} seeds × 3 axes per triad, {c['rate_hz']:g} Hz, {c['duration_s']:g} s; white noise + "
+             "random walk fitted with the model fixed to white+rw, and the model WIC chooses", "",
+             "| parameter (Kalibr) | true | allan_variance_ros (one bag) | ours: mean error ± se | ours: 1σ per axis | "
+             "ours: 1σ of the 3-axis mean | predicted 1σ (sandwich) | 95 % coverage | model chosen by WIC |",
+             "|" + "---|" * 9]
+    for tri in ("accelerometer", "gyro"):
+        t = d["triads"][tri]
+        chosen = ", ".join(f"{k} {v}" for k, v in sorted(t["auto_models"].items(), key=lambda kv: -kv[1]))
+        for i in (0, 1):
+            lines.append(f"| {KALIBR[(tri, i)]} | {t['truth'][i]:.4g} | {t['theirs'][i]:.4g} "
+                         f"({_pct(t['theirs_rel_error'][i])}) | {_pct(t['mean_rel_error'][i])} ± "
+                         f"{100 * t['mean_rel_error_se'][i]:.2f} % | {100 * t['sd_rel_per_axis'][i]:.2f} % | "
+                         f"{100 * t['sd_rel_three_axis_mean'][i]:.2f} % | "
+                         f"{100 * t['predicted_sd_log_per_axis'][i]:.2f} % | {100 * t['coverage95'][i]:.0f} % | "
+                         f"{chosen if i == 0 else ''} |")
+    return "\n".join(lines)
+
+
+def selection_table(d: dict) -> str:
+    """``selection``'s JSON as two Markdown tables: the model chosen and the intervals' coverage; calib plan's
+    predicted σ(log θ̂) against the Monte Carlo spread."""
+    c = d["config"]
+    n = c["seeds"] * c["axes_per_seed"]
+    lines = [f"{c['seeds']} seeds × {c['axes_per_seed']} axes = {n} records per model, {c['duration_s']:g} s at "
+             f"{c['rate_hz']:g} Hz", "",
+             "| true model | chosen correctly | other choices | parameter | mean error | 95 % coverage | "
+             "68 % coverage |", "|" + "---|" * 7]
+    plan = ["| true model | parameter | predicted σ(log θ̂) | Monte Carlo σ(log θ̂) | predicted / MC |",
+            "|" + "---|" * 5]
+    for name, m in d["models"].items():
+        others = ", ".join(f"{k} {v}" for k, v in sorted(m["chosen"].items(), key=lambda kv: -kv[1])
+                           if k != m["true_model"])
+        for i, par in enumerate(m["parameters"]):
+            head = (f"| {name} | {100 * m['correct_fraction']:.1f} % | {others} |" if i == 0 else "| | | |")
+            lines.append(f"{head} {par} | {_pct(m['mean_rel_error'][i])} | {100 * m['coverage95'][i]:.1f} % | "
+                         f"{100 * m['coverage68'][i]:.1f} % |")
+            plan.append(f"| {name} | {par} | {m['plan_predicted_sd_log'][i]:.4f} | {m['mc_sd_log'][i]:.4f} | "
+                        f"{m['plan_over_mc'][i]:.2f} |")
+    return "\n".join(lines + ["", "`calib plan`'s prediction against the spread of the fits of the true model:", ""]
+                     + plan)
 
 
 def main() -> None:
@@ -155,12 +209,18 @@ def main() -> None:
     ap.add_argument("what", choices=("avr", "selection"))
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out", help="write the run's JSON here")
+    ap.add_argument("--table", help="print the Markdown table of this JSON instead of running")
     a = ap.parse_args()
+    if a.table:
+        d = json.loads(Path(a.table).read_text())
+        print(avr_table(d) if a.what == "avr" else selection_table(d))
+        return
     res = avr(a.seeds, a.first_seed) if a.what == "avr" else selection(a.seeds, a.first_seed)
     res["command"] = " ".join(["python benchmarks/noise_mc.py"] + sys.argv[1:])
-    Path(a.out).write_text(json.dumps(res, indent=1))
-    print(json.dumps(res, indent=1)[:4000])
+    if a.out:
+        Path(a.out).write_text(json.dumps(res, indent=1))
+    print(avr_table(res) if a.what == "avr" else selection_table(res))
 
 
 if __name__ == "__main__":

@@ -1,8 +1,9 @@
 """A sensor behind an output low-pass (a DLPF) below the white-noise band: the rest bias's and S, G's σ (docs/hand.md,
 "An output low-pass below the noise band").
 
-    python benchmarks/output_lowpass.py --cutoffs 41,20,10,5 --seeds 30 --out docs/output_lowpass.json
+    python benchmarks/output_lowpass.py --cutoffs 41,20,10,5 --seeds 30 --out docs/results/output_lowpass.json
     python benchmarks/output_lowpass.py --method kf_hand_joint --cutoffs 10 --seeds 30 --out X.json
+    python benchmarks/output_lowpass.py --table docs/results/output_lowpass.json X.json    # the Markdown table
 
 gyrosim's MPU-9250 preset, its accelerometer calibrated (white noise only) unless the method estimates it, with both
 triads' ``bandwidth`` effect at each cut-off (the preset's own effects, both set to the same
@@ -13,8 +14,10 @@ cut-off.  Prints the rest bias's err/σ RMS per axis, NEES of S, G against its b
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -35,13 +38,33 @@ def with_output_lowpass(cutoff_hz: float, estimate_accelerometer: bool):
     return replace(m, accelerometer=acc, gyro=gyro, name=f"mpu9250 (output low-pass {cutoff_hz:g} Hz{calibrated})")
 
 
+def table(paths: list[str]) -> str:
+    """The runs of ``paths`` as one Markdown table, a row per method and cut-off."""
+    lines = ["| method | output low-pass f_c (Hz) | seeds | rest bias err/σ RMS x, y, z | NEES(6) S, G | 95 % band | "
+             "statuses |", "|" + "---|" * 7]
+    for p in paths:
+        d = json.loads(Path(p).read_text())
+        for r in d["rows"].values():
+            st = ", ".join(f"{k} {v}" for k, v in sorted(r["statuses"].items()))
+            lines.append(f"| {d['method']} | {r['cutoff_hz']:g} | {d['seeds']} | "
+                         f"{', '.join(f'{v:.2f}' for v in r['bias_z_rms'])} | {r['nees']:.2f} | "
+                         f"{r['nees_band'][0]:.2f}–{r['nees_band'][1]:.2f} | {st} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cutoffs", default="41,20,10,5", help="output low-pass cut-offs (Hz), comma-separated")
     ap.add_argument("--seeds", type=int, default=30)
     ap.add_argument("--method", default="kf_hand")
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out")
+    ap.add_argument("--table", nargs="+", help="print the Markdown table of these runs' JSON instead")
     a = ap.parse_args()
+    if a.table:
+        print(table(a.table))
+        return
+    if not a.out:
+        ap.error("--out is required for a run")
     estimate = a.method in ("kf_hand_joint", "kf_session")
     rows = {}
     print(f"{'f_c (Hz)':>8}  {'bias err/σ RMS x, y, z':>24}  {'NEES(6)':>7}  {'band':>11}  statuses", flush=True)
