@@ -2,6 +2,7 @@
 
     python benchmarks/collect.py CAMPAIGN_DIR summary.csv:campaign_summary.csv error_vs_severity.png --to docs/results
     python benchmarks/collect.py --campaign-table docs/results/campaign_summary.csv
+    python benchmarks/collect.py --section out/report.md "Attitude validation"   # one section of a report
 
 ``SRC[:DST]``: the file SRC of the campaign folder, written as DST (default: the same name).  The runner
 (``python -m benchmarks.results``) stamps what lands in docs/results; this script only copies and renders.
@@ -42,13 +43,29 @@ def campaign_table(path: str | Path) -> str:
     return "\n".join(lines)
 
 
+def section(path: str | Path, heading: str) -> str:
+    """The section of a Markdown file whose heading starts with ``heading`` (without the heading line)."""
+    lines = Path(path).read_text(encoding="utf-8").splitlines()
+    for i, line in enumerate(lines):
+        if line.startswith("#") and line.lstrip("#").strip().startswith(heading):
+            level = len(line) - len(line.lstrip("#"))
+            end = next((j for j in range(i + 1, len(lines))
+                        if lines[j].startswith("#") and len(lines[j]) - len(lines[j].lstrip("#")) <= level), len(lines))
+            return "\n".join(lines[i + 1:end]).strip()
+    raise SystemExit(f"{Path(path).name}: no section '{heading}'")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folder", nargs="?", help="the campaign's output folder")
     ap.add_argument("files", nargs="*", help="SRC[:DST] names inside the folder")
     ap.add_argument("--to", help="destination folder (docs/results)")
     ap.add_argument("--campaign-table", help="print this summary.csv as a Markdown table instead")
+    ap.add_argument("--section", nargs=2, metavar=("FILE", "HEADING"), help="print one section of a Markdown file")
     a = ap.parse_args(argv)
+    if a.section:
+        print(section(*a.section))
+        return 0
     if a.campaign_table:
         print(campaign_table(a.campaign_table))
         return 0
