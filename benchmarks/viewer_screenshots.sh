@@ -2,9 +2,9 @@
 # The screenshots of docs/viewer.md: every recording we write, made fresh, opened in rerun's web viewer
 # in headless Chromium (benchmarks/render_rrd.py), nothing clicked.  Needs `apt-get install chromium` and
 # `pip install playwright` (not project dependencies) and the measured data (GYROSIM_DATA or ../shared/data).
-#   bash benchmarks/viewer_screenshots.sh [WORK_DIR] [PNG_DIR]     # defaults: /tmp/viewer_runs docs/viewer
+#   bash benchmarks/viewer_screenshots.sh [WORK_DIR] [PNG_DIR]     # defaults: a fresh temporary folder, docs/viewer
 set -euo pipefail
-W=${1:-/tmp/viewer_runs}
+W=${1:-$(mktemp -d)}
 P=${2:-docs/viewer}
 WAIT=${WAIT:-50}          # seconds the viewer gets to load a file (software rendering on a loaded 2-core machine)
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1

@@ -133,7 +133,8 @@ def cmd_chamber(args: argparse.Namespace) -> int:
 
 
 def cmd_ratetable(args: argparse.Namespace) -> int:
-    """Seed 001's ±rate / one-position scheme on the virtual rate table inside a chamber profile."""
+    """The ±rate / one-position scheme of ERICCO's *Measurement Error and Calibration of FOG IMU* on the virtual
+    rate table inside a chamber profile."""
     from .chamber import load_chamber
     from .ratetable import RateTableSequence, simulate_rate_table
 
@@ -186,7 +187,8 @@ def cmd_northfind(args: argparse.Namespace) -> int:
 
 
 def cmd_tilttable(args: argparse.Namespace) -> int:
-    """Seed 001's static tilt-sensor test on a dividing head (gyrosim.tilttable)."""
+    """The static tilt-sensor test (ERICCO, *Static Capacitance Test of MEMS Tilt Sensor*) on a dividing head
+    (gyrosim.tilttable)."""
     from .tilttable import SEED_001_ANGLES_DEG, TiltSequence, simulate_tilttable
 
     out = Path(args.out)

@@ -293,7 +293,7 @@ def test_no_issue_numbers_in_code_or_cli_help():
     import re
 
     pattern = re.compile(ISSUE_REF, re.I)
-    assert pattern.search("see issue 7") and pattern.search("(Issues 13)")  # the pattern bites
+    assert pattern.search("see iss" "ue 7") and pattern.search("(Iss" "ues 13)")  # the pattern bites
     hits = [f"{f.relative_to(ROOT)}:{i}: {line.strip()}"
             for pkg in ("gyrosim", "calib") for f in sorted((ROOT / pkg).rglob("*"))
             if f.suffix in (".py", ".toml") and "__pycache__" not in f.parts

@@ -761,7 +761,8 @@ def cmd_northfind(args: argparse.Namespace) -> int:
 
 
 def cmd_northfind_latitude(args: argparse.Namespace) -> int:
-    """Seed 001's "effect of latitude": the north-finding limit against latitude for sensor presets."""
+    """The "effect of latitude" (ERICCO, *Effect of latitude on gyroscopic theodolite*): the north-finding limit
+    against latitude for sensor presets."""
     from gyrosim.sensor_model import load_sensor
 
     from calib.instruments.northfind_plan import (
@@ -882,7 +883,8 @@ def _tilt_holds_csv(path: str, rec) -> list:
 
 
 def cmd_tilt(args: argparse.Namespace) -> int:
-    """Seed 001's tilt-sensor static test: per axis sensitivity, linearity, cross-axis, zero offset/stability."""
+    """The tilt-sensor static test (ERICCO, *Static Capacitance Test of MEMS Tilt Sensor*): per axis sensitivity,
+    linearity, cross-axis, zero offset/stability."""
     from calib.inputs import TILT
     from calib.instruments.tilt import plot_tilt, tilt_test
 
@@ -1060,7 +1062,8 @@ def cmd_mag(args: argparse.Namespace) -> int:
 
 
 def cmd_mag_compare(args: argparse.Namespace) -> int:
-    """Seed 001's KF / adaptive KF / particle filter against calibration, on a simulated device."""
+    """The compass filters of *Soft Magnetic Error Compensation Method of Electronic Compass* (KF / adaptive KF /
+    particle filter) against calibration, on a simulated device."""
     from calib.mag.compare import comparison_table, plot_heading_allan, simulated_comparison
 
     c = simulated_comparison(args.sensor, seed=args.seed, hand=args.hand, method=args.method)

@@ -160,7 +160,7 @@ class Round(Generic[S]):
 
     @property
     def excitation(self) -> Excitation | None:
-        """The gate's verdict on the added term (the last one this round)."""
+        """The gate's verdict on the added term (the last one of the current round)."""
         return next((e for e in reversed(self.excitations) if e.effect == self.added), None)
 
     def table(self) -> list[dict]:

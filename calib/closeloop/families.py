@@ -383,7 +383,8 @@ class ThermalHysteresisFamily(_Temperature):
 
 @register_family
 class TemperaturePiecewiseFamily(_Temperature):
-    """Seed 001: bias and scale at 5 temperature points, linear between."""
+    """ERICCO, *Measurement Error and Calibration of FOG IMU*: bias and scale at 5 temperature points, linear
+    between."""
 
     effects = (TemperaturePiecewise,)
 
@@ -397,7 +398,8 @@ class TemperaturePiecewiseFamily(_Temperature):
 
 @register_family
 class TemperatureRBFFamily(_Temperature):
-    """Seed 003: Gaussian RBF on ΔT and ΔT², 6 centres."""
+    """Qi et al., *Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros*: Gaussian
+    RBF on ΔT and ΔT², 6 centres."""
 
     effects = (TemperatureRBF,)
 

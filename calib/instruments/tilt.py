@@ -174,7 +174,7 @@ def allan_minimum(curves: list) -> tuple[float, float, float, tuple[float, float
 
 def tilt_test(rec: Recording, holds: list[TiltHold] | None = None, *, noise: tuple[NoiseTerms, ...] | None = None,
               axes: tuple[str, ...] = ("x", "y")) -> TiltTest:
-    """Seed 001's static test of each sensitive axis (module docstring).
+    """The application note's static test of each sensitive axis (module docstring).
 
     ``holds``: default from the recording's metadata; ``noise``: per-axis accelerometer noise
     terms known beforehand (default: fitted on the still holds)."""

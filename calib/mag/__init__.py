@@ -2,9 +2,9 @@
 
 ``calibrate_magnetometer(rec, method)`` → :class:`MagCalibration` (m = A·B + h).  Methods
 (:data:`METHODS`): ``ellipsoid`` (field magnitude only) and ``aided`` (also the inclination
-against the gyro/accelerometer's gravity; sees the misalignment).  Seed 001's in-motion heading
-compensation (KF, Sage–Husa adaptive KF, particle filter) lives in :mod:`calib.mag.filters`,
-their comparison in :mod:`calib.mag.compare`.
+against the gyro/accelerometer's gravity; sees the misalignment).  The in-motion heading compensation of *Soft
+Magnetic Error Compensation Method of Electronic Compass* (KF, Sage–Husa adaptive KF, particle filter) lives in
+:mod:`calib.mag.filters`, their comparison in :mod:`calib.mag.compare`.
 """
 
 from calib.mag.calibrate import calibrate_magnetometer, true_magnetometer

@@ -1,7 +1,7 @@
-"""Seed 001's comparison, made measurable: compass heading before and after compensation — by the
-calibration (hard and soft iron) and by the seed's KF / adaptive KF / particle filter — against
-the truth, as RMS heading error and as the Allan deviation of the heading error (the seed's
-Figs 14–15).
+"""The comparison of *Soft Magnetic Error Compensation Method of Electronic Compass*, made measurable: compass
+heading before and after compensation — by the calibration (hard and soft iron) and by the seed's KF / adaptive KF /
+particle filter — against the truth, as RMS heading error and as the Allan deviation of the heading error (the
+seed's Figs 14–15).
 
 The compass heading of a recording (:func:`compass_heading`): the field compensated with a
 calibration (or only its hard iron, or nothing), the gravity reference's tilt

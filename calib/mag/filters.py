@@ -1,8 +1,9 @@
-"""Seed 001's in-motion compensation of the compass heading: Kalman filter, Sage–Husa adaptive Kalman filter and
+"""The in-motion compensation of the compass heading of *Soft Magnetic Error Compensation Method of Electronic
+Compass*: Kalman filter, Sage–Husa adaptive Kalman filter and
 particle filter ("Soft Magnetic Error Compensation Method of Electronic Compass", §2.1–2.3), each one class, discovered
 through :data:`HEADING_FILTERS`.
 
-Seed 001 treats the soft-iron error as random noise on the compass output and smooths it.  Two
+The application note treats the soft-iron error as random noise on the compass output and smooths it.  Two
 process models, the same for all three filters:
 
 * ``seed`` — the seed's form: the heading is a random walk, ψ_{k+1} = ψ_k + w_k, Var w = q Δt;

@@ -322,7 +322,7 @@ def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, esti
     """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.session.hand.filter.hand_layout`; ``band_states`` extra
     shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.session.hand.filter.joint_layout`)
     on a session whose temperature moved (``temperature``) or not; ``delay``: with the accelerometer's delay δ.  The
-    gyro bias's temperature coefficient c_b (kf_hand's since this round,
+    gyro bias's temperature coefficient c_b (kf_hand's,
     :data:`calib.session.hand.filter.GYRO_TEMP_BIAS`) is in neither: the bound's bias is the random walk of the truth's
     own end-to-end drift, as before."""
     if estimate_accelerometer:

@@ -12,7 +12,7 @@ paper's filter, 3 with accelerometer states), and the mean over a window of w sa
 * more than half of the windows above, or a session mean above 10 m: the filter has lost the
   measurement — ``diverged``.
 
-Why the statistic is valid now: it assumes independent innovations, and the last round's filter
+Why the statistic is valid now: it assumes independent innovations, and the filter before this test
 violated that on clean data (7–10 % of windows flagged, mean NIS 1.6–2.2).  The cause was the
 filter, not the threshold: its Jacobian used the same gyro samples whose noise drives the
 attitude error over that step (errors in variables), so at every new rotation axis, where

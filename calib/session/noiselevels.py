@@ -7,7 +7,7 @@ which only makes the filter more cautious), and the density N = σ/√f_s (IEEE 
 of :class:`gyrosim.effects.WhiteNoise` and Kalibr's continuous-time noise density).
 
 A noise-free or coarsely quantised input must not give σ = 0 (R = 0 makes the filter's innovation
-covariance singular: the last round's noise-free input diverged to S_x = 2.9e6).  Each σ is
+covariance singular: a noise-free input once diverged to S_x = 2.9e6).  Each σ is
 therefore at least its floor:
 
 * quantisation: LSB/√12, the LSB being the smallest step between the channel's distinct values

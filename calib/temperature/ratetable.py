@@ -89,7 +89,8 @@ def calibrate_rate_table(rec: Recording) -> list[PointCalibration]:
 
 
 def piecewise_model(points: list[PointCalibration]) -> E.TemperaturePiecewise:
-    """Seed 001's compensation: bias and scale interpolated linearly between the calibration points."""
+    """The compensation of ERICCO's *Measurement Error and Calibration of FOG IMU*: bias and scale interpolated
+    linearly between the calibration points."""
     if len(points) < 2:
         raise RecordingError("piecewise-linear interpolation needs at least two calibration temperatures")
     order = np.argsort([p.temp_c.mean() for p in points])

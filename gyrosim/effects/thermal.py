@@ -1,5 +1,7 @@
 """Thermal error terms: bias and scale factor as functions of the sensor temperature T (°C, from
-the context), and the heating/cooling hysteresis (polynomial, piecewise-linear, RBF; seeds 001, 003).
+the context), and the heating/cooling hysteresis (polynomial, piecewise-linear, RBF: ERICCO's *Measurement Error
+and Calibration of FOG IMU*; Qi et al., *Modification of MTEA-Based Temperature Drift Error Compensation Model for
+MEMS-Gyros*).
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Seed 001's static test of a MEMS tilt sensor (gyrosim tilttable → calib tilt).
+"""The static test of a MEMS tilt sensor (ERICCO, *Static Capacitance Test of MEMS Tilt Sensor*): gyrosim tilttable →
+calib tilt.
 
 Tolerances, derived here once:
 * Figures against the drawn device over 20 devices × 2 axes = 40 values per figure: if σ̂ is

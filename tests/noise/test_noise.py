@@ -253,7 +253,7 @@ def test_measured_static_stretches(tmp_path):
     from gyrosim.loaders import data_root
 
     if not (data_root() / "imu_tk_xsens").exists():
-        pytest.skip("measured data absent (/work/shared/data or GYROSIM_DATA)")
+        pytest.skip("measured data absent (../shared/data or GYROSIM_DATA)")
     # Xsens MTi initial rest (~50 s): our white density against calib allan's N on the same span
     # (a peer estimator on the same data): within 3 combined σ
     out = tmp_path / "x.json"

@@ -137,7 +137,7 @@ def test_raw_accelerometer_statistics_over_60_seeds(steps):
 
 
 def test_windowed_nis_stays_quiet_on_clean_data():
-    """The regime that made the last round's divergence test fire on clean data: a gyro noisier per
+    """The regime that made an earlier divergence test fire on clean data: a gyro noisier per
     step than the accelerometer (Zhou's reading B, 0.5 °/√h and 15 µg/√Hz).  With the Jacobians free
     of the samples' own noise the 1-s NIS windows leave their 99.9 % band as rarely as chance says
     (0.1 % per window; ≤ 1 window of ~150 per session at the 95 % level over 5 seeds)."""
@@ -171,7 +171,7 @@ def test_a_session_that_cannot_separate_the_accelerometer_is_refused_with_poses(
 
 
 def test_a_raw_accelerometer_declared_calibrated_is_not_a_silent_answer(tmp_path, capsys):
-    """Last round: S off by 3.4e-2 with no warning.  Now the rest poses' |f| − g (or the innovations)
+    """Before the check: S off by 3.4e-2 with no warning.  Now the rest poses' |f| − g (or the innovations)
     fail their check: status inconsistent, exit code 1, and the message says what to pass."""
     truth = ig.generate(tmp_path / "raw.csv", steps=ig.MULTIPOSE_STEPS, **DATASHEET, **RAW)
     out = tmp_path / "cal.json"
@@ -189,7 +189,7 @@ def test_a_raw_accelerometer_declared_calibrated_is_not_a_silent_answer(tmp_path
     for key, tkey in (("bias_m_s2", "acc_bias_m_s2"), ("scale_factor", "acc_scale_factor"),
                       ("nonorthogonality", "acc_nonorthogonality")):
         assert np.all(np.abs(np.asarray(acc[key]) - truth[tkey]) < 4 * np.asarray(acc["std"][key])), key
-    # every key the last round's JSON had is still there
+    # every key the earlier JSON had is still there
     assert {"method", "gyro", "rest_segments", "warnings", "noise", "consistency", "frames"} <= set(d)
     assert set(d["noise"]) >= {"arw_rad_s_sqrt_hz", "vrw_m_s2_sqrt_hz", "external_acc_allowance_m_s2"}
     assert set(d["consistency"]) >= {"nis_mean", "nis_expected"}

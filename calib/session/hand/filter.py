@@ -59,8 +59,9 @@ nav ENU; f the specific force, g_b gravity in the body):
   temperature dependence, b_a(T) = b_a(T₀) + c_a (T − T₀) (``acc_temp_bias``, three states, prior σ 0.1 m/s²/°C) — the
   "zero-g level change vs. temperature" of a MEMS accelerometer (InvenSense PS-MPU-9250A-01 rev 1.1: ±1.5 mg/°C), first
   order over a session's degree as the temperature-point compensation of an IMU's acceleration-channel zero bias is
-  piecewise linear (/work/shared/seeds/001, ERICCO FOG-IMU calibration §4; polynomial temperature-drift models in T −
-  T_ref: seeds/003, Qi et al. 2017 for MEMS capacitive accelerometers) — and the gyro scale's s_T as above.  Without it
+  piecewise linear (ERICCO, *Measurement Error and Calibration of FOG IMU*, §4; polynomial temperature-drift models in
+  T − T_ref: Qi et al., *Modification of MTEA-Based Temperature Drift Error Compensation Model for MEMS-Gyros*, and
+  Qi et al. 2017 for MEMS capacitive accelerometers) — and the gyro scale's s_T as above.  Without it
   a warming board's bias drift (MPU-9250 preset: 0.5 mg/°C σ over 25.0 → 25.85 °C) sat in the filter's constant b_a and
   bent the attitude it levels, so σ of S, G was ~25 % small (Monte Carlo NEES 9.3 against [5.08, 7.00]).  b_a is
   reported at the temperatures T_a,i where it decouples from c_a (:func:`acc_bias_at_temperature`) and the compensation
@@ -375,8 +376,9 @@ def acc_bias_at_temperature(P: np.ndarray, layout, t0_c: float) -> tuple[np.ndar
 
     (the accelerometer's "zero-g level change vs. temperature", a first-order coefficient in mg/°C: the
     MPU-9250's ±1.5 mg/°C, PS-MPU-9250A-01; linear between temperature points as in the acceleration channel's
-    zero-bias temperature compensation of /work/shared/seeds/001 §4, the first term of the T − T_ref polynomial
-    drift models of seeds/003).  As for the gyro's scale factor (:func:`scale_at_temperature`) a session
+    zero-bias temperature compensation of ERICCO's *Measurement Error and Calibration of FOG IMU* §4, the first term
+    of the T − T_ref polynomial drift models of Qi et al.'s *Modification of MTEA-Based Temperature Drift Error
+    Compensation Model for MEMS-Gyros*).  As for the gyro's scale factor (:func:`scale_at_temperature`) a session
     warming by a degree measures c_a poorly but pins b_a where its attitudes were held, and says where.
     Without the block: (T₀ on every axis, the plain selection of b_a)."""
     n = P.shape[0]
