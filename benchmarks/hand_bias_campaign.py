@@ -1,4 +1,4 @@
-"""kf_hand's gyro bias, before and after calib.session.rest_bias, on the same sessions (docs/hand.md, "Gyro bias").
+"""kf_hand's gyro bias, before and after calib.session.rest_bias, on the same sessions (results: hand_bias).
 
 Per seed: ``kf_hand`` (accelerometer calibrated) or ``kf_hand_joint`` (``--accelerometer estimate``, raw
 accelerometer).  The reported value is the first rest's mean either way; what changed is its σ and what it is

@@ -74,7 +74,7 @@ def run(base: str, seeds: int, variants: tuple[str, ...], cells: tuple[tuple[str
 
 
 def table(data: dict) -> str:
-    """docs/hand.md's table: one row per (variant, sensor, method)."""
+    """The hand variants' table (docs/results/hand_variants.md): one row per (variant, sensor, method)."""
     lines = [
         f"base hand: {data['base']}, {data['seeds']} seeds per row",
         "| switched off | sensor | method | NEES(6) | 95 % band | side "

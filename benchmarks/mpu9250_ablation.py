@@ -1,5 +1,5 @@
-"""Which of the MPU-9250 preset's gyro effects sets kf_hand's excess over the hand-aware bound (docs/hand.md,
-"mpu9250: which effect set the excess").
+"""Which of the MPU-9250 preset's gyro effects sets kf_hand's excess over the hand-aware bound (results:
+mpu9250_ablation, mpu9250_warm_ablation; docs/hand.md, "What the campaigns show").
 
     python benchmarks/mpu9250_ablation.py --seeds 50 --out docs/results/mpu9250_ablation.json
     python benchmarks/mpu9250_ablation.py --base warmup,g_sensitivity --method kf_hand --seeds 200 \
@@ -104,7 +104,7 @@ def main() -> None:
                          "docs/hand.md (a board powered long before the session, without its g-sensitivity)")
     ap.add_argument("--out")
     ap.add_argument("--method", default="calib.session.hand.filter:kf_hand_g_sensitivity",
-                    help="the estimator (docs/hand.md's table: kf_hand with the g-sensitivity block on)")
+                    help="the estimator (default: kf_hand with the g-sensitivity block on)")
     a = ap.parse_args()
     if a.table:
         print(table(a.table))

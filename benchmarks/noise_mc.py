@@ -5,9 +5,10 @@ own code (``Effect.delta``: static record, no MuJoCo needed), identified by cali
     python benchmarks/noise_mc.py selection --seeds 70 --out docs/results/noise_selection.json
 
 * ``avr``: allan_variance_ros's simulation configuration (config/simulation/imu_simulator.yaml,
-  400 Hz, 11 000 s, white noise + bias random walk on both triads; ori-drs/allan_variance_ros
-  issue #28 reports −28 %, −27 %, −29 %, −9 % on its own data).  Each seed: both triads, three
-  axes; fitted with the model fixed to white+rw (what their tool assumes) and chosen by WIC.
+  400 Hz, 11 000 s, white noise + bias random walk on both triads; ori-drs/allan_variance_ros,
+  github.com/ori-drs/allan_variance_ros/issues/28, reports −28 %, −27 %, −29 %, −9 % on its own data).
+  Each seed: both triads, three axes; fitted with the model fixed to white+rw (what their tool assumes) and
+  chosen by WIC.
 * ``selection``: four true models on a 1-hour 100 Hz record (3 axes per seed, each axis one
   realisation): how often WIC picks the true model; coverage of the 95 % intervals when the true
   model is fitted; and calib plan's predicted σ(log θ̂) against the Monte Carlo spread.

@@ -1,5 +1,5 @@
-"""A sensor behind an output low-pass (a DLPF) below the white-noise band: the rest bias's and S, G's σ (docs/hand.md,
-"An output low-pass below the noise band").
+"""A sensor behind an output low-pass (a DLPF) below the white-noise band: the rest bias's and S, G's σ (results:
+output_lowpass; docs/hand.md, "The assumptions it checks on measured data").
 
     python benchmarks/output_lowpass.py --cutoffs 41,20,10,5 --seeds 30 --out docs/results/output_lowpass.json
     python benchmarks/output_lowpass.py --method kf_hand_joint --cutoffs 10 --seeds 30 --out X.json

@@ -5,9 +5,9 @@ A stamp is a small dict::
     {"commit": "<git rev-parse HEAD>", "dirty": false, "command": "python benchmarks/x.py --out …",
      "date": "2026-12-01T10:00:00+00:00", ...}
 
-``dirty`` is true when the checkout had changes outside ``docs/`` while the command ran (``dirty_files`` lists
-them): docs/ holds the guides and the results themselves, which no computation reads as code.  A file written
-before results were stamped carries ``"commit": null`` and a ``note`` saying how to regenerate it.
+``dirty`` is true when the checkout had changes outside ``docs/`` and ``README.md`` while the command ran
+(``dirty_files`` lists them): those hold the guides and the results themselves, which no computation reads.  A
+file written before results were stamped carries ``"commit": null`` and a ``note`` saying how to regenerate it.
 
 Where the stamp goes, per file type (``stamp`` writes it, ``read`` finds it):
 
@@ -43,7 +43,8 @@ def git_state(root: Path = ROOT) -> dict:
                                 capture_output=True, text=True, check=True).stdout.splitlines()
     except (OSError, subprocess.CalledProcessError):
         return {"commit": None, "dirty": None}
-    changed = sorted({line[3:].split(" -> ")[-1] for line in status if line[3:] and not line[3:].startswith("docs/")})
+    changed = sorted({path for line in status if (path := line[3:].split(" -> ")[-1])
+                      and not path.startswith("docs/") and path != "README.md"})
     state = {"commit": commit, "dirty": bool(changed)}
     if changed:
         state["dirty_files"] = changed[:20]

@@ -61,6 +61,8 @@ def render(name: str, guide: Path, results: Path = RESULTS) -> str:
     how = f"`python -m benchmarks.results --only {BY_OUTPUT[name].name}`" if name in BY_OUTPUT else "its generator"
     state = (f"commit {prov['commit'][:7]}{' (dirty)' if prov.get('dirty') else ''}, {str(prov.get('date'))[:10]}"
              if prov and prov.get("commit") else "written before results were stamped")
+    if prov and "before stamping" in (prov.get("inputs") or {}).values():
+        state += ", from inputs written before results were stamped"
     return f"{text}\n\n<sub>Generated: [results/{name}]({link}) ({state}); regenerate with {how}.</sub>\n"
 
 
@@ -77,9 +79,16 @@ def _normalise(p: Path) -> str:
 
 
 def update(guide: Path, results: Path = RESULTS) -> str:
-    """``guide``'s text with every snippet re-rendered."""
+    """``guide``'s text with every snippet re-rendered (a snippet whose file does not exist yet is left as it is:
+    :func:`stale` reports it)."""
     text = guide.read_text(encoding="utf-8")
-    return BLOCK.sub(lambda m: m.group(1) + render(m.group("name"), guide, results) + m.group(4), text)
+
+    def one(m: re.Match) -> str:
+        if not (results / m.group("name")).is_file():
+            return m.group(0)
+        return m.group(1) + render(m.group("name"), guide, results) + m.group(4)
+
+    return BLOCK.sub(one, text)
 
 
 def render_all(root: Path = ROOT, results: Path = RESULTS) -> list[Path]:
