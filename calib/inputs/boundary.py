@@ -100,7 +100,10 @@ def _convert_units(rec: Recording, gyro_unit: str | None, acc_unit: str | None) 
 def _read_dataset(name: str, gyro_unit: str | None, acc_unit: str | None) -> tuple[Recording, ReadInfo]:
     from gyrosim import loaders
 
-    rec = loaders.load_dataset(name)
+    try:
+        rec = loaders.load_dataset(name)
+    except RecordingError as err:  # a name that is not there: the message names the folder and what is
+        raise FormatError(str(err)) from err
     given = gyro_unit not in (None, "rad/s") or acc_unit not in (None, "m/s^2", "m/s²")
     info = ReadInfo(f"dataset:{name}", "measured dataset", notes=[] if not given else
                     [f"--gyro-unit/--acc-unit ignored: dataset {name} is converted to SI by its loader"])
