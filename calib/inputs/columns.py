@@ -159,8 +159,8 @@ class Layout:
 
 
 def _axes(channel_stem: str, endings: tuple[str, ...]) -> dict[str, tuple[str, ...]]:
-    return {f"{channel_stem}_{ax}": tuple(f"{e}_{ax}" if not e.endswith("_") else f"{e}{ax}" for e in endings)
-            for ax in "xyz"}
+    """``gyro_x: (angular_velocity_x, angular_velocityx)``…: both spellings of each ending, per axis."""
+    return {f"{channel_stem}_{ax}": tuple(f for e in endings for f in (f"{e}_{ax}", f"{e}{ax}")) for ax in "xyz"}
 
 
 LAYOUTS = (
