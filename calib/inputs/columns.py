@@ -403,19 +403,25 @@ def resolve_columns(header: list[str], columns: dict[str, str] | None = None, gy
     return ColumnMap(index, units, how, name, ignored, t_nanosec, False, tuple(notes))
 
 
+_SHOW = {"m/s^2": "m/s²", "uT": "µT", "degC": "°C"}
+
+
 def describe_units(cmap: ColumnMap) -> str | None:
-    """One line for the report when the file (or the user) chose a layout or units other than calib's plain
-    SI layout; None when there is nothing to say."""
-    shown = {s: u for s, u in cmap.units.items() if not (s in _SI and u == _SI[s] and cmap.declared[s] == "default")}
-    non_si = {s: u for s, u in shown.items() if s != "t" and u != _SI.get(s)}
-    if cmap.layout == "calib" and not non_si and not cmap.notes:
-        return None
-    parts = [f"{_WHAT[s]} {u}" for s, u in shown.items() if s in ("gyro", "acc", "mag", "temp")]
-    origin = sorted({cmap.declared[s] for s in shown if s in ("gyro", "acc", "mag", "temp")})
-    head = "columns mapped by the user" if cmap.layout == "column mapping" else f"read as a {cmap.layout} export"
-    if cmap.layout == "calib":
-        head = "units from the header"
-    text = f"{head}: {', '.join(parts)}" if parts else head
-    if origin and cmap.layout != "calib":
-        text += f" (from {', '.join(origin)})"
+    """One line for the report when the header chose a logger's layout or units other than calib's SI
+    defaults; None when there is nothing to say (calib's plain header, units given by option only)."""
+    from_file = {s: u for s, u in cmap.units.items() if s in ("gyro", "acc", "mag", "temp")
+                 and cmap.declared.get(s, "default").startswith(("column", "the"))}
+    if cmap.layout in ("calib", "column mapping"):
+        shown = {s: u for s, u in from_file.items() if u != _SI[s]}
+        if not shown and not cmap.notes:
+            return None
+        text = "units from the column names: " + ", ".join(f"{_WHAT[s]} {_SHOW.get(u, u)}" for s, u in shown.items())
+        return "; ".join([text, *cmap.notes])
+    text = f"read as the {cmap.layout} layout"
+    if from_file:
+        text += ": " + ", ".join(f"{_WHAT[s]} {_SHOW.get(u, u)}" for s, u in from_file.items())
+    assumed = [s for s in ("gyro", "acc") if cmap.declared.get(s) == "default"]
+    if assumed:
+        text += (f"; {' and '.join(_SHOW.get(_SI[s], _SI[s]) for s in assumed)} assumed (the header names no unit; "
+                 f"{' or '.join(_OPTION[s] for s in assumed)} says another)")
     return "; ".join([text, *cmap.notes])

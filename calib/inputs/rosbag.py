@@ -14,7 +14,7 @@ be rotated first.  Times are the messages' ``header.stamp`` (the sensor's clock)
 0 s with the Unix origin kept in ``meta['time_origin_unix_s']``; a topic whose stamps are all zero
 falls back to the bag's receive times (noted: they carry the transport's jitter).  A message whose
 covariance element 0 is −1 says it carries no such data (REP 145): a topic without angular velocity
-or acceleration is refused.
+or acceleration is refused.  Other topics (``sensor_msgs/MagneticField``, ``Temperature``) are not read.
 """
 
 from __future__ import annotations
