@@ -188,8 +188,7 @@ class ColumnMap:
     ``units`` maps a sensor (``t``, ``gyro``, ``acc``, ``temp``, ``mag``) to its unit (``t`` may be
     absent: found from the steps); ``declared`` says for each where the unit came from (the column name,
     the logger's format, the user); ``t_nanosec``: a second time column added as nanoseconds (ROS 2's
-    ``header.stamp.sec`` + ``header.stamp.nanosec``); ``no_time``: the file has no time column (x-IMU
-    packet numbers) and the times are made from a rate."""
+    ``header.stamp.sec`` + ``header.stamp.nanosec``)."""
 
     index: dict[str, int]
     units: dict[str, str]
@@ -197,7 +196,6 @@ class ColumnMap:
     layout: str
     ignored: tuple[str, ...]
     t_nanosec: int | None = None
-    no_time: bool = False
     notes: tuple[str, ...] = field(default=())
 
 
@@ -400,7 +398,7 @@ def resolve_columns(header: list[str], columns: dict[str, str] | None = None, gy
         notes.append(layout.note)
     used = set(index.values()) | ({t_nanosec} if t_nanosec is not None else set())
     ignored = tuple(raw[j] for j in range(len(raw)) if j not in used)
-    return ColumnMap(index, units, how, name, ignored, t_nanosec, False, tuple(notes))
+    return ColumnMap(index, units, how, name, ignored, t_nanosec, tuple(notes))
 
 
 _SHOW = {"m/s^2": "m/s²", "uT": "µT", "degC": "°C"}
