@@ -88,7 +88,7 @@ def validate(data_dir: str | Path, only: str | None = None, workdir: str | Path 
     """Score every recording with a reference in ``data_dir`` (module docstring); ``only``: the recordings
     whose name contains it; ``workdir``: keep calib's files there (one folder per recording; default a
     temporary folder); ``progress``: called with a line per recording."""
-    data_dir = Path(data_dir)
+    data_dir = Path(data_dir).resolve()  # the calib commands run in their own folder
     if not data_dir.is_dir():
         raise GyrosimError(f"no data folder at {data_dir}: give the folder that holds broad/, imu_tk_xsens/, …")
     jobs = recordings_in(data_dir)
@@ -102,7 +102,7 @@ def validate(data_dir: str | Path, only: str | None = None, workdir: str | Path 
     t0, c0 = time.perf_counter(), _cpu_seconds()
     results, failed = [], []
     with tempfile.TemporaryDirectory(prefix="calib-measured-") as tmp:
-        root = Path(workdir) if workdir else Path(tmp)
+        root = Path(workdir).resolve() if workdir else Path(tmp)
         for i, (name, job) in enumerate(jobs.items(), 1):
             work = root / re.sub(r"[^A-Za-z0-9_.-]", "_", name)
             work.mkdir(parents=True, exist_ok=True)

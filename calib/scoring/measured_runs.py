@@ -66,12 +66,16 @@ def _child_env(data_dir: Path) -> dict[str, str]:
     return env
 
 
-def _message(stderr: str, exit_code: int) -> str:
+def _message(stderr: str, exit_code: int, folders: tuple[Path, ...]) -> str:
+    """The line that says why a command refused or failed, the ``folders`` (data, work) shown relative."""
     if exit_code == 0:
         return ""
     lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
     errors = [ln for ln in lines if ln.startswith("calib: error:")]
     text = errors[0] if errors else (lines[-1] if lines else f"exit {exit_code} without a message")
+    for folder in folders:
+        for spelling in {str(folder), str(folder.resolve())}:
+            text = text.replace(spelling.rstrip("/") + "/", "")
     return text if len(text) <= MESSAGE_CHARS else text[:MESSAGE_CHARS - 1] + "…"
 
 
@@ -86,8 +90,9 @@ def _status(path: Path | None) -> str | None:
 
 def calib_command(args: list[str], shown: list[str], data_dir: Path, workdir: Path,
                   writes: Path | None = None) -> CliRun:
-    """Run ``calib ARGS`` in ``workdir`` (a subprocess of this interpreter's ``calib``); ``shown`` is the
-    same command as the result reports it, ``writes`` the JSON whose status it reads back."""
+    """Run ``calib ARGS`` in ``workdir`` (a subprocess of this interpreter's ``calib``; its own files are named
+    relative to ``workdir``); ``shown`` is the same command as the result reports it, ``writes`` the JSON
+    whose status it reads back."""
     if writes is not None and writes.exists():
         writes.unlink()  # a file of an earlier run must not pass for this one's
     t0 = time.perf_counter()
@@ -95,17 +100,17 @@ def calib_command(args: list[str], shown: list[str], data_dir: Path, workdir: Pa
                           capture_output=True, text=True)
     seconds = time.perf_counter() - t0
     return CliRun(("calib", *shown), proc.returncode, round(seconds, 2), _status(writes),
-                  _message(proc.stderr, proc.returncode))
+                  _message(proc.stderr, proc.returncode, (data_dir, workdir)))
 
 
 def run_calibration(source: str, shown: str, data_dir: Path, workdir: Path) -> tuple[tuple[CliRun, ...], Path | None]:
     """``calib run SOURCE --json cal.json`` with the defaults, then, if it refused for the accelerometer,
     with ``--accelerometer calibrated``; the runs and the calibration file (``None`` when none was written)."""
     cal = workdir / "cal.json"
-    runs = [calib_command(["run", source, "--json", str(cal)], ["run", shown, "--json", "cal.json"], data_dir,
+    runs = [calib_command(["run", source, "--json", cal.name], ["run", shown, "--json", "cal.json"], data_dir,
                           workdir, cal)]
     if runs[0].exit_code == 2 and ACC_REFUSAL in runs[0].message:
-        runs.append(calib_command(["run", source, "--accelerometer", "calibrated", "--json", str(cal)],
+        runs.append(calib_command(["run", source, "--accelerometer", "calibrated", "--json", cal.name],
                                   ["run", shown, "--accelerometer", "calibrated", "--json", "cal.json"], data_dir,
                                   workdir, cal))
     return tuple(runs), (cal if cal.is_file() and runs[-1].exit_code in (0, 1) else None)
@@ -117,7 +122,7 @@ def apply_calibration(cal: Path, source: str, shown: str, data_dir: Path, workdi
     out = workdir / "comp.h5"
     if out.exists():
         out.unlink()
-    run = calib_command(["apply", str(cal), source, "--out", str(out)],
+    run = calib_command(["apply", cal.name, source, "--out", out.name],
                         ["apply", "cal.json", shown, "--out", "comp.h5"], data_dir, workdir)
     return run, (out if out.is_file() and run.exit_code == 0 else None)
 
@@ -126,6 +131,6 @@ def run_magnetometer(source: str, shown: str, data_dir: Path, workdir: Path) -> 
     """``calib mag SOURCE --json mag.json``; the run and the file (``None`` when none was written).  Its exit
     code is the magnetometer status's (0 ok, 3 hard iron only, 4 inconsistent, 5 disturbed; 2 refused)."""
     out = workdir / "mag.json"
-    run = calib_command(["mag", source, "--json", str(out)], ["mag", shown, "--json", "mag.json"], data_dir,
+    run = calib_command(["mag", source, "--json", out.name], ["mag", shown, "--json", "mag.json"], data_dir,
                         workdir, out)
     return run, (out if out.is_file() and run.exit_code != 2 else None)
