@@ -149,7 +149,21 @@ def text_medians(v: MeasuredValidation) -> str:
 
 # ------------------------------------------------------------------ Markdown
 def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
-    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header), *("| " + " | ".join(r) + " |" for r in rows)]
+    def row(cells: list[str]) -> str:
+        return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
+
+    return [row(header), "|" + "---|" * len(header), *(row(r) for r in rows)]
+
+
+def _published_agreement(broad: list[RecordingResult]) -> str:
+    """How far the raw-data Madgwick/Mahony figures are from BROAD's published ones (the harness's own check)."""
+    diffs = [abs(r.figures[f"{est}.{m}"]["raw"] - p) for r in broad
+             for est, pub in r.details.get("published_raw", {}).items() for m, p in pub.items()]
+    if not diffs:
+        return ""
+    trials = sum(bool(r.details.get("published_raw")) for r in broad)
+    return (f"On the raw data the Madgwick (C form) and Mahony RMSEs are within {max(diffs):.2f}° of BROAD's published "
+            f"values ({len(diffs)} numbers on {trials} trials): the scoring is BROAD's.")
 
 
 def _runs_cell(rec: RecordingResult, verb: str) -> str:
@@ -173,6 +187,9 @@ def _md_broad(v: MeasuredValidation) -> list[str]:
                      f"{_runs_cell(r, 'mag')} ({r.details.get('magnetometer', {}).get('status', '—')})"])
     out += _md_table(["trial", "calib run exit", "status", "method", "gyro S ± σ", "gyro G ± σ", "calib mag exit"],
                      rows)
+    agreement = _published_agreement(broad)
+    if agreement:
+        out += ["", agreement]
     for key in FIGURES:
         if not any(key in r.figures for r in broad):
             continue
@@ -210,6 +227,9 @@ def _md_sessions(v: MeasuredValidation) -> list[str]:
         out += ["", f"## {r.name} — {r.reference}", "",
                 f"`calib run` exit {_runs_cell(r, 'run')}, status {c.get('status', '—')} ({c.get('method', '—')}); "
                 f"{d['static_intervals']} static intervals, {d['moves']} moves, {d['rest_samples']} rest samples.", ""]
+        refused = [x for x in r.runs if x.command[1] == "run" and x.exit_code not in (0, 1)]
+        if not c and refused:
+            out += [f"`calib run` refused: {refused[-1].message}", ""]
         out += _md_table(["figure", *(VARIANT_LABELS[x] for x in cols)],
                          [[FIGURES[k], *(_num(vs.get(x, math.nan), _prec(k)) for x in cols)]
                           for k, vs in r.figures.items()])

@@ -153,7 +153,9 @@ def test_one_trial_structure(one_trial):
     first = rec.runs[0]
     if first.exit_code == 2 and ACC_REFUSAL in first.message:  # the refusal is answered as its message says
         assert rec.runs[1].command[1] == "run" and "--accelerometer" in rec.runs[1].command
+    # commands and messages name files as the user typed them, no machine path
     assert all("/" not in part or part.startswith("broad/") for r in rec.runs for part in r.command[2:])
+    assert not any(str(DATA.resolve()) in r.message for r in rec.runs)
     assert set(rec.figures) == {k for k in FIGURES if "." in k}
     for key, values in rec.figures.items():
         if key == "vqf_9d_mag.heading_rmse_deg":
