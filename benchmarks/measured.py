@@ -63,8 +63,8 @@ def write(out_dir: str | Path = OUT_DIR, data_dir: str | Path | None = None) -> 
     result = validate(data_dir or data_root(), progress=lambda line: print(line, file=sys.stderr, flush=True))
     stamp = provenance()
     md, js = out_dir / "measured.md", out_dir / "measured.json"
-    text = (f"Commit `{stamp['commit']}`; `{stamp['command']}`; {stamp['date']}.  Data: the measured recordings "
-            "of the data folder (their sources and licences in its README); nothing here is edited by hand.")
+    text = (f"Commit `{stamp['commit']}`; `{stamp['command']}`; {stamp['date']}.  Generated: nothing here is edited "
+            "by hand.")
     md.write_text(markdown(result, text))
     js.write_text(json.dumps({"provenance": stamp, **result.to_dict()}, indent=1) + "\n")
     if result.failed:
