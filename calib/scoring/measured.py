@@ -26,7 +26,8 @@ Command::
 
 prints one block per recording (a progress line per recording on stderr), then the medians.  Exit code 0
 when every recording found was scored (whatever calib's own statuses: they are the measurement), 1 when
-some could not be, 2 for bad input (no such folder, nothing matches ``--only``), 3 for an internal error.
+some could not be, 2 when it cannot start (no such folder, nothing matches ``--only``, the orientation filters
+— the ``orientation`` extra — not installed), 3 for an internal error.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ from gyrosim.errors import GyrosimError
 from gyrosim.loaders import available_datasets
 
 import calib
-from calib.scoring.measured_broad import validate_broad
+from calib.orientation import builtin
+from calib.scoring.measured_broad import BROAD_FILTERS, validate_broad
 from calib.scoring.measured_format import markdown, text_block, text_medians
 from calib.scoring.measured_result import MeasuredValidation, RecordingResult, broad_medians
 from calib.scoring.measured_sessions import validate_ferraris, validate_imu_tk, validate_xio
@@ -69,6 +71,15 @@ def recordings_in(data_dir: Path) -> dict[str, Callable[[Path, Path], RecordingR
         if name in SESSIONS:
             jobs[name] = SESSIONS[name]
     return jobs
+
+
+def _require_filters() -> None:
+    """Refuse before any work when the orientation filters BROAD is scored with are not installed."""
+    for name, _, _ in BROAD_FILTERS:
+        try:
+            builtin(name)
+        except ImportError as exc:
+            raise GyrosimError(f"scoring the BROAD trials needs the orientation filters: {exc}") from exc
 
 
 def _cpu_seconds() -> float:
@@ -99,6 +110,8 @@ def validate(data_dir: str | Path, only: str | None = None, workdir: str | Path 
     if not jobs:
         raise GyrosimError(f"no recording with a reference under {data_dir} (expected broad/*.hdf5, imu_tk_xsens/, "
                            "imucal_ferraris/, xio_fusion/, xio_ximu_thermometer/)")
+    if any(name.startswith("broad/") for name in jobs):
+        _require_filters()
     t0, c0 = time.perf_counter(), _cpu_seconds()
     results, failed = [], []
     with tempfile.TemporaryDirectory(prefix="calib-measured-") as tmp:
