@@ -6,11 +6,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from gyrosim.units import RAD2DEG
+
 from calib.scoring.measured_result import FIGURES, VARIANT_LABELS, VARIANTS, MeasuredValidation, RecordingResult
 
 __all__ = ["text_block", "text_medians", "markdown", "MEDIAN_COLUMNS"]
 
-RAD2DEG = 180.0 / math.pi
 # attribution of the recordings whose results are published (their licences ask for it)
 SOURCES = {
     "broad": "BROAD — Laidig, Caruso, Cereatti, Seel, Data 6(7):72, 2021 (CC BY 4.0)",

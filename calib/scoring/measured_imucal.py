@@ -22,9 +22,10 @@ from typing import Any
 import numpy as np
 from scipy.linalg import polar
 
-__all__ = ["ImucalResult", "imucal_ferraris", "G0_M_S2"]
+from gyrosim.units import G0  # the gravity imucal is given (and calib run assumes by default), m/s²
 
-G0_M_S2 = 9.80665  # the gravity imucal is given (and calib run assumes by default)
+__all__ = ["ImucalResult", "imucal_ferraris"]
+
 RATE_HZ = 102.4    # the NilsPod session's rate (imucal's example)
 
 
@@ -61,7 +62,7 @@ def imucal_ferraris(folder: Path) -> ImucalResult | str:
         return "imucal is not installed (pip install 'gyrosim-calib[peers]'): its result is not shown"
     df = pd.read_csv(folder / "example_ferraris_session.csv")
     sections = pd.DataFrame(json.loads((folder / "example_ferraris_session_list.json").read_text())).T
-    info = FerrarisCalibration(grav=G0_M_S2).compute(ferraris_regions_from_section_list(df, sections), RATE_HZ,
+    info = FerrarisCalibration(grav=G0).compute(ferraris_regions_from_section_list(df, sections), RATE_HZ,
                                                      "m/s^2", "deg/s")
     p, u = polar(info.K_a @ info.R_a, side="left")  # A = P U
     g_ours = info.K_g @ info.R_g @ u.T

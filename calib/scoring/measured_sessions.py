@@ -28,8 +28,9 @@ import numpy as np
 
 from gyrosim.loaders import load_dataset
 from gyrosim.recording import Recording
+from gyrosim.units import G0
 
-from calib.scoring.measured_imucal import G0_M_S2, ImucalResult, imucal_ferraris
+from calib.scoring.measured_imucal import ImucalResult, imucal_ferraris
 from calib.scoring.measured_result import VARIANTS, RecordingResult, calibrate_variants
 from calib.scoring.measured_statics import (
     StaticDetector,
@@ -60,7 +61,7 @@ def _gravity(variant: str, calibration: dict) -> float:
     """The g a variant's accelerometer is judged against: the calibration's for the applied file, else the
     loaders' nominal g₀ (each loader scales its accelerometer to standard g units)."""
     g = calibration.get("gravity_m_s2") if variant == "full" else None
-    return float(g) if g else G0_M_S2
+    return float(g) if g else G0
 
 
 def _session(name: str, data_dir: Path, workdir: Path, detector_for) -> tuple:
@@ -120,7 +121,7 @@ def _ferraris_extra(raw: Recording, intervals, detector, cv, figures, details, d
         return [peer]
     assert isinstance(peer, ImucalResult)
     rec = raw.with_signals(gyro_rad_s=peer.gyro_rad_s, acc_m_s2=peer.acc_m_s2)
-    for key, value in static_figures(rec, intervals, detector.min_samples, G0_M_S2).items():
+    for key, value in static_figures(rec, intervals, detector.min_samples, G0).items():
         figures[key]["imucal"] = value
     figures["turn_error_rms_deg"]["imucal"] = float(np.sqrt(np.mean(np.square(
         _turn_errors_deg(rec.gyro_rad_s, rec.t_s, segments)))))

@@ -17,6 +17,7 @@ from gyrosim.attitude_errors import broad_rmse_deg
 from gyrosim.loaders import data_root, load_broad
 from gyrosim.orientation import run_orientation
 from gyrosim.orientation_broad import PUBLISHED_AS, PUBLISHED_TAGP, TOLERANCE_DEG, TOLERANCE_REL
+from gyrosim.units import G0
 
 from calib.orientation import builtin
 from calib.scoring.measured import main, validate
@@ -34,7 +35,6 @@ from calib.scoring.measured_statics import (
 DATA = data_root()
 FAST_TRIAL = "34_disturbed_attached_magnet_3cm"  # the shortest BROAD trial (169 s)
 HAVE_TRIAL = (DATA / "broad" / f"{FAST_TRIAL}.hdf5").is_file()
-G0 = 9.80665
 
 
 # ------------------------------------------------------------------ arithmetic on constructed signals
