@@ -163,7 +163,7 @@ def cmd_tilt(args: argparse.Namespace) -> int:
     if args.json:
         write_json_atomic(args.json, res.to_dict())
         print(f"wrote {args.json}")
-    return status_exit(res.ok, f"tilt test {res.status}: the figures are not to be used (the reason is above)")
+    return status_exit(res.ok, f"tilt test {res.status}: not every figure was measured (the reason is above)")
 
 
 def add_parsers(sub) -> None:
