@@ -362,7 +362,12 @@ class Calibration:
         path = Path(path)
         if not path.is_file():
             raise GyrosimError(f"no such calibration file: {path}")
-        return cls.from_json(path.read_text(encoding="utf-8"))
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as exc:
+            raise GyrosimError(f"{path} is not a calibration JSON (not UTF-8 text: {exc.reason}); pass the file "
+                               "calib run --json wrote") from exc
+        return cls.from_json(text)
 
 
 def truth_calibration(rec: Recording, *, linear_only: bool = True) -> Calibration | None:

@@ -178,8 +178,8 @@ def cmd_noise(args: argparse.Namespace) -> int:
         with atomic_path(args.png) as tmp:
             plot_noise(res, tmp)
         print(f"wrote {args.png}")
-    return status_exit(res.status == "ok", f"noise model {res.status}: no candidate model describes every axis "
-                       "(see the INCONSISTENT axes above)")
+    return status_exit(res.status == "ok", f"noise model {res.status}: the model does not describe every axis (see "
+                       "the INCONSISTENT axes above)")
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
