@@ -233,7 +233,7 @@ def test_exit_codes_of_the_noise_family(static_file, folder):
 
 
 @pytest.mark.parametrize("argv, why", [
-    (["run", "{static}", "--method", "no_such_method"], "unknown method"),
+    (["run", "{static}", "--method", "no_such_method"], "argument --method: invalid choice: 'no_such_method'"),
     (["run", "{static}"], "never turns"),                                 # a motionless file: nothing to calibrate
     (["apply", "{static}", "{static}", "--out", "x.h5"], "not a calibration"),
     (["temperature", "{static}"], "chamber cycles"),

@@ -218,6 +218,16 @@ METHOD_HELP = (
 )
 
 
+def _method_name(text: str) -> str:
+    """``--method``: a name :func:`calib.session.run.resolve_run_method` takes, else argparse's invalid choice."""
+    from calib.session.run import FORMER_METHODS, SESSION_METHODS
+
+    if text in SESSION_METHODS or text in FORMER_METHODS:
+        return text
+    raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (use one of {', '.join(SESSION_METHODS)}; the other "
+                                     "registered estimators are research baselines: calib lab montecarlo --methods)")
+
+
 def _add_run(sub) -> None:
     r = sub.add_parser(
         "run", help="calibrate a recording: gyro and accelerometer errors, σ",
@@ -225,7 +235,7 @@ def _add_run(sub) -> None:
         "non-orthogonality with their σ; exit 1 when the result fails its own check (status inconsistent/diverged).",
     )
     r.add_argument("recording", help=RECORDING_HELP)
-    r.add_argument("--method", default=None, metavar="NAME", help=METHOD_HELP)
+    r.add_argument("--method", default=None, type=_method_name, metavar="NAME", help=METHOD_HELP)
     r.add_argument(
         "--accelerometer",
         default=None,
