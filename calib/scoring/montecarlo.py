@@ -73,7 +73,7 @@ from calib.session.model import (
     StateLayout,
     initial_covariance,
 )
-from calib.session.paper import METHODS, calibrate, prepare
+from calib.session.paper import METHODS, REGISTERED_NAME, calibrate, prepare
 
 __all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
 
@@ -216,7 +216,7 @@ def _estimator(method: str, accelerometer: str) -> Callable:
     """The callable behind a method name (module docstring, "Methods")."""
     if method in METHODS:   # calib run's filter, in the accelerometer mode asked
         def run(rec):
-            return calibrate(rec, method, accelerometer=accelerometer, keep_history=False)
+            return calibrate(rec, REGISTERED_NAME[method, accelerometer], keep_history=False)
         run.estimates = ("gyro", "accelerometer") if accelerometer == "estimate" else ("gyro",)
         return run
     return load_estimator(method)

@@ -55,6 +55,13 @@ class Coaching:
     def cost(self) -> np.ndarray:
         return self.sigma_reached / self.sigma_ideal_hand
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "Coaching":
+        """Inverse of :meth:`to_dict` (``calib run --json``'s ``coaching``)."""
+        return cls(d["external_acc_rms_m_s2"], d["tremor_band_rms_m_s2"], d["slow_external_acc_rms_m_s2"],
+                   np.array([d["sigma_reached"][k] for k in SG], float),
+                   np.array([d["sigma_ideal_hand"][k] for k in SG], float), tuple(d["worst_segments"]))
+
     def to_dict(self) -> dict:
         return {"external_acc_rms_m_s2": self.external_acc_rms_m_s2, "tremor_band_rms_m_s2": self.tremor_band_rms_m_s2,
                 "slow_external_acc_rms_m_s2": self.slow_rms_m_s2,

@@ -46,13 +46,14 @@ assumes a calibrated accelerometer), today's behaviour.
 8. the verdict (:mod:`calib.session.consistency`): ``status`` ok / diverged / inconsistent, with warnings
    saying what to try.
 
-**Names.** One name per algorithm, the same in ``calib run``, campaigns and Monte Carlo: this
-function's filter, with its session-wide external-acceleration allowance (step 5), is ``kf_session``
-(``iterated_session``: three passes), and its result is labelled with the registered estimator that
-runs it (:data:`REGISTERED_NAME`: ``kf_joint``, ``iterated_joint`` with the accelerometer estimated;
-``kf_session_r``, ``iterated_session_r`` with it calibrated).  ``kf`` is the paper's filter (R from the
-accelerometer noise alone, :func:`calib.session.registry.kf`), which this function does not run; the former
-spellings ``calibrate(rec, "kf")`` / ``"iterated"`` still work and warn (DeprecationWarning).
+**Names.** One name per algorithm, the same in ``calib run``, campaigns and Monte Carlo: the registered
+estimator names (:data:`REGISTERED_NAME`).  This function's filter, with its session-wide external-acceleration
+allowance (step 5), is ``kf_joint`` with the accelerometer estimated and ``kf_session_r`` with it calibrated
+(``iterated_joint`` / ``iterated_session_r``: three passes); ``calibrate(rec, "kf_session_r")`` takes the
+accelerometer mode from the name.  ``kf`` is the paper's filter (R from the accelerometer noise alone,
+:func:`calib.session.registry.kf`), which this function does not run.  The former spellings — the algorithm's
+own ``kf_session`` / ``iterated_session`` with ``accelerometer=``, and before them ``kf`` / ``iterated`` — still
+work and warn (DeprecationWarning) naming the registered name.
 """
 
 from __future__ import annotations
@@ -104,12 +105,14 @@ from calib.session.rest_bias import RestBias, rest_bias
 __all__ = ["calibrate", "prepare", "Prepared", "METHODS", "ACCELEROMETER_MODES", "REGISTERED_NAME", "resolve_method",
            "true_gyro_parameters"]
 
-METHODS = ("kf_session", "iterated_session")
+METHODS = ("kf_session", "iterated_session")   # the algorithms: one pass, three re-linearised passes
 ACCELEROMETER_MODES = ("estimate", "calibrated")
 ENGINES = ("compiled", "filterpy")
-# the former spellings: "kf" now names the paper's filter everywhere (registered ``kf``: R from the
-# accelerometer noise only), which this function never ran; accepted here with a DeprecationWarning
-DEPRECATED_METHODS = {"kf": "kf_session", "iterated": "iterated_session"}
+# the former spellings → the algorithm, accepted with a DeprecationWarning naming the registered name: the
+# algorithm's own names, and "kf"/"iterated", which now name the paper's filter everywhere (registered ``kf``:
+# R from the accelerometer noise only) — this function never ran that
+DEPRECATED_METHODS = {"kf_session": "kf_session", "iterated_session": "iterated_session", "kf": "kf_session",
+                      "iterated": "iterated_session"}
 # the registered estimator name (``gyrosim.estimators``) of each (method, accelerometer) pair: the
 # label a result carries, the same in ``calib run``, a campaign and a Monte Carlo
 REGISTERED_NAME = {
@@ -120,17 +123,29 @@ REGISTERED_NAME = {
 }
 
 
-def resolve_method(method: str, *, stacklevel: int = 3) -> str:
-    """``method`` as one of :data:`METHODS`; a deprecated spelling warns (DeprecationWarning) and maps."""
+def resolve_method(method: str | None, accelerometer: str | None = None, *, stacklevel: int = 3) -> tuple[str, str]:
+    """(algorithm of :data:`METHODS`, accelerometer mode) of ``method``, a registered name (None: ``kf_joint``, or
+    ``kf_session_r`` with ``accelerometer="calibrated"``) whose mode an ``accelerometer`` may not contradict; a former
+    spelling (:data:`DEPRECATED_METHODS`) takes the mode asked (default estimate) and warns (DeprecationWarning)."""
+    by_name = {name: key for key, name in REGISTERED_NAME.items()}
+    if method is None:
+        return "kf_session", accelerometer or "estimate"
+    if method in by_name:
+        algorithm, mode = by_name[method]
+        if accelerometer not in (None, mode):
+            other = REGISTERED_NAME[algorithm, accelerometer] if accelerometer in ACCELEROMETER_MODES else None
+            raise ValueError(f"method {method!r} is the filter with the accelerometer {mode}, not {accelerometer!r}"
+                             + (f"; use {other!r}" if other else ""))
+        return algorithm, mode
     if method in DEPRECATED_METHODS:
-        new = DEPRECATED_METHODS[method]
-        warn(f"method {method!r} is deprecated: this filter (session-wide external-acceleration "
-                      f"allowance) is {new!r}; 'kf' names the paper's filter (R from the accelerometer noise "
-                      "only) in every command", DeprecationWarning, stacklevel=stacklevel)
-        return new
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
-    return method
+        algorithm, mode = DEPRECATED_METHODS[method], accelerometer or "estimate"
+        name = REGISTERED_NAME.get((algorithm, mode), algorithm)   # an unknown mode: prepare() says so
+        why = ("its registered name" if method in METHODS else "this function's filter (session-wide "
+               "external-acceleration allowance) by its registered name; 'kf' names the paper's filter (R from the "
+               "accelerometer noise only) in every command")
+        warn(f"method {method!r} is deprecated: use {name!r}, {why}", DeprecationWarning, stacklevel=stacklevel)
+        return algorithm, mode
+    raise ValueError(f"unknown method {method!r}; use one of {', '.join(by_name)}")
 
 
 @dataclass(frozen=True)
@@ -335,9 +350,9 @@ def _label(name: str) -> str:
 
 def calibrate(
     rec: Recording,
-    method: str = "kf_session",
+    method: str | None = None,
     *,
-    accelerometer: str = "estimate",
+    accelerometer: str | None = None,
     external_acc_allowance_m_s2: float | None = None,
     arw_rad_s_sqrt_hz: float | None = None,
     vrw_m_s2_sqrt_hz: float | None = None,
@@ -347,8 +362,13 @@ def calibrate(
     keep_history: bool = True,
     engine: str = "compiled",
     hand_check: bool = True,
+    prepared: Prepared | None = None,
 ) -> Calibration:
     """Calibrate ``rec`` (module docstring); ``rec`` is not modified.
+
+    ``method``: a registered name (module docstring, "Names"; default ``kf_joint``, or ``kf_session_r`` with
+    ``accelerometer="calibrated"``).  ``prepared``: steps 1–5 already run by :func:`prepare` with the same options
+    (a caller that needs them too, e.g. :func:`calib.session.run.run_session` for the coaching, prepares once).
 
     Raises :class:`~gyrosim.errors.RecordingError` for input the method cannot use (no rest, gaps,
     wrong units, an accelerometer the motion cannot separate from the gyro errors).  A run that fails
@@ -358,12 +378,15 @@ def calibrate(
     differ beyond both σ (:func:`calib.session.hand.filter.hand_cross_check`: a lever arm's error hides from the
     innovations).
     """
-    method = resolve_method(method)
+    method, accelerometer = resolve_method(method, accelerometer)
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; use one of {', '.join(ENGINES)}")
-    prep = prepare(rec, accelerometer=accelerometer, external_acc_allowance_m_s2=external_acc_allowance_m_s2,
-                   arw_rad_s_sqrt_hz=arw_rad_s_sqrt_hz, vrw_m_s2_sqrt_hz=vrw_m_s2_sqrt_hz, gravity_m_s2=gravity_m_s2,
-                   min_rest_s=min_rest_s)
+    if prepared is not None and prepared.accelerometer != accelerometer:
+        raise ValueError(f"prepared for the accelerometer {prepared.accelerometer}, asked: {accelerometer}")
+    prep = prepared or prepare(rec, accelerometer=accelerometer,
+                               external_acc_allowance_m_s2=external_acc_allowance_m_s2,
+                               arw_rad_s_sqrt_hz=arw_rad_s_sqrt_hz, vrw_m_s2_sqrt_hz=vrw_m_s2_sqrt_hz,
+                               gravity_m_s2=gravity_m_s2, min_rest_s=min_rest_s)
     warnings = list(prep.warnings)
     a, b = prep.bias.index_range
     refuse_if_nothing_observed(rec, prep.bias.value_rad_s, a, b, prep.start)

@@ -185,7 +185,7 @@ def kf_session_r(rec: Recording) -> Calibration:
 
 def iterated_session_r(rec: Recording) -> Calibration:
     """``calib run --method iterated_session --accelerometer calibrated``: three passes with the session R."""
-    return calibrate(rec, "iterated_session", accelerometer="calibrated", keep_history=False)
+    return calibrate(rec, "iterated_session_r", keep_history=False)
 
 
 def kf_adaptive(rec: Recording) -> Calibration:
@@ -205,12 +205,12 @@ def kf_adaptive_gated(rec: Recording) -> Calibration:
 
 def kf_joint(rec: Recording) -> Calibration:
     """``calib run``'s default: gyro and accelerometer from one session (21 states, session allowance)."""
-    return calibrate(rec, "kf_session", accelerometer="estimate", keep_history=False)
+    return calibrate(rec, "kf_joint", keep_history=False)
 
 
 def iterated_joint(rec: Recording) -> Calibration:
     """``calib run --method iterated_session``: the joint filter re-linearised three times."""
-    return calibrate(rec, "iterated_session", accelerometer="estimate", keep_history=False)
+    return calibrate(rec, "iterated_joint", keep_history=False)
 
 
 def kf_hand_joint(rec: Recording) -> Calibration:

@@ -156,6 +156,7 @@ from calib.session.noiselevels import (  # noqa: F401 (re-exported)
     white_variance_relative_sd,
 )
 from calib.session.paper import (
+    Prepared,
     _apply_observability,
     _initial_attitude,
     _observability,
@@ -701,7 +702,7 @@ def _acc_theta(theta: np.ndarray) -> np.ndarray:
 
 def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None,
             g_sensitivity: bool = False, sway: str = "gauss_markov", keep_history: bool = False,
-            delay: bool = True) -> Calibration:
+            delay: bool = True, prepared: Prepared | None = None) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
     the registered ``kf_hand``: 27 states, 33 when the recording's temperature moved (c_b, s_T), 36 with the opt-in
     ``g_sensitivity`` too — :func:`hand_layout`) or "estimate" (the registered ``kf_hand_joint``: + the
@@ -717,7 +718,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     as ``iterated_session`` does.  ``sway``: the a_e family fitted from pass 2 on — "gauss_markov" (the
     high-passed Gauss–Markov, :func:`_gm_from_residual`) or "band" (opt-in, calibrated accelerometer only: a
     Gauss–Markov floor + a Butterworth band-pass fitted to band powers, :func:`_band_from_residual`, filtered
-    through the general shaping-filter states of :meth:`calib.session.model.FilterConfig.ext_acc_model`)."""
+    through the general shaping-filter states of :meth:`calib.session.model.FilterConfig.ext_acc_model`).
+    ``prepared``: :func:`calib.session.paper.prepare` of ``rec`` with the same ``accelerometer`` and ``gravity_m_s2``,
+    when the caller has it already (``calib run`` uses it again for the coaching)."""
     if sway not in SWAY_MODELS:
         raise ValueError(f"sway must be one of {SWAY_MODELS}, got {sway!r}")
     estimate = accelerometer == "estimate"
@@ -728,7 +731,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     # information with the hand in the model (a_e's vertical component, the lever arm) — kf_session leaves it
     # to its |f| = g fit, whose white-residual covariance is optimistic with a hand (below)
     rows = 3 if estimate else 2
-    prep = prepare(rec, accelerometer=accelerometer, gravity_m_s2=gravity_m_s2)
+    if prepared is not None and prepared.accelerometer != accelerometer:
+        raise ValueError(f"prepared for the accelerometer {prepared.accelerometer}, asked: {accelerometer}")
+    prep = prepared or prepare(rec, accelerometer=accelerometer, gravity_m_s2=gravity_m_s2)
     ra, rb = prep.rest_range
     nz = prep.noise
     # the densities from the rest's spectrum above the tremor, or at 2–6 Hz when an output low-pass rolls it off
