@@ -22,15 +22,18 @@ RECORDING_HELP = (
 
 def open_input(args: argparse.Namespace, requirements, path: str | None = None):
     """The input boundary for a command's recording (:func:`calib.inputs.open_recording`) with its options."""
-    from calib.inputs import open_recording
+    from calib.inputs import open_recording, parse_columns
 
+    columns = getattr(args, "columns", None)
     return open_recording(
         path or args.recording,
-        getattr(args, "gyro_unit", "rad/s"),
-        getattr(args, "acc_unit", "m/s^2"),
+        getattr(args, "gyro_unit", None),
+        getattr(args, "acc_unit", None),
         requirements=requirements,
         time_unit=getattr(args, "time_unit", None),
         decimate=getattr(args, "decimate", None),
+        columns=parse_columns(columns) if columns else None,
+        topic=getattr(args, "topic", None),
     )
 
 
@@ -69,9 +72,14 @@ def _decimate_arg(text: str) -> int | str:
 
 def input_options(p: argparse.ArgumentParser, decimate: bool = False) -> None:
     """Options every command reading a recording shares (calib.inputs)."""
-    p.add_argument("--gyro-unit", default="rad/s", help="unit of the gyro columns: rad/s (default), deg/s, mdeg/s, "
-                                                        "rad/h, deg/h")
-    p.add_argument("--acc-unit", default="m/s^2", help="unit of the accelerometer columns: m/s^2 (default), g, mg, ug")
+    p.add_argument("--gyro-unit", default=None, help="unit of the gyro columns when the header names none: rad/s "
+                                                     "(default), deg/s, mdeg/s, rad/h, deg/h")
+    p.add_argument("--acc-unit", default=None, help="unit of the accelerometer columns when the header names none: "
+                                                    "m/s^2 (default), g, mg, ug")
+    p.add_argument("--columns", default=None, metavar="t=COL,gyro_x=COL,...",
+                   help="which file column holds which channel, when the header is not one calib recognises "
+                        "(channels: t, gyro_x..z, acc_x..z, temp, mag_x..z; units from the names or the options)")
+    p.add_argument("--topic", default=None, help="the sensor_msgs/Imu topic of a ROS bag (needed when it has several)")
     p.add_argument("--time-unit", default=None, choices=("auto", "s", "ms", "us", "ns"),
                    help="unit of the time column (default auto: seconds unless the step makes that implausible; "
                         "ms, µs, ns and Unix epochs are then converted with a warning)")

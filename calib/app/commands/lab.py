@@ -431,16 +431,43 @@ def _add_mag(lab) -> None:
     mb.set_defaults(func=cmd_mag_bench)
 
 
+def cmd_validate(args: argparse.Namespace) -> int:
+    """The measured-data harness (:mod:`calib.scoring.measured`): calib run/apply/mag on every recording with a
+    reference in the data folder, scored by the filters users run next."""
+    from gyrosim.loaders import data_root
+
+    from calib.scoring import measured
+
+    argv = [str(args.data_dir or data_root())]
+    for flag in ("only", "json", "markdown", "workdir"):
+        if getattr(args, flag) is not None:
+            argv += [f"--{flag}", str(getattr(args, flag))]
+    return measured.main(argv)
+
+
+def _add_validate(lab) -> None:
+    va = lab.add_parser("validate", help="judge calib on measured recordings: calib run and apply as a user runs them, "
+                                         "then VQF/Madgwick/Mahony and the peers' figures (raw, bias only, full)")
+    va.add_argument("data_dir", nargs="?", default=None,
+                    help="the measured-data folder (default: $GYROSIM_DATA, else ../shared/data)")
+    va.add_argument("--only", metavar="NAME", help="only the recordings whose name contains NAME (e.g. broad/16_)")
+    va.add_argument("--json", metavar="OUT", help="write the result as JSON")
+    va.add_argument("--markdown", metavar="OUT", help="write the tables as Markdown")
+    va.add_argument("--workdir", metavar="DIR", help="keep calib's files (cal.json, comp.h5, mag.json) here")
+    va.set_defaults(func=cmd_validate)
+
+
 def add_parsers(sub) -> None:
     """``lab`` and its commands (:data:`COMMANDS`) on the command line's subparsers ``sub``."""
     group = sub.add_parser(
         "lab", help="research and benchmark commands (calib lab --help)",
         description="Research and benchmark commands: Monte Carlo against the Cramér–Rao bound, observability, "
                     "speed tables, the closeloop suites, north-finding and tilt-test Monte Carlo, magnetometer "
-                    "comparisons. Each has --help.")
+                    "comparisons, and the measured-data validation (calib lab validate). Each has --help.")
     lab = group.add_subparsers(dest="lab_command", required=True, title="lab commands", metavar="COMMAND",
                                help="the research or benchmark command to run")
     _add_calibration(lab)
     _add_closeloop(lab)
     _add_instruments(lab)
     _add_mag(lab)
+    _add_validate(lab)
