@@ -20,11 +20,13 @@ from gyrosim.cliargs import integer, number, seed
 from calib.app.commands.common import RATE
 from calib.app.outputs import check_output_paths, write_json_atomic
 
-__all__ = ["add_parsers", "COMMANDS"]
+__all__ = ["add_parsers", "COMMANDS", "LAB_ONLY"]
 
 # the commands of the group, formerly top-level (calib montecarlo → calib lab montecarlo)
 COMMANDS = ("montecarlo", "observability", "bench", "closeloop-suite", "closeloop-bench", "northfind-latitude",
             "northfind-mc", "tilt-mc", "mag-compare", "mag-measured", "mag-bench")
+# the group's commands that never had a top-level spelling
+LAB_ONLY = ("validate",)
 # calib run's former method spellings → the registered name in each accelerometer mode (calib.session.run)
 REGISTERED_NAME_OF = {"kf_session": {"estimate": "kf_joint", "calibrated": "kf_session_r"},
                       "iterated_session": {"estimate": "iterated_joint", "calibrated": "iterated_session_r"}}
