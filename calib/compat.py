@@ -7,6 +7,10 @@ A user's script that imports an old path (``from calib.handkf import kf_hand``,
 name to the new one (``calib.orientation`` and ``calib.temperature`` became packages of the same
 name that re-export the old module's names), and the import returns the very same module object (so monkeypatching
 either name patches both) after a :class:`DeprecationWarning` that names the new path.
+
+A name that moved to a module *above* its old one (an alias in the old module would import upwards, a cycle) is
+listed in :data:`MOVED_NAMES`; the old module's ``__getattr__`` (:func:`moved_attribute`, PEP 562) finds it at its
+new home, with the same warning (``from calib.session.kernel import crlb`` → :mod:`calib.session.bounds`).
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import importlib.machinery
 import sys
 import warnings
 
-__all__ = ["MOVED", "install"]
+__all__ = ["MOVED", "MOVED_NAMES", "install", "moved_attribute"]
 
 MOVED: dict[str, str] = {
     "calib.kalman": "calib.session.model",
@@ -65,6 +69,28 @@ MOVED: dict[str, str] = {
     "calib.closeloop.mag_select": "calib.closeloop.mag.select",
     "calib.closeloop.mag_terms": "calib.closeloop.mag.terms",
 }
+
+
+# module → {name: the module it moved to}, for names that moved upwards (module docstring)
+MOVED_NAMES: dict[str, dict[str, str]] = {
+    "calib.session.kernel": {"crlb": "calib.session.bounds", "crlb_joint": "calib.session.bounds"},
+}
+
+
+def moved_attribute(module: str):
+    """The ``__getattr__`` of ``module`` (PEP 562): a name of :data:`MOVED_NAMES` resolves at its new home after a
+    :class:`DeprecationWarning` naming it; any other name is an AttributeError, as without the hook."""
+    table = MOVED_NAMES.get(module, {})
+
+    def __getattr__(name: str):
+        if name not in table:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        new = table[name]
+        warnings.warn(f"{module}.{name} has moved to {new}.{name}: import it from there (the old path still works, "
+                      "for now)", DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module(new), name)
+
+    return __getattr__
 
 
 class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):

@@ -58,8 +58,9 @@ from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
 from gyrosim.strapdown import integrate_gyro
 
+from calib.session.bounds import crlb_joint
 from calib.session.hand.filter import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature
-from calib.session.kernel import crlb_joint, run_filter
+from calib.session.kernel import run_filter
 from calib.session.model import (
     ACC_DELAY_BLOCKS,
     EXT_ACC_EXTRA_BLOCKS,

@@ -102,6 +102,8 @@ __all__ = [
     "BLOCKS",
     "THETA",
     "jacobian_nonorthogonality",
+    "nonorthogonality_jacobians",
+    "ext_acc_discrete",
     "initial_covariance",
     "leave_out_means",
     "m_matrix",
@@ -284,6 +286,13 @@ def jacobian_nonorthogonality(omega: np.ndarray) -> np.ndarray:
     return nonortho_matrix(np.asarray(omega, dtype=float))
 
 
+def nonorthogonality_jacobians(w: np.ndarray) -> np.ndarray:
+    """J_G(ω) of every row of ``w`` (B, 3) → (B, 3, 3) (:func:`jacobian_nonorthogonality`, vectorised)."""
+    z = np.zeros(w.shape[0])
+    wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
+    return np.stack([np.stack([z, wz, wy], -1), np.stack([wz, z, wx], -1), np.stack([wy, wx, z], -1)], -2)
+
+
 def m_matrix(scale: np.ndarray, nonortho: np.ndarray) -> np.ndarray:
     """M = I + diag(S) + N(G)."""
     return np.eye(3) + np.diag(scale) + nonortho_matrix(np.asarray(nonortho, float))
@@ -463,6 +472,23 @@ def _butter_band_ss(f1_hz: float, f2_hz: float, order: int) -> tuple[np.ndarray,
     a, b, c = wr, (ti @ b)[:, 0].real, (c @ vr)[0].real
     sd = np.sqrt(np.diag(solve_continuous_lyapunov(a, -np.outer(b, b))))
     return a * sd[None, :] / sd[:, None], b / sd, c * sd
+
+
+def ext_acc_discrete(a: np.ndarray, qc: np.ndarray, dt_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact discretisation (Φ (U, d, d), Q_d (U, d, d)) of ẋ = A x + w, E w wᵀ = Q_c δ, over the steps
+    ``dt_s`` (U,): Φ = e^{AΔt}, Q_d = ∫₀^Δt e^{As} Q_c e^{Aᵀs} ds, both from one matrix exponential of Van Loan's
+    block [[−A, Q_c], [0, Aᵀ]]Δt (Van Loan 1978, IEEE TAC 23(3); Brown & Hwang 4th ed. §3.9)."""
+    from scipy.linalg import expm
+
+    d = a.shape[0]
+    m = np.zeros((2 * d, 2 * d))
+    m[:d, :d] = -a
+    m[:d, d:] = qc
+    m[d:, d:] = a.T
+    e = expm(np.asarray(dt_s, float)[:, None, None] * m[None])
+    phi = np.transpose(e[:, d:, d:], (0, 2, 1))
+    q = phi @ e[:, :d, d:]
+    return phi, 0.5 * (q + np.transpose(q, (0, 2, 1)))
 
 
 def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,

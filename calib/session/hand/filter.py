@@ -131,7 +131,7 @@ from calib.session.consistency import (
 )
 from calib.session.gravityfit import GravityFit, compensate_acc, fit_gravity
 from calib.session.hand.checks import check_hand_assumptions
-from calib.session.kernel import LeverJacobian, _j_g, regressor_half_window, run_filter
+from calib.session.kernel import LeverJacobian, regressor_half_window, run_filter
 from calib.session.model import (
     ACC_DELAY_BLOCKS,
     BLOCK_LABELS,
@@ -145,6 +145,7 @@ from calib.session.model import (
     initial_covariance,
     leave_out_means,
     m_matrix,
+    nonorthogonality_jacobians,
     theta_slice,
 )
 from calib.session.noiselevels import (  # noqa: F401 (re-exported)
@@ -439,7 +440,7 @@ def lever_jacobian(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float, m: np.n
     mi = np.linalg.inv(m)
     d = np.empty((n, 3, 9))
     d[:, :, 0:3] = -mi[None, :, :] * w_rad_s[:, None, :]                         # −M⁻¹ diag(ω)
-    d[:, :, 3:6] = -np.einsum("ij,njk->nik", mi, _j_g(w_rad_s))                   # −M⁻¹ J_G(ω): N(G) ω = J_G(ω) G
+    d[:, :, 3:6] = -np.einsum("ij,njk->nik", mi, nonorthogonality_jacobians(w_rad_s))   # −M⁻¹ J_G(ω): N(G) ω = J_G(ω) G
     d[:, :, 6:9] = -mi[None]                                                      # −M⁻¹
     ld = _lowpass(d.reshape(n, 27), rate_hz).reshape(n, 3, 9)
     return LeverJacobian(_lowpass(w_rad_s, rate_hz), ld, np.gradient(ld, t_s, axis=0))
@@ -1166,7 +1167,7 @@ def _spectral_sigma(P: np.ndarray, out, layout: StateLayout, cfg, f_lp: np.ndarr
     jac = [-np.einsum("ni,nij->nj", u, kreg)]
     blocks = [layout.offset("lever_arm")]
     if estimate:
-        jac += [-u, -u * f_lp, -np.einsum("ni,nij->nj", u, _j_g(f_lp))]
+        jac += [-u, -u * f_lp, -np.einsum("ni,nij->nj", u, nonorthogonality_jacobians(f_lp))]
         blocks += [layout.offset(b) for b in ("acc_bias", "acc_scale", "acc_nonorth")]
     jidx = np.concatenate([np.arange(o, o + 3) for o in blocks])
     corr = spectral_correction(wts, out.record.updated, slow_resid, fs, dec,
