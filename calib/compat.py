@@ -74,6 +74,7 @@ MOVED: dict[str, str] = {
 # module → {name: the module it moved to}, for names that moved upwards (module docstring)
 MOVED_NAMES: dict[str, dict[str, str]] = {
     "calib.session.kernel": {"crlb": "calib.session.bounds", "crlb_joint": "calib.session.bounds"},
+    "calib.session.model": {"ZhouFilter": "calib.session.reference"},
 }
 
 

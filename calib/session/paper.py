@@ -90,7 +90,6 @@ from calib.session.model import (
     FilterConfig,
     FilterHistory,
     StateLayout,
-    ZhouFilter,
     initial_covariance,
     leave_out_means,
     m_matrix,
@@ -98,6 +97,7 @@ from calib.session.model import (
 )
 from calib.session.noiselevels import NoiseLevels, estimate_noise
 from calib.session.observability import JointObservability, joint_observability, missing_poses
+from calib.session.reference import ZhouFilter
 from calib.session.rest import BiasEstimate, RestSegments, detect_rest, static_bias
 from calib.session.rest_bias import RestBias, rest_bias
 
@@ -273,7 +273,7 @@ def rest_mask(prep: Prepared, n: int) -> np.ndarray:
 
 def _run_reference(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.ndarray, p0: np.ndarray,
                    mask: np.ndarray | None, x0: np.ndarray | None = None) -> FilterRun:
-    """The filterpy filter (:class:`calib.session.model.ZhouFilter`) over the session, as a FilterRun."""
+    """The filterpy filter (:class:`calib.session.reference.ZhouFilter`) over the session, as a FilterRun."""
     a, fs = prep.start, rec.rate_hz
     g, acc, t = rec.gyro_rad_s[a:], rec.acc_m_s2[a:], rec.t_s[a:]
     greg = leave_out_means(g, regressor_half_window(fs), midpoint=True)

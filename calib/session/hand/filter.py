@@ -146,6 +146,7 @@ from calib.session.model import (
     leave_out_means,
     m_matrix,
     nonorthogonality_jacobians,
+    q_matrix,
     theta_slice,
 )
 from calib.session.noiselevels import (  # noqa: F401 (re-exported)
@@ -401,8 +402,8 @@ def _acc_temp_tilt_prior(p0: np.ndarray, layout, q0_nb: np.ndarray, acc_m_inv: n
     oc = layout.offset("acc_temp_bias")
     if oc < 0 or dt_rest_c == 0.0:
         return
-    from calib.session.model import _qmat
-    A = skew(np.array([0.0, 0.0, gravity_m_s2])) @ _qmat(np.asarray(q0_nb, float) / np.linalg.norm(q0_nb)) @ acc_m_inv
+    c0 = q_matrix(np.asarray(q0_nb, float) / np.linalg.norm(q0_nb))
+    A = skew(np.array([0.0, 0.0, gravity_m_s2])) @ c0 @ acc_m_inv
     A = A * (dt_rest_c / gravity_m_s2**2)
     pcc = p0[oc:oc + 3, oc:oc + 3]
     p0[0:3, 0:3] += A @ pcc @ A.T
