@@ -75,6 +75,8 @@ MOVED: dict[str, str] = {
 MOVED_NAMES: dict[str, dict[str, str]] = {
     "calib.session.kernel": {"crlb": "calib.session.bounds", "crlb_joint": "calib.session.bounds"},
     "calib.session.model": {"ZhouFilter": "calib.session.reference"},
+    "calib.session.hand.filter": {"hand_cross_check": "calib.session.crosscheck",
+                                  "CROSS_CHECK_TAIL": "calib.session.crosscheck"},
 }
 
 

@@ -108,6 +108,8 @@ __all__ = [
     "leave_out_means",
     "m_matrix",
     "BLOCK_LABELS",
+    "theta_slice",
+    "acc_theta",
     "q_mul",
     "q_exp",
     "q_unit",
@@ -149,7 +151,7 @@ assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
 # the accelerometer's delay behind the gyro, one state per axis, δ_i (s): f̃_i(t) = f_i(t − δ_i), to first order
 # f_i(t) = f̃_i(t) + δ_i ḟ̃_i(t) — two sensors' anti-alias filters of different bandwidth (MPU-9250: 41 Hz gyro,
 # 44.8 Hz accelerometer DLPF) or a sampling skew; kf_hand ties the three into one δ with a rank-one prior
-# (calib.session.hand.filter._common_delay_prior)
+# (calib.session.hand.priors.common_delay_prior)
 ACC_DELAY_BLOCKS = ("acc_delay",)
 assert all(b in BLOCKS for b in ACC_DELAY_BLOCKS)
 # their nominals: calib.session.kernel.FilterRun.sensor_extra (c_b, s_T, k, c_a, δ)
@@ -254,8 +256,16 @@ HAND_JOINT = StateLayout(BLOCKS[:11])    # kf_hand_joint: HAND_BIAS + the accele
 
 
 def theta_slice(block: str) -> slice:
+    """Where ``block``'s nominal sits in θ (18, ``THETA`` order)."""
     i = THETA.index(block)
     return slice(3 * i, 3 * i + 3)
+
+
+def acc_theta(theta: np.ndarray) -> np.ndarray:
+    """θ_a = [b_a, S_a, G_a] (9,) of an 18-vector θ (``THETA`` order): the accelerometer's part, as
+    :func:`calib.session.gravityfit.compensate_acc` takes it."""
+    return np.concatenate([theta[theta_slice("acc_bias")], theta[theta_slice("acc_scale")],
+                           theta[theta_slice("acc_nonorth")]])
 
 
 # ---- single-quaternion helpers for the per-sample reference filter (the vectorised gyrosim.rotations versions
