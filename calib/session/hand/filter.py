@@ -67,11 +67,11 @@ from calib.session.consistency import (
     rest_gravity,
     verdict,
 )
-from calib.session.drift import BiasDrift, bias_drift, drift_ambiguity
+from calib.session.drift import DRIFT_QUANTILE, BiasDrift, bias_drift, drift_ambiguity  # noqa: F401 (old home)
 from calib.session.gravityfit import GravityFit, compensate_acc
 from calib.session.hand.checks import CONFOUND_CORRELATION, check_hand_assumptions, refuse_confounded
 from calib.session.hand.lever import lever_jacobian, lever_regressor
-from calib.session.hand.lowpass import CUTOFF_HZ, lowpass, lowpass_gain2, variance_ratio
+from calib.session.hand.lowpass import CUTOFF_HZ, ORDER, lowpass, lowpass_gain2, variance_ratio  # noqa: F401
 from calib.session.hand.params import HandParams, hand_layout, joint_layout
 from calib.session.hand.priors import (
     FIT_PRIOR_INFLATION,
@@ -88,9 +88,22 @@ from calib.session.hand.reports import (
     g_sensitivity_report,
     scale_reference_rate,
 )
-from calib.session.hand.sway import band_config, band_report, fit_band, fit_gauss_markov, spectral_sigma
-from calib.session.hand.thermal import (
+from calib.session.hand.sway import (  # noqa: F401 (the constants re-exported: their old home)
+    BAND_FIT_HI_HZ,
+    BAND_FIT_LO_HZ,
+    BAND_ORDER,
+    SPECTRAL_BLOCKS,
+    SWAY_MODELS,
+    UNDER_WEIGHT,
+    band_config,
+    band_report,
+    fit_band,
+    fit_gauss_markov,
+    spectral_sigma,
+)
+from calib.session.hand.thermal import (  # noqa: F401 (THERMAL_SMOOTH_S re-exported: its old home)
     THERMAL_MIN_SPAN_C,
+    THERMAL_SMOOTH_S,
     acc_bias_at_temperature,
     rest_temperature,
     scale_at_temperature,
