@@ -26,8 +26,11 @@ into four typed tuples, which the compiled loop :func:`_kernel` reads by name:
 * :class:`Shaping` — the external acceleration's general shaping filter, discretised per step;
 
 and :class:`RecordArrays` (the first run's linear error model, for :mod:`calib.session.spectral`).  Each step of
-the loop is a small compiled helper (``_propagate_*``, ``_transition``, ``_residual``, ``_measurement``,
-``_update_covariance``, ``_inject``), so the loop reads as the filter's steps.
+the loop is a small compiled helper — ``_step_nominal`` (the attitude), ``_transition`` (Φ's φ rows),
+``_propagate_gauss_markov`` / ``_propagate_shaping`` (a_e), ``_propagate_attitude_rows`` (P), ``_corrected_force``
+and ``_residual`` (z), ``_measurement`` (H), ``_innovation``, ``_update_covariance`` (Joseph), ``_inject`` (the reset)
+— so the loop reads as the filter's steps; a helper reads a block's per-sample regressor only when the layout has
+the block (the others are (B, 1, …) placeholders).
 """
 
 from __future__ import annotations
@@ -471,11 +474,12 @@ def _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, d, lti_c):  # pragma: no cover
 
 
 @njit(cache=True)
-def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force_k, acc_rate_k, lever_k, J, jac_on, offs, offs_x,
+def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J, jac_on, offs, offs_x,
                  o_ea, o_el, o_e2, sh):  # pragma: no cover - compiled
     """H (rows × n) stored by its non-zero columns: [g_up×] on φ, Ĉ M̂_a⁻¹ [I, diag(f), J_G(f)] on the accelerometer,
     its temperature and delay columns, Ĉ K on the lever arm, ±I (or C_l I) on a_e's states, Ĉ J on the gyro's
-    states through the lever arm term.  Returns nh, the number of columns used."""
+    states through the lever arm term (per-run arrays read at sample ``k`` only with their block).  Returns nh, the
+    number of columns used."""
     for i in range(3):
         for e in range(H_COLS):
             Hc[i, e] = 0.0
@@ -494,9 +498,9 @@ def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force_k, acc_rate_k, lever_k
         if o_ta >= 0:
             nh = _nb_put(Hc, hcols, nh, CMa * temp_k, o_ta)  # Ĉ M̂_a⁻¹ (T − T₀): c_a
     if o_dl >= 0:
-        nh = _nb_put(Hc, hcols, nh, -(C * acc_rate_k), o_dl)  # −Ĉ diag(ḟ): f̃ = f − δ ḟ
+        nh = _nb_put(Hc, hcols, nh, -(C * acc_rate[k]), o_dl)  # −Ĉ diag(ḟ): f̃ = f − δ ḟ
     if o_lv >= 0:
-        nh = _nb_put(Hc, hcols, nh, C @ lever_k, o_lv)     # Ĉ K(ω, ω̇)
+        nh = _nb_put(Hc, hcols, nh, C @ lever[k], o_lv)    # Ĉ K(ω, ω̇)
     if o_ea >= 0:
         nh = _nb_put(Hc, hcols, nh, np.eye(3), o_ea)       # I (nav)
     if o_el >= 0:
@@ -518,7 +522,7 @@ def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force_k, acc_rate_k, lever_k
         if o_tb >= 0:
             nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * temp_k, o_tb)   # c_b: b's column × (T − T₀)
         if o_gs >= 0:
-            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * force_k, o_gs)  # k: b's column j × f_j
+            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * force[k], o_gs)  # k: b's column j × f_j
     return nh
 
 
@@ -597,6 +601,119 @@ def _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh):  # 
             sx[12 + j] += x[o_dl + j]
 
 
+@njit(cache=True)
+def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs):  # pragma: no cover - compiled
+    """The nominal's step k−1 → k (one run's arrays, sample index ``k``): M̂⁻¹ and b̂ at the step's mid temperature
+    (ΔT = ``dtm``; and mid specific force with the g-sensitivity: b_g,i += k_i f_i), the compensated rates at both
+    ends, q̂ ← q̂ ⊗ Exp(φ) (trapezoid + coning).  Returns (q̂, −Ĉ M̂⁻¹ Δt at the step's middle, the rate regressor ω
+    — zero at rest, else the leave-out mean at t_{k−½} —, f at the step's middle)."""
+    Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
+    bg = th[6:9] + sx[0:3] * dtm
+    fm = np.zeros(3)
+    if o_gs >= 0:
+        fm = 0.5 * (force[k - 1] + force[k])
+        bg = bg + sx[6:9] * fm
+    wp = Mi @ (gyro[k - 1] - bg)
+    wn = Mi @ (gyro[k] - bg)
+    cr = np.array([wp[1] * wn[2] - wp[2] * wn[1], wp[2] * wn[0] - wp[0] * wn[2], wp[0] * wn[1] - wp[1] * wn[0]])
+    phi = 0.5 * (wp + wn) * dt + cr * (dt * dt / 12.0)
+    Cm = _nb_qmat(_nb_qmul(q, _nb_qexp(0.5 * phi)))
+    q = _nb_qmul(q, _nb_qexp(phi))
+    q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    if still[k]:                                           # at rest the true rate is zero
+        wr = np.zeros(3)
+    else:
+        wr = Mi @ (gyro_reg[k] - bg)                       # leave-out regressor at t_{k−½}
+    return q, -dt * (Cm @ Mi), wr, fm
+
+
+@njit(cache=True)
+def _corrected_force(C, th, sx, th0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
+                     offs_x, jac_on):  # pragma: no cover - compiled
+    """The compensated specific force at sample ``k`` (body): f̂ = M̂_a⁻¹(f̃ − b̂_a − ĉ_a ΔT) + δ̂ ⊙ ḟ̃ − K r̂ − J (θ̂ − θ₀),
+    and the H regressor Ĉᵀ g_up (gravity predicted in the body).  Per-run arrays (``acc_rate``, ``lever``, ``force``,
+    ``jw``, ``jd``, ``jdd``) are read at ``k`` only when their block is in the layout.  Returns (f̂, the regressor,
+    M̂_a⁻¹)."""
+    o_ba, o_lv = offs[4], offs[7]
+    o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
+    if o_ba >= 0:
+        Mia = _nb_minv(th[12:15], th[15:18])
+    else:
+        Mia = np.eye(3)
+    ba = th[9:12]
+    if o_ta >= 0:                                          # the accelerometer bias at this sample's temperature
+        ba = ba + sx[9:12] * temp_k
+    fh = Mia @ (acc_k - ba)
+    if o_dl >= 0:                                          # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t)
+        for i in range(3):
+            fh[i] += sx[12 + i] * acc_rate[k, i]
+    fr = np.empty(3)                                       # regressor: gravity predicted in the body frame
+    for i in range(3):
+        fr[i] = C[2, i] * gz                               # Ĉᵀ g_up
+    if o_lv >= 0:                                          # minus the lever arm's K r̂ (body)
+        kr = lever[k] @ hd[0:3]
+        for i in range(3):
+            fh[i] -= kr[i]
+    if jac_on:                                             # K was built at the pass's θ₀, the nominal moved since:
+        lever_jacobian_columns(jw[k], jd[k], jdd[k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
+        # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
+        f_k = force[k] if o_gs >= 0 else np.zeros(3)
+        sh_k = _lever_shift(J, dlt, th, th0, sx, temp_k, f_k, o_ts, o_tb, o_gs)
+        for i in range(3):
+            fh[i] -= sh_k[i]
+    return fh, fr, Mia
+
+
+@njit(cache=True)
+def _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_row, wht_row):  # pragma: no cover - compiled
+    """ν = z − H x (``z`` in place), its NIS νᵀS⁻¹ν and the whitened levelling rows L⁻¹ν (S = L Lᵀ), written to
+    ``inn_row``, ``wht_row``; returns the NIS."""
+    for i in range(m):                                     # innovation z − H x
+        s = 0.0
+        for e in range(nh):
+            s += Hc[i, e] * xs[hcols[e]]
+        z[i] -= s
+    nis = 0.0
+    for i in range(m):
+        for l in range(m):
+            nis += z[i] * Si[i, l] * z[l]
+    for i in range(m):
+        inn_row[i] = z[i]
+    l00 = math.sqrt(S[0, 0])                               # Cholesky S = L Lᵀ of the levelling rows: L⁻¹ν
+    l10 = S[1, 0] / l00
+    l11 = math.sqrt(max(S[1, 1] - l10 * l10, 1e-300))
+    wht_row[0] = z[0] / l00
+    wht_row[1] = (z[1] - l10 * z[0] / l00) / l11
+    return nis
+
+
+@njit(cache=True)
+def _record_transition(rec, k, E, ecols, ne, gm_on, dt, gm_tau, hp_tau):  # pragma: no cover - compiled
+    """Step k's propagation into the linear error model (:class:`FilterRecord`)."""
+    rec.ne[k] = ne
+    for e in range(ne):
+        rec.ecols[k, e] = ecols[e]
+        for i in range(3):
+            rec.e[k, i, e] = E[i, e]
+    if gm_on:
+        rec.decay[k, 0] = math.exp(-dt / gm_tau)
+        rec.decay[k, 1] = math.exp(-dt / hp_tau)
+
+
+@njit(cache=True)
+def _record_update(rec, k, Hc, hcols, nh, K, m):  # pragma: no cover - compiled
+    """Step k's update (gain and H) into the linear error model (:class:`FilterRecord`)."""
+    rec.updated[k] = True
+    rec.nh[k] = nh
+    for e in range(nh):
+        rec.hcols[k, e] = hcols[e]
+        for i in range(m):
+            rec.h[k, i, e] = Hc[i, e]
+    for r in range(K.shape[0]):
+        for i in range(m):
+            rec.gain[k, r, i] = K[r, i]
+
+
 # ---------------------------------------------------------------------------------------------------------------------
 # the loop
 
@@ -623,12 +740,12 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
     hsd = np.zeros((B, nk, n))
     hth = np.zeros((B, nk, 18))
     offs, offs_x = st.offsets, st.sensor_offsets
-    o_sg, o_gg, o_bg, o_ba, o_lv = offs[1], offs[2], offs[3], offs[4], offs[7]
+    o_sg, o_gg, o_bg, o_lv = offs[1], offs[2], offs[3], offs[7]
     o_ea, o_el = offs[8], offs[9]
     o_e2 = offs[10] if st.hp_order >= 2 else -1
     if sh.d > 0:                                               # the general shaping filter replaces the x, z, z₂ code
         o_ea, o_el, o_e2 = -1, -1, -1
-    o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
+    o_tb, o_ts, o_gs = offs_x[0], offs_x[1], offs_x[2]
     gz, m = st.gravity, st.rows
     lrow = np.zeros((9, n))
     lv = np.zeros(9)
@@ -661,28 +778,11 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
         q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
         for k in range(1, N):
             dt = t[k] - t[k - 1]
-            # ---- propagation: nominal attitude with the compensated rate (trapezoid + coning); the
-            # temperature blocks' nominals at the step's mid temperature (T − T₀; zero without them)
+            # ---- propagation: nominal attitude with the compensated rate; the temperature blocks' nominals at the
+            # step's mid temperature (T − T₀; zero without them)
             dtm = 0.5 * (sig.temp_rel[b, k - 1] + sig.temp_rel[b, k])
-            Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
-            bg = th[6:9] + sx[0:3] * dtm
-            fm = np.zeros(3)
-            # g-sensitivity: b_g,i += k_i f_i (f the specific force, body)
-            if o_gs >= 0:
-                fm = 0.5 * (sig.force[b, k - 1] + sig.force[b, k])
-                bg = bg + sx[6:9] * fm
-            wp = Mi @ (sig.gyro[b, k - 1] - bg)
-            wn = Mi @ (sig.gyro[b, k] - bg)
-            cr = np.array([wp[1] * wn[2] - wp[2] * wn[1], wp[2] * wn[0] - wp[0] * wn[2], wp[0] * wn[1] - wp[1] * wn[0]])
-            phi = 0.5 * (wp + wn) * dt + cr * (dt * dt / 12.0)
-            Cm = _nb_qmat(_nb_qmul(q, _nb_qexp(0.5 * phi)))
-            q = _nb_qmul(q, _nb_qexp(phi))
-            q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-            if sig.still[b, k]:                                # at rest the true rate is zero
-                wr = np.zeros(3)
-            else:
-                wr = Mi @ (sig.gyro_reg[b, k] - bg)            # leave-out regressor at t_{k−½}
-            CM = -dt * (Cm @ Mi)                               # −Ĉ M̂⁻¹ Δt
+            q, CM, wr, fm = _step_nominal(q, th, sx, sig.gyro[b], sig.gyro_reg[b], sig.still[b], sig.force[b], k, dt,
+                                          dtm, o_gs)
             ne = _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs)
             if o_ea >= 0:                                      # Gauss–Markov a_e: Φ = diag(e^{−Δt/τ}), Q = σ²(1 − Φ²)
                 al = math.exp(-dt / st.gm_tau)
@@ -692,80 +792,28 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
                 u = sh.step_index[k]
                 _propagate_shaping(Pb, xs, hd, sh.d, sh.offsets, sh.phi[u], sh.q[u], lrow, lv)
             if st.record and b == 0:                           # the linear error model of this step (spectral)
-                rec.ne[k] = ne
-                for e in range(ne):
-                    rec.ecols[k, e] = ecols[e]
-                    for i in range(3):
-                        rec.e[k, i, e] = E[i, e]
-                if o_ea >= 0:
-                    rec.decay[k, 0] = math.exp(-dt / st.gm_tau)
-                    rec.decay[k, 1] = math.exp(-dt / st.hp_tau)
+                _record_transition(rec, k, E, ecols, ne, o_ea >= 0, dt, st.gm_tau, st.hp_tau)
             _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, st.arw2 * dt, o_bg, st.bias_rw2 * dt)
             # ---- update with the accelerometer sample
             if sig.update[b, k]:
                 C = _nb_qmat(q)
-                if o_ba >= 0:
-                    Mia = _nb_minv(th[12:15], th[15:18])
-                else:
-                    Mia = np.eye(3)
-                ba = th[9:12]
                 temp_k = sig.temp_rel[b, k]
-                if o_ta >= 0:                                  # the accelerometer bias at this sample's temperature
-                    ba = ba + sx[9:12] * temp_k
-                fh = Mia @ (sig.acc[b, k] - ba)
-                if o_dl >= 0:                                  # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t)
-                    for i in range(3):
-                        fh[i] += sx[12 + i] * sig.acc_rate[b, k, i]
-                fr = np.empty(3)                               # regressor: gravity predicted in the body frame
-                for i in range(3):
-                    fr[i] = C[2, i] * gz                       # Ĉᵀ g_up
-                if o_lv >= 0:                                  # minus the lever arm's K r̂ (body)
-                    kr = sig.lever[b, k] @ hd[0:3]
-                    for i in range(3):
-                        fh[i] -= kr[i]
-                if jac_on:                                     # K was built at the pass's θ₀, the nominal moved since:
-                    lever_jacobian_columns(sig.jac_rate[b, k], sig.jac_d_rate[b, k], sig.jac_d_rate_dot[b, k],
-                                           hd[0:3], J)         # J = ∂(K r̂)/∂(S, G, b) (body)
-                    # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
-                    sh_k = _lever_shift(J, dlt, th, start.theta[b], sx, temp_k, sig.force[b, k], o_ts, o_tb, o_gs)
-                    for i in range(3):
-                        fh[i] -= sh_k[i]
+                fh, fr, Mia = _corrected_force(C, th, sx, start.theta[b], sig.acc[b, k], temp_k, sig.acc_rate[b],
+                                               sig.lever[b], sig.force[b], sig.jac_rate[b], sig.jac_d_rate[b],
+                                               sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs, offs_x, jac_on)
                 _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, sh.d, sh.c)
-                nh = _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, sig.force[b, k], sig.acc_rate[b, k],
-                                  sig.lever[b, k], J, jac_on, offs, offs_x, o_ea, o_el, o_e2, sh)
+                nh = _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, sig.force[b], sig.acc_rate[b], sig.lever[b], k,
+                                  J, jac_on, offs, offs_x, o_ea, o_el, o_e2, sh)
                 r_var = sig.r_var[b, k]
                 _nb_times_ht(Pb, Hc, hcols, nh, m, PHt)        # P Hᵀ
                 _nb_hph(Hc, hcols, nh, PHt, m, r_var, S)       # S = H P Hᵀ + R
                 _nb_inv_small(S, m, Si)
-                for i in range(m):                             # innovation z − H x
-                    s = 0.0
-                    for e in range(nh):
-                        s += Hc[i, e] * xs[hcols[e]]
-                    z[i] -= s
-                nis = 0.0
-                for i in range(m):
-                    for l in range(m):
-                        nis += z[i] * Si[i, l] * z[l]
-                for i in range(m):
-                    inn_out[b, k - 1, i] = z[i]
+                nis = _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_out[b, k - 1], wht_out[b, k - 1])
                 nis_out[b, k - 1] = nis
-                l00 = math.sqrt(S[0, 0])                       # Cholesky S = L Lᵀ of the levelling rows: L⁻¹ν
-                l10 = S[1, 0] / l00
-                l11 = math.sqrt(max(S[1, 1] - l10 * l10, 1e-300))
-                wht_out[b, k - 1, 0] = z[0] / l00
-                wht_out[b, k - 1, 1] = (z[1] - l10 * z[0] / l00) / l11
                 if not (st.gate > 0.0 and nis > st.gate):      # gating: skip an update whose NIS exceeds it
                     _update_covariance(Pb, K, PHt, Si, T, THt, Hc, hcols, nh, m, r_var)
                     if st.record and b == 0:                   # the update's gain and H (calib.session.spectral)
-                        rec.updated[k] = True
-                        rec.nh[k] = nh
-                        for e in range(nh):
-                            rec.hcols[k, e] = hcols[e]
-                            for i in range(m):
-                                rec.h[k, i, e] = Hc[i, e]
-                        for r in range(n):
-                            for i in range(m):
-                                rec.gain[k, r, i] = K[r, i]
+                        _record_update(rec, k, Hc, hcols, nh, K, m)
                     _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh)
                     q = _nb_qmul(_nb_qexp(x[0:3]), q)          # Ĉ ← (I + [φ×]) Ĉ
                     q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
