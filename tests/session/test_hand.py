@@ -163,13 +163,13 @@ NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer",
              ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
              # measured 5.35, 5.79, 5.57, 6.22 (consumer); 6.32, 6.22, 6.43, 6.23 (mpu9250,
              ("mpu9250", "shaky"): "in"}
-# band [5.08, 7.00]; since the lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian) — before it 5.32,
+# band [5.08, 7.00]; since the lever arm term's Jacobian (calib.session.hand.lever.lever_jacobian) — before it 5.32,
 # 5.80, 5.63, 6.34 and 6.37, 6.23, 6.41, 6.20; since the spectral correction's reference is the a_e model as the
-# low-passed data carry it (calib.session.hand.filter.PREFILTER_REFERENCE) — before it 5.32, 5.78, 5.44, 5.51 and 6.37,
-# 6.23, 6.35, 6.11; the gyro bias's temperature coefficient a state since calib.session.hand.filter.GYRO_TEMP_BIAS —
+# low-passed data carry it (HandParams.prefilter_reference) — before it 5.32, 5.78, 5.44, 5.51 and 6.37,
+# 6.23, 6.35, 6.11; the gyro bias's temperature coefficient a state since HandParams.gyro_temp_bias —
 # before it 5.25, 5.14, 5.29, 5.03; σ from the slow residual's own spectrum since calib.session.spectral — before it
 # 4.46, 3.17 and 4.74, 3.80 with the typical and shaky hands; S scored at the rate it states since
-# calib.session.hand.filter.scale_reference_rate: typical was 5.25 "in" against the slope at 0)
+# calib.session.hand.reports.scale_reference_rate: typical was 5.25 "in" against the slope at 0)
 
 
 @pytest.mark.slow

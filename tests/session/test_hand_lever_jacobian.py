@@ -1,4 +1,4 @@
-"""The lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian, the kernel's lever_jacobian_columns):
+"""The lever arm term's Jacobian (calib.session.hand.lever.lever_jacobian, the kernel's lever_jacobian_columns):
 kf_hand builds K(ω̂, ω̂̇) from the rate compensated at the pass's S, G, b, so K r̂ depends on those errors; the update's
 H carries ∂(K r̂)/∂(S, G, b) (docs/hand.md, "The lever arm term's Jacobian").  Without it a session that pins S, G only
 weakly left the regressor's error in the innovations and σ of S, G ~1.4× optimistic."""
