@@ -311,9 +311,12 @@ class _ExternalAcceleration:
         if self.general:
             self.a, self.qc, c = config.ext_acc_model()
             self.c = np.asarray(c, float)
-        else:                                                            # x, then z (τ_h < ∞), then z₂ (order 2)
-            k = 0 if not layout.has("ext_acc") else 1 + (layout.has("ext_acc_lp")) + (
-                layout.has("ext_acc_lp2") and config.ext_acc_highpass_order >= 2)
+        else:                                                            # x, its low-pass z, and z₂ (order 2)
+            k = 0
+            if layout.has("ext_acc"):
+                k = 1 + int(layout.has("ext_acc_lp"))                    # z inert (β = 1) without a high-pass
+                if k == 2 and layout.has("ext_acc_lp2") and config.ext_acc_highpass_order >= 2:
+                    k = 3                                                # z₂ inert for a first-order high-pass
             self.c = np.array([1.0, -1.0, -1.0])[:k]                     # a_e = x − z − z₂
         self.offsets = [layout.offset(b) for b in EXT_ACC_BLOCKS[:self.c.size]]
         self._table: dict[float, tuple[np.ndarray, np.ndarray]] = {}
