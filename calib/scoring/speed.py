@@ -40,8 +40,7 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
     from calib.session.hand.filter import kf_hand
     from calib.session.kernel import run_filter
     from calib.session.model import JOINT
-    from calib.session.paper import _run, calibrate, prepare
-    from calib.session.registry import _run as _paper
+    from calib.session.paper import PaperParams, calibrate, paper_filter, prepare, session_filter_run
 
     rec = simulate("zhou2020", "ideal", "mpu9250", 100.0, seed=seed)
     prep = prepare(rec, accelerometer="estimate")
@@ -55,7 +54,8 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
         "calib run (21 states, compiled)": lambda: calibrate(rec, "kf_joint"),
         "calib run --method iterated_joint": lambda: calibrate(rec, "iterated_joint"),
         "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session_r"),
-        "kf (paper, 9 states, compiled, no hand check)": lambda: _paper(rec, name="kf", check_hand=False),
+        "kf (paper, 9 states, compiled, no hand check)": lambda: paper_filter(rec, PaperParams(), name="kf",
+                                                                             hand_check=False),
         "kf_hand (33 states: + c_b, s_T, δ, 3 passes, compiled)": lambda: kf_hand(rec),
         "kf_hand_joint (42 states: + s_T, c_a, δ, 3 passes)": lambda: kf_hand(rec, accelerometer="estimate"),
     }
@@ -74,8 +74,8 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
         run_filter(np.repeat(g, b, 0), np.repeat(f, b, 0), rec.t_s[a:], np.repeat(prep.quat0_nb[None], b, 0),
                    prep.theta0[None], prep.p0, JOINT, prep.config, rec.rate_hz)
         kernel[b] = time.perf_counter() - t0
-    ref = _run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "filterpy", False)
-    fast = _run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "compiled", False)
+    ref = session_filter_run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "filterpy", False)
+    fast = session_filter_run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "compiled", False)
     diff = float(np.max(np.abs(ref.theta - fast.theta)))
     base = best["kf_session_r (9 states, filterpy)"]
     print(f"zhou2020, ideal hand, mpu9250 (raw accelerometer), {n} filter samples; best of {repeats}, interleaved")
