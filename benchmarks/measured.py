@@ -21,6 +21,7 @@ from pathlib import Path
 from gyrosim.errors import GyrosimError
 from gyrosim.loaders import data_root
 
+from benchmarks.provenance import stamp as stamp_file
 from calib.scoring.measured import validate
 from calib.scoring.measured_format import markdown
 
@@ -66,6 +67,7 @@ def write(out_dir: str | Path = OUT_DIR, data_dir: str | Path | None = None) -> 
     text = (f"Commit `{stamp['commit']}`; `{stamp['command']}`; {stamp['date']}.  Generated: nothing here is edited "
             "by hand.")
     md.write_text(markdown(result, text))
+    stamp_file(md, stamp)   # the first-line comment every Markdown result carries (benchmarks.provenance)
     js.write_text(json.dumps({"provenance": stamp, **result.to_dict()}, indent=1) + "\n")
     if result.failed:
         print("not scored: " + "; ".join(result.failed), file=sys.stderr)

@@ -78,7 +78,8 @@ def S(command: str, capture: str | None = None, fmt: str = "text") -> Step:
 
 
 HC = "python benchmarks/hand_campaign.py"
-NF = "calib northfind-mc --sensor {sensor} --latitudes 0,45,70 --seeds {seeds} {extra} --json {{results}}/{out}.json"
+NF = ("calib lab northfind-mc --sensor {sensor} --latitudes 0,45,70 --seeds {seeds} {extra} "
+      "--json {{results}}/{out}.json")
 
 REGISTRY: tuple[Result, ...] = (
     # ------------------------------------------------------------------ the hand (docs/hand.md)
@@ -144,9 +145,9 @@ REGISTRY: tuple[Result, ...] = (
            ("hand_cross_check.md",), 0.1,
            inputs=("hand_cross_check_zhou2020_sim_consumer.json", "hand_cross_check_mpu9250.json")),
     Result("honest_sigma", "the hand-blind filters' σ with the ideal hand (accelerometer calibrated, 50 seeds)",
-           (S("calib montecarlo --sensor zhou2020_sim_consumer --calibrated-accelerometer --hand ideal --seeds 50 "
+           (S("calib lab montecarlo --sensor zhou2020_sim_consumer --calibrated-accelerometer --hand ideal --seeds 50 "
               "--methods kf,kf_session_r", capture="honest_sigma.md"),
-            S("calib montecarlo --sensor mpu9250 --calibrated-accelerometer --hand ideal --seeds 50 --methods kf",
+            S("calib lab montecarlo --sensor mpu9250 --calibrated-accelerometer --hand ideal --seeds 50 --methods kf",
               capture="honest_sigma.md")),
            ("honest_sigma.md",), 6),
     Result("output_lowpass", "a sensor behind an output low-pass (DLPF) below the noise band: bias and S, G σ",
@@ -197,6 +198,9 @@ REGISTRY: tuple[Result, ...] = (
            (S("python benchmarks/real_imu.py --part simulated --seeds 60 --gyrosim-seeds 20 "
               "--out {results}/real_imu_simulated.md"),),
            ("real_imu_simulated.md",), 20),
+    Result("measured", "calib run, apply and mag as a user runs them on every measured recording, judged by what "
+           "comes next", (S("python -m benchmarks.measured {results}"),), ("measured.json", "measured.md"), 11,
+           data=True),
     Result("real_imu_measured", "calib run on the measured recordings, side by side with imucal",
            (S("python benchmarks/real_imu.py --part measured --out {results}/real_imu_measured.md"),),
            ("real_imu_measured.md",), 3, data=True,
@@ -215,11 +219,11 @@ REGISTRY: tuple[Result, ...] = (
               capture="northfind_mc_mpu9250.md"),),
            ("northfind_mc_mpu9250.json", "northfind_mc_mpu9250.md"), 2),
     Result("northfind_unshielded", "the unshielded FOG coil (magnetic sensitivity as shipped), 50 devices",
-           (S("calib northfind-mc --sensor fog_tactical --shield 1 --latitudes 0,48,70 --seeds 50 "
+           (S("calib lab northfind-mc --sensor fog_tactical --shield 1 --latitudes 0,48,70 --seeds 50 "
               "--json {results}/northfind_unshielded.json", capture="northfind_unshielded.md"),),
            ("northfind_unshielded.json", "northfind_unshielded.md"), 1),
     Result("northfind_latitude", "the north-finding limit against latitude for sensor presets (table, plot)",
-           (S("calib northfind-latitude --sensors fog_tactical,mpu9250,adis16367 --accuracy-deg 0.5 "
+           (S("calib lab northfind-latitude --sensors fog_tactical,mpu9250,adis16367 --accuracy-deg 0.5 "
               "--mc {results}/northfind_mc_fog_4pos.json --mc {results}/northfind_mc_mpu9250.json "
               "--png {results}/northfind_latitude.png --json {results}/northfind_latitude.json",
               capture="northfind_latitude.md"),),
@@ -231,7 +235,7 @@ REGISTRY: tuple[Result, ...] = (
               capture="tilt_static.md")),
            ("tilt_static.json", "tilt_static.png", "tilt_static.md"), 1),
     Result("tilt_mc", "each tilt-test figure against the drawn device, 50 devices",
-           (S("calib tilt-mc --sensor tilt_001 --seeds 50 --json {results}/tilt_mc.json", capture="tilt_mc.md"),),
+           (S("calib lab tilt-mc --sensor tilt_001 --seeds 50 --json {results}/tilt_mc.json", capture="tilt_mc.md"),),
            ("tilt_mc.json", "tilt_mc.md"), 2),
     # ------------------------------------------------------------------ orientation (docs/orientation.md)
     Result("orientation_broad", "VQF, Madgwick, Mahony, Fusion on BROAD beside the published numbers",
@@ -256,14 +260,14 @@ REGISTRY: tuple[Result, ...] = (
            ("orientation_speed.md",), 2),
     # ------------------------------------------------------------------ magnetometer (docs/magnetometer.md)
     Result("mag_compare", "in-motion compass compensation (KF, adaptive KF, particle filter) against calibration",
-           (S("calib mag-compare --png {results}/mag_heading_allan.png", capture="mag_compare.md"),),
+           (S("calib lab mag-compare --png {results}/mag_heading_allan.png", capture="mag_compare.md"),),
            ("mag_compare.md", "mag_heading_allan.png"), 1),
     Result("mag_measured", "the measured recordings' magnetometers: field spread and heading before and after",
-           (S("calib mag-measured", capture="mag_measured.md"),), ("mag_measured.md",), 2, data=True),
-    Result("mag_bench", "speed of the magnetometer fits", (S("calib mag-bench", capture="mag_bench.md"),),
+           (S("calib lab mag-measured", capture="mag_measured.md"),), ("mag_measured.md",), 2, data=True),
+    Result("mag_bench", "speed of the magnetometer fits", (S("calib lab mag-bench", capture="mag_bench.md"),),
            ("mag_bench.md",), 0.5),
     Result("closeloop_suite_mag", "the magnetometer cases of the closed loop, 20 seeds",
-           (S("calib closeloop-suite --cases mag --seeds 20", capture="closeloop_suite_mag.md"),),
+           (S("calib lab closeloop-suite --cases mag --seeds 20", capture="closeloop_suite_mag.md"),),
            ("closeloop_suite_mag.md",), 5),
     Result("magnetometer_closeloop_broad", "the magnetometer loop on BROAD trials 30 and 34",
            (S("python benchmarks/closeloop_mag_broad.py", capture="magnetometer_closeloop_broad.json", fmt="json"),),
@@ -298,7 +302,7 @@ REGISTRY: tuple[Result, ...] = (
            ("campaign_kf_hand_1000.md",), 30, note="uses both cores for ~12 min"),
     # ------------------------------------------------------------------ closed loop (docs/closeloop.md)
     Result("closeloop_suite", "the closed loop's undeclared-effect suites, 10 seeds",
-           (S("calib closeloop-suite --seeds 10", capture="closeloop_suite.md"),), ("closeloop_suite.md",), 15),
+           (S("calib lab closeloop-suite --seeds 10", capture="closeloop_suite.md"),), ("closeloop_suite.md",), 15),
     Result("closeloop_measured", "the closed loop on every measured recording",
            tuple(S(f"calib closeloop dataset:{d} --out {{scratch}}/{i}", capture="closeloop_measured.md")
                  for i, d in enumerate(("broad/02_undisturbed_slow_rotation_B",
@@ -310,8 +314,8 @@ REGISTRY: tuple[Result, ...] = (
                                         "xio_fusion", "xio_ximu_thermometer"))),
            ("closeloop_measured.md",), 6, data=True),
     Result("closeloop_bench", "closeloop's time against the Zhou filter on the same recordings",
-           (S("calib closeloop-bench", capture="closeloop_bench.md"),), ("closeloop_bench.md",), 1, data=True,
-           note="calib closeloop-bench exits 2 on this code: its baseline calibrate() refuses BROAD 07's "
+           (S("calib lab closeloop-bench", capture="closeloop_bench.md"),), ("closeloop_bench.md",), 1, data=True,
+           note="calib lab closeloop-bench exits 2 on this code: its baseline calibrate() refuses BROAD 07's "
                 "accelerometer"),
     # ------------------------------------------------------------------ noise (docs/noise.md)
     Result("noise_avr", "allan_variance_ros's simulation configuration, 20 seeds × 2 triads × 3 axes",
@@ -354,16 +358,18 @@ REGISTRY: tuple[Result, ...] = (
            ("noise_example.json", "noise_example.png", "noise_example.md"), 1),
     # ------------------------------------------------------------------ calibration, temperature, simulation
     Result("calibration_reading_a", "Table 7 reading A: efficiency against the Cramér–Rao bound, 50 seeds, ideal hand",
-           (S("calib montecarlo --sensor zhou2020_sim --hand ideal --seeds 50 --methods kf,iterated_session "
+           (S("calib lab montecarlo --sensor zhou2020_sim --hand ideal --seeds 50 "
+              "--methods kf,iterated_session_r "
               "--json {results}/calibration_reading_a.json", capture="calibration_reading_a.md"),),
            ("calibration_reading_a.json", "calibration_reading_a.md"), 5),
     Result("calibration_reading_b", "Table 7 reading B (consumer noise): the same",
-           (S("calib montecarlo --sensor zhou2020_sim_consumer --hand ideal --seeds 50 --methods kf,iterated_session "
+           (S("calib lab montecarlo --sensor zhou2020_sim_consumer --hand ideal --seeds 50 "
+              "--methods kf,iterated_session_r "
               "--json {results}/calibration_reading_b.json", capture="calibration_reading_b.md"),),
            ("calibration_reading_b.json", "calibration_reading_b.md"), 5),
     Result("calibration_mpu9250", "the MPU-9250 with its accelerometer calibrated: what the paper's filter misses",
-           (S("calib montecarlo --sensor mpu9250 --calibrated-accelerometer --hand ideal --seeds 50 "
-              "--methods kf,iterated_session --json {results}/calibration_mpu9250.json",
+           (S("calib lab montecarlo --sensor mpu9250 --calibrated-accelerometer --hand ideal --seeds 50 "
+              "--methods kf,iterated_session_r --json {results}/calibration_mpu9250.json",
               capture="calibration_mpu9250.md"),),
            ("calibration_mpu9250.json", "calibration_mpu9250.md"), 5),
     Result("attitude_validation", "the demo's attitude validation (free-style rotation, typical hand), two sensors",
