@@ -7,7 +7,7 @@
 
 ``simulated`` (benchmarks/real_imu_simulated_template.md): noise-free input (independent generator); Monte Carlo with
 a raw accelerometer (independent generator and gyrosim, 20–60 seeds); the hand-blind filter with a hand; speed
-(``calib bench``).  ``measured`` (benchmarks/real_imu_measured_template.md), from ``$GYROSIM_DATA`` (default
+(``calib lab bench``).  ``measured`` (benchmarks/real_imu_measured_template.md), from ``$GYROSIM_DATA`` (default
 ../shared/data): imucal's Ferraris session side by side with imucal 2.6 (the optional ``peers`` extra:
 ``pip install .[peers]``), imu_tk's Xsens session, BROAD, x-io Fusion.  Each section says how it was computed;
 absent data or peers are reported as such.  The hand-aware filter on the same recordings is benchmarks/hand_measured.py.
