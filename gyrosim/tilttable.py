@@ -5,9 +5,9 @@ sensitive axis, the 0°/180° two-point positions, and a long level hold for the
 The dividing head's axis is horizontal.  In sweep ``y`` the board turns about its x axis by +θ,
 so its y axis reads g sin θ; in sweep ``x`` it turns about its y axis by −θ, so its x axis reads
 g sin θ (the sign makes the input of the swept axis +g sin θ in both).  Each sweep runs through
-the angles (default the seed's ±15° range: −15, −12.5, …, +15°), then to 180° (the board upside
-down about the head's axis: the seed's two-point method for the mechanical zero) and back to
-level; after both sweeps the board stays level for ``zero_hold_s`` (zero stability, seed: 1 h).
+the angles (default the test's ±15° range: −15, −12.5, …, +15°), then to 180° (the board upside
+down about the head's axis: the test's two-point method for the mechanical zero) and back to
+level; after both sweeps the board stays level for ``zero_hold_s`` (zero stability, the test's: 1 h).
 
 Nothing needs dynamics (:mod:`gyrosim.rig`): the holds are written down and the moves between
 them are raised-cosine turns of ``move_s`` (``flip_move_s`` for the 180° turns) about the head's

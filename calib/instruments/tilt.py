@@ -330,7 +330,7 @@ def _axis_figures(rec: Recording, s: str, others: list[str], used: list[TiltHold
 
 def plot_tilt(res: TiltTest, path: str) -> str:
     """Output against input angle per sensitive axis (steps and fitted line, the other axis's
-    cross-axis output) over the residuals from the line (µg): the seed's Figure 4.13."""
+    cross-axis output) over the residuals from the line (µg): the application note's Figure 4.13."""
     import matplotlib
 
     matplotlib.use("Agg")

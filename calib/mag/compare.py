@@ -1,7 +1,7 @@
 """The comparison of *Soft Magnetic Error Compensation Method of Electronic Compass*, made measurable: compass
-heading before and after compensation — by the calibration (hard and soft iron) and by the seed's KF / adaptive KF /
+heading before and after compensation — by the calibration (hard and soft iron) and by the note's KF / adaptive KF /
 particle filter — against the truth, as RMS heading error and as the Allan deviation of the heading error (the
-seed's Figs 14–15).
+note's Figs 14–15).
 
 The compass heading of a recording (:func:`compass_heading`): the field compensated with a
 calibration (or only its hard iron, or nothing), the gravity reference's tilt
@@ -90,8 +90,8 @@ def compare_compensation(rec: Recording, calibration: MagCalibration, psi_ref: n
                          valid: np.ndarray | None = None, rng: np.random.Generator | None = None,
                          gyro_arw_rad_s_sqrt_hz: float = math.radians(0.01), offset: bool = False,
                          filters: tuple[str, ...] = tuple(HEADING_FILTERS)) -> list[CompensationRow]:
-    """Heading error rows: raw, hard iron only (soft iron left: the seed's "before"), the seed's
-    filters on it in the seed's form and with the gyro, the full calibration, and the gyro-aided KF
+    """Heading error rows: raw, hard iron only (soft iron left: the note's "before"), the note's
+    filters on it in the note's form and with the gyro, the full calibration, and the gyro-aided KF
     on the calibrated heading.  ``psi_ref`` the reference heading (rad, magnetic: e.g. the truth's
     :func:`calib.mag.heading.magnetic_reference`); ``offset`` removes a constant offset first."""
     rng = rng or np.random.default_rng(0)

@@ -6,7 +6,7 @@ through :data:`HEADING_FILTERS`.
 The application note treats the soft-iron error as random noise on the compass output and smooths it.  Two
 process models, the same for all three filters:
 
-* ``seed`` — the seed's form: the heading is a random walk, ψ_{k+1} = ψ_k + w_k, Var w = q Δt;
+* ``seed`` — the application note's form: the heading is a random walk, ψ_{k+1} = ψ_k + w_k, Var w = q Δt;
   the filter only smooths the measured heading;
 * ``gyro`` — the gyro carries the heading between compass samples:
   ψ_{k+1} = ψ_k + Δψ_k − b Δt + w_k,  b_{k+1} = b_k + v_k, with Δψ_k the heading increment of the
@@ -22,7 +22,7 @@ Var ε = R.
 * **AKF** — Sage & Husa (1969) with a forgetting factor b (the "improved Sage–Husa" filter of the
   seed's §2.2): d_k = (1 − b)/(1 − b^{k+1}), R_k = (1 − d_k) R_{k−1} + d_k (ν_k² − H P⁻ Hᵀ); when
   that would go below R_min the subtraction is dropped (R_k = (1 − d_k) R_{k−1} + d_k ν_k²), the
-  usual fix that keeps R positive (the loss of positivity the seed warns about).
+  usual fix that keeps R positive (the loss of positivity the note warns about).
 * **PF** — bootstrap particle filter (Gordon, Salmond & Smith 1993): particles drawn from the
   process model, weights ∝ a Student-t likelihood (ν = 4, scale √R) of the wrapped innovation —
   heavy-tailed, so that a compass reading many σ off every particle (a soft-iron error ≫ the
