@@ -135,17 +135,22 @@ def _resolves(dotted: str, attr: str | None) -> bool:
     return False
 
 
+def _guides() -> list[Path]:
+    """README.md, the guides and the notes beside them (docs/results is generated, not read here)."""
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "docs" / "notes").glob("*.md"))]
+
+
 def _dotted_names() -> list[tuple[str, str, str | None]]:
     groups = _entry_point_groups()
     out = []
-    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+    for path in _guides():
         text = _RESULT_BLOCK.sub("", path.read_text(encoding="utf-8"))   # generated blocks quote their command
         for span in _CODE.findall(text):
             for m in _DOTTED.finditer(span):
                 dotted, attr = m.group(1), m.group(2)
                 if dotted in groups or re.search(r"\.(py|md|json|h5|csv|rrd|png|toml)$", dotted):
                     continue   # an entry-point group, a file name
-                out.append((path.name, dotted, attr))
+                out.append((path.name, dotted, attr))   # (file names are unique across README, docs, notes)
     return out
 
 
@@ -154,7 +159,7 @@ def test_the_docs_find_some_dotted_names():
     assert "calib.session.run.run_session" in names   # the README's own; the scan sees backticks
 
 
-@pytest.mark.parametrize("guide", ["README.md", *sorted(p.name for p in (ROOT / "docs").glob("*.md"))])
+@pytest.mark.parametrize("guide", [p.name for p in _guides()])
 def test_dotted_names_in_the_guides_resolve(guide):
     stale = sorted({f"{d}{':' + a if a else ''}" for g, d, a in _dotted_names() if g == guide and not _resolves(d, a)})
     assert not stale, f"{guide} names code that does not exist (renamed or moved?): " + ", ".join(stale)
