@@ -1,0 +1,510 @@
+"""Hard-iron regimes: where the field that turns with the board changes during a session.
+
+A magnet attached to the board (or taken off it) moves every sample by the same body-frame vector
+from then on: a new hard iron.  A magnet in the room changes the field with where the board is, in
+the room's frame, and leaves the body-frame offset alone.  The gyro tells the two apart
+(:mod:`calib.mag.offsets`): per window of a few seconds, the offset c that is constant in the body
+frame while the board turns.
+
+1. **Change points of c.**  Optimal partitioning (Jackson et al. 2005, "An algorithm for optimal
+   partitioning of data on an interval", IEEE SPL 12(2)) of the windows into stretches of constant c:
+   a stretch costs Σ_w (c_S − c_w)ᵀ N_w (c_S − c_w) / s² plus ``penalty`` per stretch, s² the
+   windows' own scatter (their model error — soft iron, gyro drift, the room's gradient — is larger
+   than the sensor noise; estimated robustly from neighbouring windows, then from the stretches
+   found, :func:`_window_scale`).
+2. **Is a change real?**  Neighbouring stretches are merged back, weakest first, until every change
+   is both significant — T = Δcᵀ (Σ₁ + Σ₂)⁺ Δc beyond the χ²(ρ) quantile 1 − ``alpha`` — and at
+   least ``floor_ut`` (µT) in size; stretches whose offsets agree (non-neighbours too: a magnet
+   taken off returns the first hard iron) become one hypothesis.
+3. **Which samples belong where.**  Every hypothesis j (offset c_j, field F_j) explains a sample by
+   |m_k − c_j| = F_j and, while the board is quasi-static, by the inclination against gravity.  A
+   Viterbi pass over ``fine_s`` windows labels each with a hypothesis or "unexplained" (a fixed cost
+   of ``unexplained_z``²), switching at a cost of ``switch_z``²: this places a change that happened
+   while the board rested (where the gyro sees nothing) at the step in the field, and marks the
+   transition while a hand brings a magnet as neither.  A change's time is the middle of its
+   transition, its σ the transition's width /√12 or, without one, the stretch where the labelling's
+   cost rises by less than 1 (one σ).
+
+The result, :class:`RegimeSplit`, lists the hypotheses (hard iron), per-sample labels and the
+changes with their evidence; :func:`calib.mag.calibrate.calibrate_magnetometer` then calibrates each
+regime on its own samples.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from calib.mag.offsets import MIN_TURN, WindowOffsets, window_offsets
+
+__all__ = ["RegimeSettings", "Hypothesis", "Change", "RegimeSplit", "detect_regimes", "offset_change_test"]
+
+UNEXPLAINED = -1
+
+
+@dataclass(frozen=True)
+class RegimeSettings:
+    """The regime detector's settings (module docstring).
+
+    ``window_s`` (s) window of the gyro-aided offsets; ``min_turn`` information per sample below
+    which a direction is not seen; ``penalty`` cost of one more stretch (in units of the windows'
+    scatter, χ²); ``min_scatter_ut`` (µT) the least scatter of a fully turning window's offset that
+    is assumed, however few windows there are to measure it; ``systematic_ut`` (µT per axis) the
+    error a stretch's offset shares with all its windows — the soft iron and the gyro's scale
+    errors bias each stretch by how it turned (BROAD's undisturbed trials: stretches 0.5–0.9 µT
+    apart; a simulated MPU-9250 with 1.5 % soft iron and 1 % gyro scale: up to 2.4 µT);
+    ``max_offset_std_ut`` (µT) the largest σ a hypothesis may have in its worst direction;
+    ``floor_ut`` (µT) the smallest hard-iron change reported (a 1.5 µT offset moves a 20 µT
+    horizontal field's heading by ≤ 4°); ``alpha`` the false-alarm probability of one change;
+    ``fine_s`` (s) the resolution of the change times; ``switch_z`` and ``unexplained_z`` (σ) the
+    labelling's costs; ``min_hypothesis_s`` (s) the least time a hypothesis must explain."""
+
+    window_s: float = 2.0
+    min_turn: float = MIN_TURN
+    penalty: float = 25.0
+    min_scatter_ut: float = 0.2
+    systematic_ut: float = 0.5
+    max_offset_std_ut: float = 1.0
+    floor_ut: float = 1.5
+    alpha: float = 1e-4
+    fine_s: float = 0.25
+    switch_z: float = 5.0
+    unexplained_z: float = 3.0
+    min_hypothesis_s: float = 2.0
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One body-frame offset: c (µT, body) and its covariance from the windows that see it, the
+    field magnitude |m − c| it leaves (µT), and the windows it was estimated from."""
+
+    offset_ut: np.ndarray
+    cov: np.ndarray
+    field_ut: float
+    windows: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Change:
+    """A change of the hard iron between hypotheses ``before`` → ``after`` at ``time_s`` ± ``std_s``,
+    with the transition (s) in which no hypothesis explained the field (empty when the change was
+    abrupt), and the test: the offset change (µT, body) with its σ, the statistic T, its degrees of
+    freedom and the false-alarm probability."""
+
+    time_s: float
+    std_s: float
+    transition_s: tuple[float, float]
+    before: int
+    after: int
+    offset_change_ut: np.ndarray
+    offset_change_std_ut: np.ndarray
+    chi2: float
+    dof: int
+    p_value: float
+
+    def to_dict(self) -> dict:
+        return {"time_s": self.time_s, "std_s": self.std_s, "transition_s": list(self.transition_s),
+                "offset_change_uT": self.offset_change_ut.tolist(),
+                "offset_change_std_uT": self.offset_change_std_ut.tolist(), "chi2": self.chi2, "dof": self.dof,
+                "p_value": self.p_value, "test": "body-frame offset change (gyro-aided windows)"}
+
+
+@dataclass(frozen=True)
+class RegimeSplit:
+    """Hypotheses, the per-sample label (hypothesis index, or −1 in a transition), the changes in
+    time order, the windows' scatter scale (µT² per unit information) and notes for diagnostics."""
+
+    hypotheses: tuple[Hypothesis, ...]
+    labels: np.ndarray
+    changes: tuple[Change, ...]
+    scale: float
+    offsets: WindowOffsets
+    notes: dict = field(default_factory=dict)
+
+    @property
+    def single(self) -> bool:
+        return len(self.hypotheses) <= 1
+
+
+# ---------------------------------------------------------------------------------------- stretches of c
+def _pinv(a: np.ndarray) -> np.ndarray:
+    return np.linalg.pinv(a, rcond=1e-9, hermitian=True)
+
+
+def _rank(a: np.ndarray) -> int:
+    scale = float(np.abs(a).max()) if a.size else 0.0
+    return int(np.linalg.matrix_rank(a, tol=1e-9 * scale)) if scale > 0 else 0
+
+
+def _stretch(wo: WindowOffsets, idx) -> tuple[float, np.ndarray, np.ndarray, int]:
+    """(excess cost, c, N, degrees of freedom) of one common offset over the windows ``idx``."""
+    ns, rs = wo.info[idx].sum(axis=0), wo.rhs[idx].sum(axis=0)
+    c = _pinv(ns) @ rs
+    q = float(np.einsum("wi,wi->", wo.rhs[idx], wo.offset_ut[idx]))
+    return max(q - float(rs @ c), 0.0), c, ns, int(wo.rank[idx].sum()) - _rank(ns)
+
+
+def _window_scale(wo: WindowOffsets, cuts: list[int]) -> float | None:
+    """Robust scatter s² of the windows about their stretch's offset: the median over windows of
+    their cost share / the median of χ²(rank) (between neighbours when ``cuts`` is empty)."""
+    vals = []
+    if not cuts:
+        for i in range(wo.size - 1):
+            cost, _, _, dof = _stretch(wo, [i, i + 1])
+            if dof > 0:
+                vals.append(cost / stats.chi2.ppf(0.5, dof))
+    else:
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            idx = [w for w in range(a, b) if wo.rank[w] > 0]
+            if len(idx) < 3:
+                continue
+            _, c, _, _ = _stretch(wo, idx)
+            for w in idx:
+                d = wo.offset_ut[w] - c
+                vals.append(float(d @ wo.info[w] @ d) / stats.chi2.ppf(0.5, wo.rank[w]) * len(idx) / (len(idx) - 1))
+    return float(np.median(vals)) if len(vals) >= 5 else None
+
+
+FULL_TURN_INFO = 2.0 / 3.0  # mean information per sample and direction of a window that turned all round
+
+
+def _scale_floor(wo: WindowOffsets, st: RegimeSettings) -> float:
+    """The least s²: a fully turning window's offset scattering by ``min_scatter_ut``."""
+    n_med = float(np.median(wo.n[wo.rank > 0])) if (wo.rank > 0).any() else 1.0
+    return st.min_scatter_ut**2 * FULL_TURN_INFO * n_med
+
+
+def _stretch_cov(ns: np.ndarray, s2: float, st: RegimeSettings) -> np.ndarray:
+    """Covariance of a stretch's offset: its windows' scatter s² N⁺ plus the error the stretch shares
+    (``systematic_ut`` per axis), both in the directions the stretch sees."""
+    ev, vec = np.linalg.eigh(ns)
+    keep = ev > 1e-9 * max(float(ev.max()), 1e-300)
+    v = vec[:, keep]
+    return (v / ev[keep]) @ v.T * s2 + st.systematic_ut**2 * (v @ v.T)
+
+
+def _partition(wo: WindowOffsets, s2: float, penalty: float) -> list[int]:
+    """Optimal partitioning: the cut indices [0, …, W] minimising Σ cost/s² + penalty per stretch."""
+    nw = wo.size
+    pn = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(wo.info, axis=0)])
+    pr = np.concatenate([np.zeros((1, 3)), np.cumsum(wo.rhs, axis=0)])
+    pq = np.concatenate([[0.0], np.cumsum(np.einsum("wi,wi->w", wo.rhs, wo.offset_ut))])
+    best = np.full(nw + 1, np.inf)
+    best[0] = 0.0
+    arg = np.zeros(nw + 1, dtype=int)
+    for b in range(1, nw + 1):
+        a = np.arange(b)
+        ns, rs = pn[b] - pn[a], pr[b] - pr[a]
+        c = np.einsum("aij,aj->ai", np.linalg.pinv(ns, rcond=1e-9, hermitian=True), rs)
+        cost = np.maximum(pq[b] - pq[a] - np.einsum("ai,ai->a", rs, c), 0.0)
+        tot = best[a] + cost / s2 + penalty
+        k = int(np.argmin(tot))
+        best[b], arg[b] = tot[k], k
+    cuts, b = [nw], nw
+    while b > 0:
+        b = arg[b]
+        cuts.append(b)
+    return cuts[::-1]
+
+
+def offset_change_test(c1: np.ndarray, cov1: np.ndarray, c2: np.ndarray, cov2: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, float, int, float]:
+    """(Δc, σ(Δc), T, ρ, p): the change of a body-frame offset and its χ² test in the ρ directions
+    both estimates see (Δc = c₂ − c₁; p the probability of a T this large without a change)."""
+    cov = cov1 + cov2
+    dof = _rank(cov)
+    d = c2 - c1
+    t = float(d @ _pinv(cov) @ d) if dof else 0.0
+    p = float(stats.chi2.sf(t, dof)) if dof else 1.0
+    return d, np.sqrt(np.clip(np.diag(cov), 0, None)), t, dof, p
+
+
+def _merge_weak(wo: WindowOffsets, cuts: list[int], s2: float, st: RegimeSettings) -> list[int]:
+    """Remove cuts, weakest first, until every change passes the size floor and the χ² test."""
+    cuts = list(cuts)
+    while len(cuts) > 2:
+        worst, worst_p = None, -1.0
+        for i in range(1, len(cuts) - 1):
+            a, b, c = cuts[i - 1], cuts[i], cuts[i + 1]
+            _, c1, n1, _ = _stretch(wo, range(a, b))
+            _, c2, n2, _ = _stretch(wo, range(b, c))
+            d, _, _, dof, p = offset_change_test(c1, _stretch_cov(n1, s2, st), c2, _stretch_cov(n2, s2, st))
+            small = dof == 0 or float(np.linalg.norm(d)) < st.floor_ut
+            score = 2.0 if small else p
+            if score > worst_p:
+                worst, worst_p = i, score
+        if worst_p <= st.alpha:
+            break
+        del cuts[worst]
+    return cuts
+
+
+def _hypotheses(wo: WindowOffsets, cuts: list[int], s2: float, st: RegimeSettings) -> list[Hypothesis]:
+    """One hypothesis per stretch that sees its offset in all three directions to ``max_offset_std_ut``
+    (with at least one window that turned about two axes); stretches that agree merged (module
+    docstring, step 2)."""
+    groups: list[list[int]] = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        idx = [w for w in range(a, b) if wo.rank[w] > 0]
+        if not idx or not wo.turning[idx].any():
+            continue
+        ev = np.linalg.eigvalsh(wo.info[idx].sum(axis=0))
+        if ev[0] > 0 and math.sqrt(s2 / ev[0]) <= st.max_offset_std_ut:
+            groups.append(idx)
+    merged = True
+    while merged and len(groups) > 1:
+        merged = False
+        for i in range(len(groups)):
+            for j in range(i + 1, len(groups)):
+                _, c1, n1, _ = _stretch(wo, groups[i])
+                _, c2, n2, _ = _stretch(wo, groups[j])
+                d, _, _, dof, p = offset_change_test(c1, _stretch_cov(n1, s2, st), c2, _stretch_cov(n2, s2, st))
+                if dof == 0 or np.linalg.norm(d) < st.floor_ut or p > st.alpha:
+                    groups[i] = sorted(groups[i] + groups.pop(j))
+                    merged = True
+                    break
+            if merged:
+                break
+    out = []
+    for g in groups:
+        _, c, ns, _ = _stretch(wo, g)
+        out.append(Hypothesis(c, _stretch_cov(ns, s2, st), float("nan"), tuple(g)))
+    return out
+
+
+# ---------------------------------------------------------------------------------------- sample labels
+def _fine_mean(x: np.ndarray, ok: np.ndarray, starts: np.ndarray, fine: int) -> np.ndarray:
+    """Mean of x over the ``ok`` samples of each fine window (NaN with fewer than a quarter of them)."""
+    s = np.add.reduceat(np.where(ok, x, 0.0), starts)
+    c = np.add.reduceat(ok.astype(float), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(c >= max(1, fine // 4), s / c, np.nan)
+
+
+def _field_costs(m: np.ndarray, valid: np.ndarray, hyps: list[Hypothesis], wo: WindowOffsets,
+                 up_body: np.ndarray | None, quasi_static: np.ndarray | None, starts: np.ndarray, fine: int
+                 ) -> tuple[np.ndarray, list[Hypothesis]]:
+    """Costs (T, K) of the field each hypothesis leaves: the squared mean of |m − c_j| − F_j per fine
+    window over its robust σ (F_j, σ from the windows the hypothesis was estimated on), plus the
+    same for the inclination against gravity where the board was quasi-static; and the hypotheses
+    with their F_j."""
+    n = m.shape[0]
+    cost = np.zeros((starts.size, len(hyps)))
+    out = []
+    for j, h in enumerate(hyps):
+        own = valid & _mask_of(h, wo, n)
+        d = m - h.offset_ut
+        norm = np.linalg.norm(d, axis=1)
+        f = float(np.median(norm[own]))
+        out.append(Hypothesis(h.offset_ut, h.cov, f, h.windows))
+        r = norm - f
+        cost[:, j] = np.nan_to_num((_fine_mean(r, valid, starts, fine)
+                                    / _robust_sigma(_fine_mean(r, own, starts, fine))) ** 2)
+        if up_body is None or quasi_static is None or (own & quasi_static).sum() < 3 * fine:
+            continue
+        incl = np.degrees(np.arcsin(np.clip(-np.sum(d * up_body, axis=1) / np.maximum(norm, 1e-9), -1, 1)))
+        dev = incl - float(np.median(incl[own & quasi_static]))
+        cost[:, j] += np.nan_to_num((_fine_mean(dev, valid & quasi_static, starts, fine)
+                                     / _robust_sigma(_fine_mean(dev, own & quasi_static, starts, fine))) ** 2)
+    return cost, out
+
+
+def _offset_costs(hyps: list[Hypothesis], wo: WindowOffsets, s2: float, st: RegimeSettings, starts: np.ndarray
+                  ) -> np.ndarray:
+    """Costs (T, K) of each turning window's own offset against each hypothesis' (its χ², spread over
+    the window's fine windows): while the board turns, the gyro says which hard iron it is."""
+    cost = np.zeros((starts.size, len(hyps)))
+    for w in np.flatnonzero(wo.turning):
+        inside = (starts >= wo.lo[w]) & (starts < wo.hi[w])
+        if not inside.any():
+            continue
+        cov_w = _stretch_cov(wo.info[w], s2, st)
+        icov = _pinv(cov_w)
+        for j, h in enumerate(hyps):
+            d = wo.offset_ut[w] - h.offset_ut
+            # only the directions the window sees: project the difference onto them
+            d = cov_w @ icov @ d
+            cost[inside, j] += float(d @ icov @ d) / inside.sum()
+    return cost
+
+
+def _mask_of(h: Hypothesis, wo: WindowOffsets, n: int) -> np.ndarray:
+    sel = np.zeros(n, dtype=bool)
+    for w in h.windows:
+        sel[wo.lo[w]:wo.hi[w]] = True
+    return sel
+
+
+def _robust_sigma(x: np.ndarray) -> float:
+    x = x[np.isfinite(x)]
+    if x.size < 5:
+        return float("inf")
+    s = float(1.4826 * np.median(np.abs(x - np.median(x))))
+    return max(s, 1e-6)
+
+
+def _viterbi(cost: np.ndarray, switch: float, unexplained: float) -> np.ndarray:
+    """Labels (T,) in 0..K−1 or −1 (unexplained) minimising Σ cost + ``switch`` per change of label
+    (half of it to enter or leave "unexplained")."""
+    t, k = cost.shape
+    full = np.concatenate([cost, np.full((t, 1), unexplained)], axis=1)
+    trans = np.full((k + 1, k + 1), switch)
+    trans[:, k] = trans[k, :] = switch / 2
+    np.fill_diagonal(trans, 0.0)
+    acc = full[0].copy()
+    back = np.zeros((t, k + 1), dtype=int)
+    for i in range(1, t):
+        tot = acc[:, None] + trans
+        back[i] = np.argmin(tot, axis=0)
+        acc = tot[back[i], np.arange(k + 1)] + full[i]
+    lab = np.empty(t, dtype=int)
+    lab[-1] = int(np.argmin(acc))
+    for i in range(t - 1, 0, -1):
+        lab[i - 1] = back[i, lab[i]]
+    return np.where(lab == k, UNEXPLAINED, lab)
+
+
+def _runs(lab: np.ndarray) -> list[tuple[int, int, int]]:
+    """(label, start, end) of the runs of equal labels (end exclusive)."""
+    edges = np.flatnonzero(np.diff(lab)) + 1
+    starts = np.r_[0, edges]
+    ends = np.r_[edges, lab.size]
+    return [(int(lab[a]), int(a), int(b)) for a, b in zip(starts, ends)]
+
+
+def _settle_unexplained(lab: np.ndarray) -> np.ndarray:
+    """Unexplained runs inside one hypothesis (or at an end) go back to it: only those between two
+    different hypotheses are transitions (a stretch that is off inside a regime is that regime's
+    business: its own fit finds and excludes it)."""
+    lab = lab.copy()
+    runs = _runs(lab)
+    for i, (v, a, b) in enumerate(runs):
+        if v != UNEXPLAINED:
+            continue
+        left = runs[i - 1][0] if i > 0 else None
+        right = runs[i + 1][0] if i + 1 < len(runs) else None
+        if left is None or right is None or left == right:
+            lab[a:b] = right if left is None else left
+    return lab
+
+
+def _switch_std(cost: np.ndarray, lab: np.ndarray, b: int, i: int, j: int) -> float:
+    """σ (in fine windows) of a direct switch i → j at fine window b: half the width of the stretch
+    of switch positions whose labelling costs at most 1 more (one σ), between the neighbouring
+    switches; at least the resolution's 1/√12."""
+    lo = b - 1
+    while lo > 0 and lab[lo - 1] == i:
+        lo -= 1
+    hi = b
+    while hi < lab.size - 1 and lab[hi + 1] == j:
+        hi += 1
+    seg_i, seg_j = cost[lo:hi + 1, i], cost[lo:hi + 1, j]
+    # total cost when the switch is at position p (first sample of j): Σ_{<p} cost_i + Σ_{≥p} cost_j
+    tot = np.r_[0.0, np.cumsum(seg_i)] + np.r_[np.cumsum(seg_j[::-1])[::-1], 0.0]
+    within = np.flatnonzero(tot - tot.min() <= 1.0)
+    return max((within.max() - within.min()) / 2.0, 1.0 / math.sqrt(12.0))
+
+
+def _changes(lab: np.ndarray, cost: np.ndarray, starts: np.ndarray, t_s: np.ndarray, fine_s: float,
+             hyps: list[Hypothesis]) -> list[Change]:
+    """The changes between hypotheses in the settled labels (module docstring, step 3)."""
+    runs = [r for r in _runs(lab)]
+    out = []
+    for i in range(1, len(runs)):
+        v, a, b = runs[i]
+        prev = runs[i - 1]
+        if v == UNEXPLAINED or prev[0] == v:
+            continue
+        if prev[0] == UNEXPLAINED:  # the change happened inside a transition
+            before = runs[i - 2][0]
+            t0, t1 = float(t_s[starts[prev[1]]]), float(t_s[starts[a]])
+            when, std = 0.5 * (t0 + t1), math.hypot((t1 - t0) / math.sqrt(12.0), fine_s / math.sqrt(12.0))
+        else:
+            before = prev[0]
+            t0 = t1 = when = float(t_s[starts[a]])
+            std = _switch_std(cost, lab, a, before, v) * fine_s
+        h1, h2 = hyps[before], hyps[v]
+        d, sd, chi2, dof, p = offset_change_test(h1.offset_ut, h1.cov, h2.offset_ut, h2.cov)
+        out.append(Change(when, std, (t0, t1), before, v, d, sd, chi2, dof, p))
+    return out
+
+
+def _label(t_s: np.ndarray, m: np.ndarray, valid: np.ndarray, hyps: list[Hypothesis], wo: WindowOffsets,
+           up_body: np.ndarray | None, quasi_static: np.ndarray | None, s2: float, st: RegimeSettings
+           ) -> tuple[list[Hypothesis], np.ndarray, list[Change]]:
+    """Label every sample (step 3), dropping hypotheses that explain less than ``min_hypothesis_s``."""
+    n = t_s.size
+    rate = (n - 1) / max(float(t_s[-1] - t_s[0]), 1e-12)
+    fine = max(2, int(round(st.fine_s * rate)))
+    while True:
+        starts = np.arange(0, n, fine)
+        cost, hyps = _field_costs(m, valid, hyps, wo, up_body, quasi_static, starts, fine)
+        cost += _offset_costs(hyps, wo, s2, st, starts)
+        lab = _settle_unexplained(_viterbi(cost, st.switch_z**2, st.unexplained_z**2))
+        held = np.array([(lab == j).sum() * fine / rate for j in range(len(hyps))])
+        if len(hyps) <= 1 or held.min() >= st.min_hypothesis_s:
+            break
+        hyps = [h for j, h in enumerate(hyps) if j != int(np.argmin(held))]
+    labels = np.repeat(lab, np.diff(np.r_[starts, n]))
+    return hyps, labels, _changes(lab, cost, starts, t_s, fine / rate, hyps)
+
+
+def detect_regimes(t_s: np.ndarray, mag_ut: np.ndarray, valid: np.ndarray, gyro_rad_s: np.ndarray,
+                   gyro_bias_rad_s: np.ndarray, *, up_body: np.ndarray | None = None,
+                   quasi_static: np.ndarray | None = None, settings: RegimeSettings | None = None) -> RegimeSplit:
+    """Hard-iron regimes of a session (module docstring).
+
+    ``mag_ut`` (N, 3) µT body frame, ``valid`` (N,) usable samples, ``gyro_rad_s`` (N, 3) body rate
+    and its bias (3,); ``up_body`` (N, 3) and ``quasi_static`` (N,) from the gravity reference, if
+    there is one.  One hypothesis (or none, when the board never turned about two axes) means one
+    regime."""
+    st = settings or RegimeSettings()
+    n = t_s.size
+    wo = window_offsets(t_s, mag_ut, valid, gyro_rad_s, gyro_bias_rad_s, window_s=st.window_s, min_turn=st.min_turn)
+    notes: dict = {"windows": wo.size, "window_s": st.window_s, "turning_windows": int(wo.turning.sum())}
+    if wo.turning.sum() < 2:
+        notes["skipped"] = "the board turned about two axes in fewer than 2 windows: hard-iron changes not sought"
+        return RegimeSplit((), np.zeros(n, dtype=int), (), float("nan"), wo, notes)
+    floor = _scale_floor(wo, st)
+    s2 = max(_window_scale(wo, []) or floor, floor)
+    cuts = _partition(wo, s2, st.penalty)
+    s2 = max(_window_scale(wo, cuts) or s2, floor)
+    cuts = _partition(wo, s2, st.penalty)
+    notes["stretches_before_merging"] = len(cuts) - 1
+    cuts = _merge_weak(wo, cuts, s2, st)
+    hyps = _hypotheses(wo, cuts, s2, st)
+    notes["window_scatter_uT"] = math.sqrt(s2 / (FULL_TURN_INFO * float(np.median(wo.n[wo.rank > 0]))))
+    if len(hyps) <= 1:
+        return RegimeSplit(tuple(hyps), np.zeros(n, dtype=int), (), s2, wo, notes)
+    hyps, labels, changes = _label(t_s, mag_ut, valid, hyps, wo, up_body, quasi_static, s2, st)
+    if len(hyps) <= 1:
+        return RegimeSplit(tuple(hyps), np.zeros(n, dtype=int), (), s2, wo, notes)
+    return RegimeSplit(tuple(hyps), labels, tuple(changes), s2, wo, notes)
+
+
+def stretch_offset_test(split: RegimeSplit, t0_s: float, t1_s: float, hypothesis: int,
+                        settings: RegimeSettings | None = None) -> dict:
+    """Is a stretch (a local disturbance) attached to the board?  Its windows' common body-frame
+    offset against the regime's (:func:`offset_change_test`): a field fixed in the room leaves the
+    offset where it was; one that turns with the board moves it — and moves it to one place, so the
+    windows must also agree with each other (homogeneity χ² of their common offset; a magnet in the
+    room, passed while turning, biases each window differently).  {} when the board did not turn
+    about two axes there (the test cannot tell)."""
+    st = settings or RegimeSettings()
+    wo = split.offsets
+    # the windows at least half inside the stretch
+    half = 0.5 * (wo.t_end_s - wo.t_start_s)
+    overlap = np.minimum(wo.t_end_s, t1_s) - np.maximum(wo.t_start_s, t0_s)
+    idx = [w for w in range(wo.size) if overlap[w] >= half[w] and wo.rank[w] > 0]
+    if not idx or not wo.turning[idx].any() or not split.hypotheses or not math.isfinite(split.scale):
+        return {}
+    cost, c, ns, dof_h = _stretch(wo, idx)
+    h = split.hypotheses[hypothesis]
+    d, sd, chi2, dof, p = offset_change_test(h.offset_ut, h.cov, c, _stretch_cov(ns, split.scale, st))
+    chi2_h = cost / split.scale
+    return {"offset_change_uT": d.tolist(), "offset_change_std_uT": sd.tolist(), "chi2": chi2, "dof": dof,
+            "p_value": p, "windows": len(idx), "homogeneity_chi2": chi2_h, "homogeneity_dof": dof_h,
+            "homogeneity_p_value": float(stats.chi2.sf(chi2_h, dof_h)) if dof_h > 0 else 1.0}
