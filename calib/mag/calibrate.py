@@ -31,7 +31,14 @@ from gyrosim.sensor_model import stored_sensor_model
 
 from calib.mag.fit import MIN_COVERAGE, SOFT_IRON_NAMES, MagSetup, NotCalibratable, fit_samples, prepare
 from calib.mag.methods import polar_rotation_deg
-from calib.mag.regimes import RegimeSettings, RegimeSplit, detect_regimes, offset_change_test, stretch_offset_test
+from calib.mag.regimes import (
+    RegimeSettings,
+    RegimeSplit,
+    detect_regimes,
+    merge_hypotheses,
+    offset_change_test,
+    stretch_offset_test,
+)
 from calib.mag.result import Disturbance, MagCalibration, Regime
 
 __all__ = ["calibrate_magnetometer", "true_magnetometer", "SOFT_IRON_NAMES", "MIN_COVERAGE"]
@@ -93,14 +100,14 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
 
 
 # ---------------------------------------------------------------------------------------- disturbances
-def _classify(d: Disturbance, split: RegimeSplit | None, hypothesis: int, st: RegimeSettings) -> Disturbance:
-    """Module docstring, step 5: the body-frame offset test over the disturbance's windows."""
-    ev = stretch_offset_test(split, d.t_start_s, d.t_end_s, hypothesis, st) if split is not None else {}
-    if not ev:
+def _classify(setup: MagSetup, d: Disturbance, split: RegimeSplit | None, hypothesis: int, st: RegimeSettings
+              ) -> Disturbance:
+    """Module docstring, step 5 (:func:`calib.mag.regimes.stretch_offset_test`)."""
+    if split is None:  # no test was made
         return replace(d, kind="undetermined", evidence=None)
-    moved = (ev["p_value"] <= st.alpha and math.hypot(*ev["offset_change_uT"]) >= st.floor_ut
-             and ev["homogeneity_p_value"] > st.alpha)
-    return replace(d, kind="attached" if moved else "world-fixed", evidence=ev)
+    ev = stretch_offset_test(split, setup.rec.t_s, setup.inp.mag_ut, d.t_start_s, d.t_end_s, hypothesis, st)
+    kind = ev.pop("verdict")
+    return replace(d, kind=kind, evidence=ev or None)
 
 
 def _field_deviation(ref: MagCalibration, m: np.ndarray) -> float:
@@ -133,7 +140,7 @@ def _one_regime(setup: MagSetup, res: MagCalibration, split: RegimeSplit | None,
     diagnostics = dict(res.diagnostics)
     if split is not None:
         diagnostics["regimes"] = dict(split.notes)
-    return replace(res, regimes=(reg,), disturbances=tuple(_classify(d, split, 0, st) for d in res.disturbances),
+    return replace(res, regimes=(reg,), disturbances=tuple(_classify(setup, d, split, 0, st) for d in res.disturbances),
                    diagnostics=diagnostics)
 
 
@@ -151,6 +158,52 @@ def _fit_groups(setup: MagSetup, split: RegimeSplit) -> tuple[list[MagCalibratio
     return fits, reasons
 
 
+UNION_SPREAD_RATIO = 1.2  # one calibration of two stretches explains them when its |B| spread is ≤ this × theirs
+
+
+def _spread(res: MagCalibration, m: np.ndarray) -> float:
+    """Standard deviation (µT) of the calibrated field magnitude over the samples ``m``."""
+    return float(np.std(np.linalg.norm(res.compensate(m), axis=1)))
+
+
+def _one_calibration_explains(setup: MagSetup, split: RegimeSplit, i: int, j: int,
+                              fits: list[MagCalibration | None]) -> bool:
+    """Does one calibration (hard and soft iron) of hypotheses i and j together, every sample kept,
+    leave no more |B| spread than their own calibrations (``UNION_SPREAD_RATIO``)?  Then the offsets
+    differed by how the board turned under a strong soft iron, not by a change."""
+    if fits[i] is None or fits[j] is None:
+        return False
+    m = setup.inp.mag_ut
+    masks = [setup.inp.valid & (split.labels == k) for k in (i, j)]
+    n = [int(k.sum()) for k in masks]
+    pooled = math.sqrt((n[0] * _spread(fits[i], m[masks[0]]) ** 2 + n[1] * _spread(fits[j], m[masks[1]]) ** 2)
+                       / max(sum(n), 1))
+    try:
+        union = fit_samples(replace(setup, detect_disturbances=False, consistency_check=False), masks[0] | masks[1])
+    except NotCalibratable:
+        return False
+    return union.status == "ok" and _spread(union, m[masks[0] | masks[1]]) <= UNION_SPREAD_RATIO * pooled
+
+
+def _merge_explained(setup: MagSetup, split: RegimeSplit, st: RegimeSettings
+                     ) -> tuple[RegimeSplit, list[MagCalibration | None], list[str]]:
+    """Step 4's guard: neighbouring regimes that one calibration explains become one."""
+    fits, reasons = _fit_groups(setup, split)
+    tried: set[tuple[int, int]] = set()
+    while not split.single:
+        pair = next(((min(c.before, c.after), max(c.before, c.after)) for c in split.changes
+                     if (min(c.before, c.after), max(c.before, c.after)) not in tried), None)
+        if pair is None:
+            break
+        tried.add(pair)
+        if _one_calibration_explains(setup, split, *pair, fits):
+            split = merge_hypotheses(split, setup.rec.t_s, pair[0], pair[1], st)
+            split = replace(split, notes={**split.notes, "merged": split.notes.get("merged", 0) + 1})
+            fits, reasons = _fit_groups(setup, split)
+            tried = set()
+    return split, fits, reasons
+
+
 def _spans(setup: MagSetup, split: RegimeSplit) -> list[tuple[int, float, float, dict | None]]:
     """(hypothesis, start s, end s, the change that starts it) of every regime in time order."""
     t = setup.rec.t_s[setup.inp.valid]
@@ -163,7 +216,9 @@ def _spans(setup: MagSetup, split: RegimeSplit) -> list[tuple[int, float, float,
 def _several_regimes(setup: MagSetup, split: RegimeSplit, st: RegimeSettings) -> MagCalibration:
     """Step 4 of the module docstring."""
     rec, inp = setup.rec, setup.inp
-    fits, reasons = _fit_groups(setup, split)
+    split, fits, reasons = _merge_explained(setup, split, st)
+    if split.single:
+        return _one_regime(setup, fit_samples(setup), split, st)
     spans = _spans(setup, split)
     order = list(dict.fromkeys(h for h, *_ in spans))  # groups numbered by first appearance
     done = [j for j in order if fits[j] is not None]
@@ -185,7 +240,7 @@ def _several_regimes(setup: MagSetup, split: RegimeSplit, st: RegimeSettings) ->
                   "p_value": p}
             attached.append(Disturbance(t0, t1, int(inside.sum()), _field_deviation(ref, inp.mag_ut[inside]),
                                         float("nan"), None, "attached", i, ev))
-    found = [_classify(d, split, j, st) for j in done for d in fits[j].disturbances]
+    found = [_classify(setup, d, split, j, st) for j in done for d in fits[j].disturbances]
     disturbances = tuple(sorted(found + attached, key=lambda d: d.t_start_s))
     return _assemble(setup, split, ref, regimes, disturbances)
 
@@ -213,17 +268,19 @@ def _assemble(setup: MagSetup, split: RegimeSplit, ref: MagCalibration, regimes:
                    samples=samples, diagnostics=diagnostics)
 
 
-def true_magnetometer(rec: Recording) -> dict[str, np.ndarray] | None:
+def true_magnetometer(rec: Recording, at_s: float | None = None) -> dict[str, np.ndarray] | None:
     """The oracle: the device's m = A B + h of a simulated recording (from its stored sensor model),
     or None; for scoring a calibration, never for making one.
-    A = I + Σ (affine parts of the magnetometer effects), h = Σ constants."""
+    A = I + Σ (affine parts of the magnetometer effects), h = Σ constants; at the time ``at_s`` (s)
+    effects that switch (a magnet attached part of the session) add what they are then."""
     model = stored_sensor_model(rec.meta)
     if model is None or not model.magnetometer:
         return None
     a, c = np.eye(3), np.zeros(3)
     for eff in model.magnetometer:
         if eff.stage == "error" and not eff.stochastic:
-            ac = eff.affine()
+            at = getattr(eff, "affine_at", None)
+            ac = at(at_s) if (at is not None and at_s is not None) else eff.affine()
             if ac is not None:
                 a = a + ac[0]
                 c = c + ac[1]

@@ -33,14 +33,15 @@ regime on its own samples.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
 
 from calib.mag.offsets import MIN_TURN, WindowOffsets, window_offsets
 
-__all__ = ["RegimeSettings", "Hypothesis", "Change", "RegimeSplit", "detect_regimes", "offset_change_test"]
+__all__ = ["RegimeSettings", "Hypothesis", "Change", "RegimeSplit", "detect_regimes", "offset_change_test",
+           "stretch_offset_test", "merge_hypotheses"]
 
 UNEXPLAINED = -1
 
@@ -284,38 +285,40 @@ def _fine_mean(x: np.ndarray, ok: np.ndarray, starts: np.ndarray, fine: int) -> 
         return np.where(c >= max(1, fine // 4), s / c, np.nan)
 
 
-def _field_costs(m: np.ndarray, valid: np.ndarray, hyps: list[Hypothesis], wo: WindowOffsets,
+def _field_costs(m: np.ndarray, valid: np.ndarray, hyps: list[Hypothesis], own: list[np.ndarray],
                  up_body: np.ndarray | None, quasi_static: np.ndarray | None, starts: np.ndarray, fine: int
                  ) -> tuple[np.ndarray, list[Hypothesis]]:
     """Costs (T, K) of the field each hypothesis leaves: the squared mean of |m − c_j| − F_j per fine
-    window over its robust σ (F_j, σ from the windows the hypothesis was estimated on), plus the
-    same for the inclination against gravity where the board was quasi-static; and the hypotheses
-    with their F_j."""
-    n = m.shape[0]
+    window over its robust σ, plus the same for the inclination against gravity where the board was
+    quasi-static; F_j, the inclination and both σ from the samples ``own[j]`` that hypothesis
+    explains (first its windows, then the samples it was given: every attitude the regime saw, so
+    that the soft iron's attitude-dependent error is in σ).  Returns the hypotheses with their F_j."""
     cost = np.zeros((starts.size, len(hyps)))
     out = []
     for j, h in enumerate(hyps):
-        own = valid & _mask_of(h, wo, n)
+        mine = valid & own[j]
         d = m - h.offset_ut
         norm = np.linalg.norm(d, axis=1)
-        f = float(np.median(norm[own]))
+        f = float(np.median(norm[mine]))
         out.append(Hypothesis(h.offset_ut, h.cov, f, h.windows))
         r = norm - f
         cost[:, j] = np.nan_to_num((_fine_mean(r, valid, starts, fine)
-                                    / _robust_sigma(_fine_mean(r, own, starts, fine))) ** 2)
-        if up_body is None or quasi_static is None or (own & quasi_static).sum() < 3 * fine:
+                                    / _robust_sigma(_fine_mean(r, mine, starts, fine))) ** 2)
+        if up_body is None or quasi_static is None or (mine & quasi_static).sum() < 3 * fine:
             continue
         incl = np.degrees(np.arcsin(np.clip(-np.sum(d * up_body, axis=1) / np.maximum(norm, 1e-9), -1, 1)))
-        dev = incl - float(np.median(incl[own & quasi_static]))
+        dev = incl - float(np.median(incl[mine & quasi_static]))
         cost[:, j] += np.nan_to_num((_fine_mean(dev, valid & quasi_static, starts, fine)
-                                     / _robust_sigma(_fine_mean(dev, own & quasi_static, starts, fine))) ** 2)
+                                     / _robust_sigma(_fine_mean(dev, mine & quasi_static, starts, fine))) ** 2)
     return cost, out
 
 
 def _offset_costs(hyps: list[Hypothesis], wo: WindowOffsets, s2: float, st: RegimeSettings, starts: np.ndarray
                   ) -> np.ndarray:
     """Costs (T, K) of each turning window's own offset against each hypothesis' (its χ², spread over
-    the window's fine windows): while the board turns, the gyro says which hard iron it is."""
+    the window's fine windows): while the board turns, the gyro says which hard iron it is.  A
+    window no hypothesis explains (it holds a change, or a magnet in the room) adds nothing: where
+    in it the field changed is for the field costs to say."""
     cost = np.zeros((starts.size, len(hyps)))
     for w in np.flatnonzero(wo.turning):
         inside = (starts >= wo.lo[w]) & (starts < wo.hi[w])
@@ -323,11 +326,11 @@ def _offset_costs(hyps: list[Hypothesis], wo: WindowOffsets, s2: float, st: Regi
             continue
         cov_w = _stretch_cov(wo.info[w], s2, st)
         icov = _pinv(cov_w)
-        for j, h in enumerate(hyps):
-            d = wo.offset_ut[w] - h.offset_ut
-            # only the directions the window sees: project the difference onto them
-            d = cov_w @ icov @ d
-            cost[inside, j] += float(d @ icov @ d) / inside.sum()
+        # only the directions the window sees: the differences projected onto them
+        chi2 = [float(d @ icov @ d) for d in (cov_w @ icov @ (wo.offset_ut[w] - h.offset_ut) for h in hyps)]
+        if min(chi2) > stats.chi2.isf(st.alpha, int(wo.rank[w])):
+            continue
+        cost[inside] += np.array(chi2) / inside.sum()
     return cost
 
 
@@ -435,21 +438,26 @@ def _changes(lab: np.ndarray, cost: np.ndarray, starts: np.ndarray, t_s: np.ndar
 def _label(t_s: np.ndarray, m: np.ndarray, valid: np.ndarray, hyps: list[Hypothesis], wo: WindowOffsets,
            up_body: np.ndarray | None, quasi_static: np.ndarray | None, s2: float, st: RegimeSettings
            ) -> tuple[list[Hypothesis], np.ndarray, list[Change]]:
-    """Label every sample (step 3), dropping hypotheses that explain less than ``min_hypothesis_s``."""
+    """Label every sample (step 3): twice — the second time with each hypothesis' field and σ taken
+    from the samples the first gave it —, dropping hypotheses that explain less than
+    ``min_hypothesis_s``."""
     n = t_s.size
     rate = (n - 1) / max(float(t_s[-1] - t_s[0]), 1e-12)
     fine = max(2, int(round(st.fine_s * rate)))
+    starts = np.arange(0, n, fine)
     while True:
-        starts = np.arange(0, n, fine)
-        cost, hyps = _field_costs(m, valid, hyps, wo, up_body, quasi_static, starts, fine)
-        cost += _offset_costs(hyps, wo, s2, st, starts)
-        lab = _settle_unexplained(_viterbi(cost, st.switch_z**2, st.unexplained_z**2))
+        own = [_mask_of(h, wo, n) for h in hyps]
+        for _ in range(2):
+            cost, hyps = _field_costs(m, valid, hyps, own, up_body, quasi_static, starts, fine)
+            cost += _offset_costs(hyps, wo, s2, st, starts)
+            lab = _settle_unexplained(_viterbi(cost, st.switch_z**2, st.unexplained_z**2))
+            per_sample = np.repeat(lab, np.diff(np.r_[starts, n]))
+            own = [(per_sample == j) if (per_sample == j).sum() >= 3 * fine else own[j] for j in range(len(hyps))]
         held = np.array([(lab == j).sum() * fine / rate for j in range(len(hyps))])
         if len(hyps) <= 1 or held.min() >= st.min_hypothesis_s:
             break
         hyps = [h for j, h in enumerate(hyps) if j != int(np.argmin(held))]
-    labels = np.repeat(lab, np.diff(np.r_[starts, n]))
-    return hyps, labels, _changes(lab, cost, starts, t_s, fine / rate, hyps)
+    return hyps, per_sample, _changes(lab, cost, starts, t_s, fine / rate, hyps)
 
 
 def detect_regimes(t_s: np.ndarray, mag_ut: np.ndarray, valid: np.ndarray, gyro_rad_s: np.ndarray,
@@ -485,14 +493,25 @@ def detect_regimes(t_s: np.ndarray, mag_ut: np.ndarray, valid: np.ndarray, gyro_
     return RegimeSplit(tuple(hyps), labels, tuple(changes), s2, wo, notes)
 
 
-def stretch_offset_test(split: RegimeSplit, t0_s: float, t1_s: float, hypothesis: int,
-                        settings: RegimeSettings | None = None) -> dict:
-    """Is a stretch (a local disturbance) attached to the board?  Its windows' common body-frame
-    offset against the regime's (:func:`offset_change_test`): a field fixed in the room leaves the
-    offset where it was; one that turns with the board moves it — and moves it to one place, so the
-    windows must also agree with each other (homogeneity χ² of their common offset; a magnet in the
-    room, passed while turning, biases each window differently).  {} when the board did not turn
-    about two axes there (the test cannot tell)."""
+def _field_rms(m: np.ndarray, c: np.ndarray, f: float) -> float:
+    return float(np.sqrt(np.mean((np.linalg.norm(m - c, axis=1) - f) ** 2))) if m.shape[0] else float("nan")
+
+
+def stretch_offset_test(split: RegimeSplit, t_s: np.ndarray, mag_ut: np.ndarray, t0_s: float, t1_s: float,
+                        hypothesis: int, settings: RegimeSettings | None = None) -> dict:
+    """Is a stretch (a local disturbance) attached to the board?  The evidence and its ``verdict``:
+
+    * its windows' common body-frame offset against the regime's (:func:`offset_change_test`): a
+      field fixed in the room leaves the offset where it was, one that turns with the board moves it
+      (by ≥ ``floor_ut``, beyond the 1 − ``alpha`` quantile);
+    * it moves it to one place, well determined: the windows agree with each other (homogeneity χ²
+      of their common offset: a magnet in the room, passed while turning, biases each window
+      differently) and see it in all three directions to ``max_offset_std_ut``;
+    * the moved offset explains the field: |m − c| keeps the regime's field magnitude F with at
+      most half the RMS deviation the regime's offset leaves there.
+
+    ``attached`` when all hold, ``world-fixed`` otherwise, ``undetermined`` (and no test) when the
+    board did not turn about two axes there."""
     st = settings or RegimeSettings()
     wo = split.offsets
     # the windows at least half inside the stretch
@@ -500,11 +519,54 @@ def stretch_offset_test(split: RegimeSplit, t0_s: float, t1_s: float, hypothesis
     overlap = np.minimum(wo.t_end_s, t1_s) - np.maximum(wo.t_start_s, t0_s)
     idx = [w for w in range(wo.size) if overlap[w] >= half[w] and wo.rank[w] > 0]
     if not idx or not wo.turning[idx].any() or not split.hypotheses or not math.isfinite(split.scale):
-        return {}
+        return {"verdict": "undetermined"}
     cost, c, ns, dof_h = _stretch(wo, idx)
     h = split.hypotheses[hypothesis]
     d, sd, chi2, dof, p = offset_change_test(h.offset_ut, h.cov, c, _stretch_cov(ns, split.scale, st))
     chi2_h = cost / split.scale
-    return {"offset_change_uT": d.tolist(), "offset_change_std_uT": sd.tolist(), "chi2": chi2, "dof": dof,
-            "p_value": p, "windows": len(idx), "homogeneity_chi2": chi2_h, "homogeneity_dof": dof_h,
-            "homogeneity_p_value": float(stats.chi2.sf(chi2_h, dof_h)) if dof_h > 0 else 1.0}
+    p_h = float(stats.chi2.sf(chi2_h, dof_h)) if dof_h > 0 else 1.0
+    ev_min = float(np.linalg.eigvalsh(ns)[0])
+    well = ev_min > 0 and math.sqrt(split.scale / ev_min) <= st.max_offset_std_ut
+    inside = (t_s >= t0_s) & (t_s <= t1_s)
+    own = _mask_of(h, wo, t_s.size) & ~inside
+    f = float(np.median(np.linalg.norm(mag_ut[own] - h.offset_ut, axis=1))) if own.any() else float("nan")
+    rms_regime, rms_own = _field_rms(mag_ut[inside], h.offset_ut, f), _field_rms(mag_ut[inside], c, f)
+    attached = (p <= st.alpha and float(np.linalg.norm(d)) >= st.floor_ut and p_h > st.alpha and well
+                and rms_own <= 0.5 * rms_regime)
+    return {"verdict": "attached" if attached else "world-fixed", "offset_change_uT": d.tolist(),
+            "offset_change_std_uT": sd.tolist(), "chi2": chi2, "dof": dof, "p_value": p, "windows": len(idx),
+            "homogeneity_chi2": chi2_h, "homogeneity_dof": dof_h, "homogeneity_p_value": p_h,
+            "field_rms_regime_offset_uT": rms_regime, "field_rms_own_offset_uT": rms_own}
+
+
+def merge_hypotheses(split: RegimeSplit, t_s: np.ndarray, keep: int, drop: int,
+                     settings: RegimeSettings | None = None) -> RegimeSplit:
+    """``split`` with hypothesis ``drop`` folded into ``keep`` (one hard iron, where the caller found
+    that one calibration explains both: a strong soft iron makes a regime's windows disagree by how
+    they turned, which the offsets alone read as changes).  The changes between the two go, with
+    their transitions; the others are tested again against the pooled hypothesis."""
+    st = settings or RegimeSettings()
+    hk, hd = split.hypotheses[keep], split.hypotheses[drop]
+    windows = sorted(set(hk.windows) | set(hd.windows))
+    _, c, ns, _ = _stretch(split.offsets, windows)
+    pooled = Hypothesis(c, _stretch_cov(ns, split.scale, st), float("nan"), tuple(windows))
+    new_index = {j: (keep if j == drop else j) for j in range(len(split.hypotheses))}
+    new_index = {j: i - (i > drop) for j, i in new_index.items()}
+    hyps = [pooled if j == keep else h for j, h in enumerate(split.hypotheses) if j != drop]
+    labels = split.labels.copy()
+    changes = []
+    for ch in split.changes:
+        if {ch.before, ch.after} == {keep, drop}:
+            labels[(t_s >= ch.transition_s[0]) & (t_s <= ch.transition_s[1]) & (labels < 0)] = keep
+            continue
+        changes.append(ch)
+    labels = np.where(labels < 0, labels, np.vectorize(new_index.get, otypes=[int])(np.maximum(labels, 0)))
+    out = []
+    for ch in changes:
+        b, a = new_index[ch.before], new_index[ch.after]
+        if b == a:  # the stretch between two changes was the dropped hypothesis: no change left here
+            continue
+        d, sd, chi2, dof, p = offset_change_test(hyps[b].offset_ut, hyps[b].cov, hyps[a].offset_ut, hyps[a].cov)
+        out.append(replace(ch, before=b, after=a, offset_change_ut=d, offset_change_std_ut=sd, chi2=chi2, dof=dof,
+                           p_value=p))
+    return RegimeSplit(tuple(hyps), labels, tuple(out), split.scale, split.offsets, dict(split.notes))
