@@ -20,7 +20,6 @@ hard-iron regime.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
@@ -169,20 +168,18 @@ def _spread(res: MagCalibration, m: np.ndarray) -> float:
 def _one_calibration_explains(setup: MagSetup, split: RegimeSplit, i: int, j: int,
                               fits: list[MagCalibration | None]) -> bool:
     """Does one calibration (hard and soft iron) of hypotheses i and j together, every sample kept,
-    leave no more |B| spread than their own calibrations (``UNION_SPREAD_RATIO``)?  Then the offsets
-    differed by how the board turned under a strong soft iron, not by a change."""
+    leave on each of them no more |B| spread than its own calibration (``UNION_SPREAD_RATIO``)?
+    Then their offsets differed by how the board turned under a strong soft iron, not by a change."""
     if fits[i] is None or fits[j] is None:
         return False
     m = setup.inp.mag_ut
     masks = [setup.inp.valid & (split.labels == k) for k in (i, j)]
-    n = [int(k.sum()) for k in masks]
-    pooled = math.sqrt((n[0] * _spread(fits[i], m[masks[0]]) ** 2 + n[1] * _spread(fits[j], m[masks[1]]) ** 2)
-                       / max(sum(n), 1))
     try:
         union = fit_samples(replace(setup, detect_disturbances=False, consistency_check=False), masks[0] | masks[1])
     except NotCalibratable:
         return False
-    return union.status == "ok" and _spread(union, m[masks[0] | masks[1]]) <= UNION_SPREAD_RATIO * pooled
+    return union.status == "ok" and all(_spread(union, m[k]) <= UNION_SPREAD_RATIO * _spread(own, m[k])
+                                        for k, own in zip(masks, (fits[i], fits[j])))
 
 
 def _merge_explained(setup: MagSetup, split: RegimeSplit, st: RegimeSettings

@@ -73,7 +73,7 @@ class RegimeSettings:
     alpha: float = 1e-4
     fine_s: float = 0.25
     switch_z: float = 5.0
-    unexplained_z: float = 3.0
+    unexplained_z: float = 4.0
     min_hypothesis_s: float = 2.0
 
 
@@ -394,44 +394,44 @@ def _settle_unexplained(lab: np.ndarray) -> np.ndarray:
     return lab
 
 
-def _switch_std(cost: np.ndarray, lab: np.ndarray, b: int, i: int, j: int) -> float:
-    """σ (in fine windows) of a direct switch i → j at fine window b: half the width of the stretch
-    of switch positions whose labelling costs at most 1 more (one σ), between the neighbouring
-    switches; at least the resolution's 1/√12."""
-    lo = b - 1
-    while lo > 0 and lab[lo - 1] == i:
-        lo -= 1
-    hi = b
-    while hi < lab.size - 1 and lab[hi + 1] == j:
-        hi += 1
+def _switch_profile(cost: np.ndarray, lo: int, hi: int, i: int, j: int) -> tuple[int, float]:
+    """Where between fine windows ``lo`` and ``hi`` (inclusive) the field switched from hypothesis i to
+    j: the position p (first window of j) minimising Σ_{<p} cost_i + Σ_{≥p} cost_j, and its σ (in
+    fine windows): half the width of the positions whose cost is at most 1 more (one σ), at least
+    the resolution's 1/√12."""
     seg_i, seg_j = cost[lo:hi + 1, i], cost[lo:hi + 1, j]
-    # total cost when the switch is at position p (first sample of j): Σ_{<p} cost_i + Σ_{≥p} cost_j
     tot = np.r_[0.0, np.cumsum(seg_i)] + np.r_[np.cumsum(seg_j[::-1])[::-1], 0.0]
     within = np.flatnonzero(tot - tot.min() <= 1.0)
-    return max((within.max() - within.min()) / 2.0, 1.0 / math.sqrt(12.0))
+    return lo + int(np.argmin(tot)), max((within.max() - within.min()) / 2.0, 1.0 / math.sqrt(12.0))
 
 
 def _changes(lab: np.ndarray, cost: np.ndarray, starts: np.ndarray, t_s: np.ndarray, fine_s: float,
              hyps: list[Hypothesis]) -> list[Change]:
-    """The changes between hypotheses in the settled labels (module docstring, step 3)."""
-    runs = [r for r in _runs(lab)]
+    """The changes between hypotheses in the settled labels (module docstring, step 3): a direct
+    switch is placed by the cost profile over the two runs it joins; a change inside a transition by
+    the profile over the transition (and a window either side), its σ at least the transition's
+    width /√12 (the field changed somewhere in it)."""
+    runs = _runs(lab)
     out = []
-    for i in range(1, len(runs)):
-        v, a, b = runs[i]
-        prev = runs[i - 1]
+    for k in range(1, len(runs)):
+        v, a, b = runs[k]
+        prev = runs[k - 1]
         if v == UNEXPLAINED or prev[0] == v:
             continue
         if prev[0] == UNEXPLAINED:  # the change happened inside a transition
-            before = runs[i - 2][0]
+            before = runs[k - 2][0]
             t0, t1 = float(t_s[starts[prev[1]]]), float(t_s[starts[a]])
-            when, std = 0.5 * (t0 + t1), math.hypot((t1 - t0) / math.sqrt(12.0), fine_s / math.sqrt(12.0))
+            p, sig = _switch_profile(cost, max(prev[1] - 1, 0), a, before, v)
+            std = max(sig * fine_s, (t1 - t0) / math.sqrt(12.0))
         else:
             before = prev[0]
-            t0 = t1 = when = float(t_s[starts[a]])
-            std = _switch_std(cost, lab, a, before, v) * fine_s
+            p, sig = _switch_profile(cost, prev[1], b - 1, before, v)
+            std = sig * fine_s
+            t0 = t1 = float(t_s[starts[a]])
+        when = float(t_s[starts[min(p, starts.size - 1)]])
         h1, h2 = hyps[before], hyps[v]
-        d, sd, chi2, dof, p = offset_change_test(h1.offset_ut, h1.cov, h2.offset_ut, h2.cov)
-        out.append(Change(when, std, (t0, t1), before, v, d, sd, chi2, dof, p))
+        d, sd, chi2, dof, pv = offset_change_test(h1.offset_ut, h1.cov, h2.offset_ut, h2.cov)
+        out.append(Change(when, std, (t0, t1), before, v, d, sd, chi2, dof, pv))
     return out
 
 
@@ -510,8 +510,8 @@ def stretch_offset_test(split: RegimeSplit, t_s: np.ndarray, mag_ut: np.ndarray,
     * the moved offset explains the field: |m − c| keeps the regime's field magnitude F with at
       most half the RMS deviation the regime's offset leaves there.
 
-    ``attached`` when all hold, ``world-fixed`` otherwise, ``undetermined`` (and no test) when the
-    board did not turn about two axes there."""
+    ``attached`` when all hold, ``world-fixed`` otherwise; ``undetermined`` when the board did not
+    turn enough there to see the offset in all three directions (no test, or one that cannot tell)."""
     st = settings or RegimeSettings()
     wo = split.offsets
     # the windows at least half inside the stretch
@@ -531,9 +531,10 @@ def stretch_offset_test(split: RegimeSplit, t_s: np.ndarray, mag_ut: np.ndarray,
     own = _mask_of(h, wo, t_s.size) & ~inside
     f = float(np.median(np.linalg.norm(mag_ut[own] - h.offset_ut, axis=1))) if own.any() else float("nan")
     rms_regime, rms_own = _field_rms(mag_ut[inside], h.offset_ut, f), _field_rms(mag_ut[inside], c, f)
-    attached = (p <= st.alpha and float(np.linalg.norm(d)) >= st.floor_ut and p_h > st.alpha and well
+    attached = (p <= st.alpha and float(np.linalg.norm(d)) >= st.floor_ut and p_h > st.alpha
                 and rms_own <= 0.5 * rms_regime)
-    return {"verdict": "attached" if attached else "world-fixed", "offset_change_uT": d.tolist(),
+    verdict = "undetermined" if not well else "attached" if attached else "world-fixed"
+    return {"verdict": verdict, "offset_change_uT": d.tolist(),
             "offset_change_std_uT": sd.tolist(), "chi2": chi2, "dof": dof, "p_value": p, "windows": len(idx),
             "homogeneity_chi2": chi2_h, "homogeneity_dof": dof_h, "homogeneity_p_value": p_h,
             "field_rms_regime_offset_uT": rms_regime, "field_rms_own_offset_uT": rms_own}
