@@ -201,6 +201,18 @@ def _merge_explained(setup: MagSetup, split: RegimeSplit, st: RegimeSettings
     return split, fits, reasons
 
 
+def _in_scale_of(res: MagCalibration, ref: MagCalibration) -> MagCalibration:
+    """``res`` with A scaled so that its field is the reference's: the Earth's field is the same in
+    every regime, and det A = 1 would otherwise put each regime's |B| in its own scale (a magnet's
+    soft iron changes the sensor's average gain).  The same model m = A B + h, B in one scale."""
+    if not (np.all(np.isfinite(res.soft_iron)) and np.isfinite(res.field_ut) and np.isfinite(ref.field_ut)):
+        return res
+    k = res.field_ut / ref.field_ut
+    return replace(res, soft_iron=res.soft_iron * k, soft_iron_std=res.soft_iron_std * k, field_ut=ref.field_ut,
+                   field_std_ut=ref.field_std_ut,
+                   field_reference=f"the reference regime's field ({ref.field_ut:.3f} µT; A scaled by {k:.4f})")
+
+
 def _spans(setup: MagSetup, split: RegimeSplit) -> list[tuple[int, float, float, dict | None]]:
     """(hypothesis, start s, end s, the change that starts it) of every regime in time order."""
     t = setup.rec.t_s[setup.inp.valid]
@@ -224,6 +236,8 @@ def _several_regimes(setup: MagSetup, split: RegimeSplit, st: RegimeSettings) ->
                               f"be calibrated on its own ({'; '.join(dict.fromkeys(r for r in reasons if r))})")
     main = max(done, key=lambda j: fits[j].samples.get("used", 0))
     ref = fits[main]
+    if setup.field_ut is None:
+        fits = [f if f is None or j == main else _in_scale_of(f, ref) for j, f in enumerate(fits)]
     regimes, attached = [], []
     for i, (h, t0, t1, change) in enumerate(spans):
         inside = inp.valid & (rec.t_s >= t0) & (rec.t_s <= t1)

@@ -196,6 +196,8 @@ def test_a_room_anomaly_is_reported_as_a_disturbance_not_absorbed(tmp_path):
     d = max(res.disturbances, key=lambda x: x.samples)
     assert 23.0 <= d.t_start_s and d.t_end_s <= 36.0  # within the walk east, the turn there and back
     assert np.linalg.norm(np.asarray(d.position_nav_m) - [0.41, 0.30, 1.15]) < 0.2
+    # tied to the room, not to the board: no hard-iron regime, and no stretch called attached
+    assert len(res.regimes) == 1 and not any(x.kind == "attached" for x in res.disturbances), res.disturbances
     err = np.abs(res.hard_iron_ut - tm["hard_iron_uT"])
     assert np.all(err / res.hard_iron_std_ut < 4.0), err / res.hard_iron_std_ut
     absorbed = calibrate_magnetometer(rec, "ellipsoid", detect_disturbances=False)
