@@ -88,14 +88,45 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
                     position_nav_m=position_nav_m)
     if regimes is None:
         return _one_regime(setup, fit_samples(setup), None, DEFAULT_REGIMES)
-    g = setup.gravity
-    split = detect_regimes(rec.t_s, setup.inp.mag_ut, setup.inp.valid, rec.gyro_rad_s,
-                           g.gyro_bias_rad_s if g is not None else np.zeros(3),
-                           up_body=None if g is None else g.up_body, quasi_static=None if g is None else g.quasi_static,
-                           settings=regimes)
+    split = _detect(setup, regimes)
+    if not split.single:
+        # the device's own soft iron biases each window's offset by how it turned (a phone's 8 %: a
+        # few µT): look again with it removed
+        soft = _reference_soft_iron(setup, split)
+        if soft is not None:
+            split = _detect(setup, regimes, soft)
     if split.single:
         return _one_regime(setup, fit_samples(setup), split, regimes)
     return _several_regimes(setup, split, regimes)
+
+
+def _detect(setup: MagSetup, st: RegimeSettings, soft_iron: np.ndarray | None = None) -> RegimeSplit:
+    """Step 2 on the samples with ``soft_iron`` (A, det 1) removed, b = A⁻¹ m (default A = I)."""
+    rec, g = setup.rec, setup.gravity
+    m = setup.inp.mag_ut if soft_iron is None else setup.inp.mag_ut @ np.linalg.inv(soft_iron).T
+    split = detect_regimes(rec.t_s, m, setup.inp.valid, rec.gyro_rad_s,
+                           g.gyro_bias_rad_s if g is not None else np.zeros(3),
+                           up_body=None if g is None else g.up_body, quasi_static=None if g is None else g.quasi_static,
+                           settings=st)
+    if soft_iron is not None:
+        split = replace(split, notes={**split.notes, "soft_iron_removed": np.round(soft_iron, 4).tolist()})
+    return split
+
+
+def _reference_soft_iron(setup: MagSetup, split: RegimeSplit) -> np.ndarray | None:
+    """A soft iron (A, det 1) to look again with: that of the hypothesis labelling the most samples,
+    else the whole session's calibration's (its disturbance detector excludes a magnet's stretch, as
+    it did before regimes were sought); None when neither carries a soft iron."""
+    quick = replace(setup, consistency_check=False)
+    j = int(np.argmax([(split.labels == k).sum() for k in range(len(split.hypotheses))]))
+    for mask in (split.labels == j, None):
+        try:
+            a = fit_samples(quick, mask).soft_iron
+        except NotCalibratable:
+            continue
+        if np.all(np.isfinite(a)):
+            return a / np.cbrt(np.linalg.det(a))
+    return None
 
 
 # ---------------------------------------------------------------------------------------- disturbances

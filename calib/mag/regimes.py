@@ -60,8 +60,10 @@ class RegimeSettings:
     ``max_offset_std_ut`` (µT) the largest σ a hypothesis may have in its worst direction;
     ``floor_ut`` (µT) the smallest hard-iron change reported (a 1.5 µT offset moves a 20 µT
     horizontal field's heading by ≤ 4°); ``alpha`` the false-alarm probability of one change;
-    ``fine_s`` (s) the resolution of the change times; ``switch_z`` and ``unexplained_z`` (σ) the
-    labelling's costs; ``min_hypothesis_s`` (s) the least time a hypothesis must explain."""
+    ``fine_s`` (s) the resolution of the change times; ``max_transition_s`` (s) the longest stretch
+    around a change that is left to neither hard iron (a hand fixing a magnet: BROAD 34's took
+    1.5 s); ``switch_z`` and ``unexplained_z`` (σ) the labelling's costs; ``min_hypothesis_s`` (s)
+    the least time a hypothesis must explain."""
 
     window_s: float = 2.0
     min_turn: float = MIN_TURN
@@ -72,6 +74,7 @@ class RegimeSettings:
     floor_ut: float = 1.5
     alpha: float = 1e-4
     fine_s: float = 0.25
+    max_transition_s: float = 3.0
     switch_z: float = 5.0
     unexplained_z: float = 4.0
     min_hypothesis_s: float = 2.0
@@ -394,6 +397,21 @@ def _settle_unexplained(lab: np.ndarray) -> np.ndarray:
     return lab
 
 
+def _absorb_short_end_runs(lab: np.ndarray, min_len: int) -> np.ndarray:
+    """A run of one hypothesis shorter than ``min_len`` fine windows at the start or the end of the
+    session (the last window, partly filled, fits another hard iron by chance) goes to the hypothesis
+    next to it, with the unexplained windows between."""
+    lab = lab.copy()
+    runs = [r for r in _runs(lab) if r[0] != UNEXPLAINED]
+    if len(runs) < 2:
+        return lab
+    if runs[0][2] - runs[0][1] < min_len:
+        lab[: runs[1][1]] = runs[1][0]
+    if runs[-1][2] - runs[-1][1] < min_len:
+        lab[runs[-2][2]:] = runs[-2][0]
+    return lab
+
+
 def _switch_profile(cost: np.ndarray, lo: int, hi: int, i: int, j: int) -> tuple[int, float]:
     """Where between fine windows ``lo`` and ``hi`` (inclusive) the field switched from hypothesis i to
     j: the position p (first window of j) minimising Σ_{<p} cost_i + Σ_{≥p} cost_j, and its σ (in
@@ -406,11 +424,15 @@ def _switch_profile(cost: np.ndarray, lo: int, hi: int, i: int, j: int) -> tuple
 
 
 def _changes(lab: np.ndarray, cost: np.ndarray, starts: np.ndarray, t_s: np.ndarray, fine_s: float,
-             hyps: list[Hypothesis]) -> list[Change]:
-    """The changes between hypotheses in the settled labels (module docstring, step 3): a direct
-    switch is placed by the cost profile over the two runs it joins; a change inside a transition by
-    the profile over the transition (and a window either side), its σ at least the transition's
-    width /√12 (the field changed somewhere in it)."""
+             hyps: list[Hypothesis], max_transition: int) -> tuple[list[Change], np.ndarray]:
+    """The changes between hypotheses in the settled labels (module docstring, step 3), and the
+    labels with every transition cut to at most ``max_transition`` fine windows around its change:
+    a direct switch is placed by the cost profile over the two runs it joins; a change inside a
+    transition by the profile over the transition (and a window either side), its σ at least the
+    (cut) transition's width /√12 (the field changed somewhere in it).  A hypothesis the sphere model
+    fits poorly (a strong soft iron) can leave long unexplained stretches next to a change; beyond
+    the cut they go to the hypotheses on either side."""
+    lab = lab.copy()
     runs = _runs(lab)
     out = []
     for k in range(1, len(runs)):
@@ -420,8 +442,10 @@ def _changes(lab: np.ndarray, cost: np.ndarray, starts: np.ndarray, t_s: np.ndar
             continue
         if prev[0] == UNEXPLAINED:  # the change happened inside a transition
             before = runs[k - 2][0]
-            t0, t1 = float(t_s[starts[prev[1]]]), float(t_s[starts[a]])
             p, sig = _switch_profile(cost, max(prev[1] - 1, 0), a, before, v)
+            lo, hi = max(prev[1], p - max_transition // 2), min(a, p + (max_transition + 1) // 2)
+            lab[prev[1]:lo], lab[hi:a] = before, v
+            t0, t1 = float(t_s[starts[lo]]), float(t_s[starts[min(hi, starts.size - 1)]])
             std = max(sig * fine_s, (t1 - t0) / math.sqrt(12.0))
         else:
             before = prev[0]
@@ -432,7 +456,7 @@ def _changes(lab: np.ndarray, cost: np.ndarray, starts: np.ndarray, t_s: np.ndar
         h1, h2 = hyps[before], hyps[v]
         d, sd, chi2, dof, pv = offset_change_test(h1.offset_ut, h1.cov, h2.offset_ut, h2.cov)
         out.append(Change(when, std, (t0, t1), before, v, d, sd, chi2, dof, pv))
-    return out
+    return out, lab
 
 
 def _label(t_s: np.ndarray, m: np.ndarray, valid: np.ndarray, hyps: list[Hypothesis], wo: WindowOffsets,
@@ -450,14 +474,17 @@ def _label(t_s: np.ndarray, m: np.ndarray, valid: np.ndarray, hyps: list[Hypothe
         for _ in range(2):
             cost, hyps = _field_costs(m, valid, hyps, own, up_body, quasi_static, starts, fine)
             cost += _offset_costs(hyps, wo, s2, st, starts)
-            lab = _settle_unexplained(_viterbi(cost, st.switch_z**2, st.unexplained_z**2))
+            lab = _viterbi(cost, st.switch_z**2, st.unexplained_z**2)
+            lab = _settle_unexplained(_absorb_short_end_runs(lab, int(math.ceil(st.min_hypothesis_s / st.fine_s))))
+            changes, lab = _changes(lab, cost, starts, t_s, fine / rate, hyps,
+                                    max(1, int(round(st.max_transition_s / st.fine_s))))
             per_sample = np.repeat(lab, np.diff(np.r_[starts, n]))
             own = [(per_sample == j) if (per_sample == j).sum() >= 3 * fine else own[j] for j in range(len(hyps))]
         held = np.array([(lab == j).sum() * fine / rate for j in range(len(hyps))])
         if len(hyps) <= 1 or held.min() >= st.min_hypothesis_s:
             break
         hyps = [h for j, h in enumerate(hyps) if j != int(np.argmin(held))]
-    return hyps, per_sample, _changes(lab, cost, starts, t_s, fine / rate, hyps)
+    return hyps, per_sample, changes
 
 
 def detect_regimes(t_s: np.ndarray, mag_ut: np.ndarray, valid: np.ndarray, gyro_rad_s: np.ndarray,
