@@ -42,8 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hands", type=int, default=5, help="simulated hands (seeds), default 5")
     ap.add_argument("--devices", type=int, default=4, help="simulated devices per hand, default 4")
     args = ap.parse_args(argv)
-    out: dict = {"commit": _commit(), "command": " ".join([Path(sys.argv[0]).name, *(argv or sys.argv[1:])]),
-                 "measured": {}, "simulated": None}
+    command = " ".join(["python benchmarks/mag_regimes.py", *(argv or sys.argv[1:])])
+    out: dict = {"commit": _commit(), "command": command, "measured": {}, "simulated": None}
     have = set(available_datasets())
     for name in args.trial or TRIALS:
         if name not in have:
