@@ -9,7 +9,9 @@ semi-synthetic stronger magnet, and gyrosim sessions with a magnet switched on m
   same after scaling that regime's offset (its hard iron minus the reference's) ×k — a closer magnet.
 * :func:`simulated_regime_check` — gyrosim multiposition sessions (MPU-9250, AK8963) with an
   :class:`gyrosim.effects.AttachedMagnet` switched on at a different time each: the change time's
-  error and each regime's hard-iron error over its σ against the simulated device.
+  error, each regime's hard-iron error over its σ against the simulated device, and |B|'s relative
+  spread raw and calibrated (a 1 cm magnet: ``size_ut`` 380, with the board's parts it magnetises
+  as ``soft``).
 
 ``benchmarks/mag_regimes.py`` writes both as JSON stamped with the commit and command line.
 """
@@ -126,12 +128,18 @@ def simulated_regime_check(hands: int = 5, devices: int = 4, *, size_ut: float =
             z = [((r.hard_iron_ut - true_magnetometer(rec, at_s=0.5 * (r.start_s + r.end_s))["hard_iron_uT"])
                   / r.hard_iron_std_ut).tolist() for r in res.regimes]
             times = [r.change["time_s"] for r in res.regimes if r.change]
+            m = np.asarray(rec.mag_ut)
+            everything = np.ones(rec.n, dtype=bool)
             rows.append({"hand_seed": hand, "device": dev, "t_on_s": t_on, "status": res.status,
-                         "regimes": len(res.regimes), "change_times_s": times, "hard_iron_z": z})
+                         "regimes": len(res.regimes), "change_times_s": times, "hard_iron_z": z,
+                         "relative_spread_raw": relative_spread(m, everything),
+                         "relative_spread_calibrated": relative_spread(res.compensate(m, rec.t_s), everything)})
     zs = np.array([v for r in rows for reg in r["hard_iron_z"] for v in reg], dtype=float)
     errs = [abs(r["change_times_s"][0] - r["t_on_s"]) if len(r["change_times_s"]) == 1 else math.inf for r in rows]
     return {"schedule": schedule, "sessions": len(rows), "magnet_uT": size_ut, "magnet_soft_iron": soft,
             "two_regimes": sum(r["regimes"] == 2 for r in rows), "max_change_time_error_s": max(errs),
             "hard_iron_z_values": int(zs.size), "hard_iron_mean_z2": float(np.mean(zs**2)),
             "hard_iron_within_3_sigma": float(np.mean(np.abs(zs) <= 3.0)), "max_abs_z": float(np.max(np.abs(zs))),
-            "rows": rows}
+            "statuses": sorted({r["status"] for r in rows}),
+            "max_relative_spread_calibrated": max(r["relative_spread_calibrated"] for r in rows),
+            "min_relative_spread_raw": min(r["relative_spread_raw"] for r in rows), "rows": rows}
