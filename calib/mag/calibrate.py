@@ -25,6 +25,7 @@ from dataclasses import replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.sensor_model import stored_sensor_model
 
@@ -122,7 +123,7 @@ def _reference_soft_iron(setup: MagSetup, split: RegimeSplit) -> np.ndarray | No
     for mask in (split.labels == j, None):
         try:
             a = fit_samples(quick, mask).soft_iron
-        except NotCalibratable:
+        except RecordingError:  # (the whole session around two hard irons far apart is no sphere at all)
             continue
         if np.all(np.isfinite(a)):
             return a / np.cbrt(np.linalg.det(a))
@@ -207,7 +208,7 @@ def _one_calibration_explains(setup: MagSetup, split: RegimeSplit, i: int, j: in
     masks = [setup.inp.valid & (split.labels == k) for k in (i, j)]
     try:
         union = fit_samples(replace(setup, detect_disturbances=False, consistency_check=False), masks[0] | masks[1])
-    except NotCalibratable:
+    except RecordingError:  # too few samples, no turn, or one sphere far from the Earth's field: not one
         return False
     return union.status == "ok" and all(_spread(union, m[k]) <= UNION_SPREAD_RATIO * _spread(own, m[k])
                                         for k, own in zip(masks, (fits[i], fits[j])))
