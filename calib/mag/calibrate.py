@@ -94,8 +94,11 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
         # the device's own soft iron biases each window's offset by how it turned (a phone's 8 %: a
         # few µT): look again with it removed
         soft = _reference_soft_iron(setup, split)
-        if soft is not None:
-            split = _detect(setup, regimes, soft)
+        again = _detect(setup, regimes, soft) if soft is not None else split
+        # (the longest regime's soft iron may be a magnet's, which biases the others: the look with
+        # fewer hard irons wins)
+        if len(again.hypotheses) <= len(split.hypotheses):
+            split = again
     if split.single:
         return _one_regime(setup, fit_samples(setup), split, regimes)
     return _several_regimes(setup, split, regimes)

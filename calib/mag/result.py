@@ -246,7 +246,8 @@ class MagCalibration:
         """B = A⁻¹ (m − h): the field in the IMU body frame (µT) from measured samples (N, 3).
         Components the fit refused (NaN hard iron) are left uncorrected (treated as 0).  With the
         samples' times ``t_s`` (s) each regime's calibration applies on its stretch (a regime that
-        could not be calibrated keeps the top-level calibration); without them, the top-level one
+        could not be calibrated takes its calibrated neighbour's, the one before it first: a magnet
+        is more often put on and left than the other way round); without them, the top-level one
         applies everywhere."""
         h = np.nan_to_num(self.hard_iron_ut)
         a = np.where(np.isfinite(self.soft_iron), self.soft_iron, np.eye(3))
@@ -259,10 +260,12 @@ class MagCalibration:
             raise ValueError(f"t_s has shape {t.shape}; expected ({m.shape[0]},), one time per sample")
         last = len(self.regimes) - 1
         for i, r in enumerate(self.regimes):
-            if not r.calibrated:
+            order = [r, *self.regimes[:i][::-1], *self.regimes[i + 1:]]  # itself, then before it, then after
+            use = next((x for x in order if x.calibrated), None)
+            if use is None:
                 continue
             inside = (t >= r.start_s) & ((t < r.end_s) if i < last else (t <= r.end_s))
-            out[inside] = r.compensate(m[inside])
+            out[inside] = use.compensate(m[inside])
         return out
 
     def compensate_recording(self, rec: Recording) -> Recording:
