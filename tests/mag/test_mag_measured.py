@@ -68,7 +68,7 @@ def test_broad_attached_magnet_is_a_hard_iron_regime_of_its_own():
     taken off while moving (t ≈ 100 s): three regimes — reference, attached, reference (one group:
     the rests before and the turns after read the same field) — exit 0.  With each regime's
     calibration applied, |B|'s relative spread over BROAD's movement samples is at most half the raw
-    one (0.125 raw; measured 0.021), and the compass heading against the optical attitude on the
+    one (0.125 raw; measured 0.018), and the compass heading against the optical attitude on the
     magnet's stretch is 5× better (VQF's heading: the slow test).  The magnet's own stretch calibrated
     alone gives the same hard iron within 3σ."""
     rec = load_dataset("broad/34_disturbed_attached_magnet_3cm")
@@ -97,7 +97,7 @@ def test_broad_attached_magnet_is_a_hard_iron_regime_of_its_own():
 def test_broad_attached_magnet_vqf_heading_and_scaled_closer():
     """VQF 9-axis over the movement with each regime's calibration is not worse than raw (3.3° raw,
     measured 0.7°); trial 34's magnet offset scaled ×3 and ×5 (a magnet ~2 cm away) stays an attached
-    regime and the calibration is not worse than raw (measured: spread 0.31 → 0.021, VQF heading
+    regime and the calibration is not worse than raw (measured: spread 0.31 → 0.018, VQF heading
     11–13° → 0.7°), or the regime is reported as not calibratable."""
     pytest.importorskip("vqf")
     check = measured_regime_check(load_dataset("broad/34_disturbed_attached_magnet_3cm"), scales=(3.0, 5.0))
