@@ -109,8 +109,9 @@ class Disturbance:
     ``world-fixed`` — a local anomaly (a magnet, a steel object the board passed), excluded from the
     fit and reported; ``attached`` — a field that turned with the board (a magnet on it), calibrated
     as its own regime (index ``regime``); ``undetermined`` — the board did not turn there, so the
-    two cannot be told apart (excluded).  ``evidence``: the body-frame offset test
-    (:func:`calib.mag.regimes.offset_change_test`) where the board turned, else None."""
+    two cannot be told apart (excluded; also what a disturbance is until the test has been made).
+    ``evidence``: the body-frame offset test (:func:`calib.mag.regimes.stretch_offset_test`) where the
+    board turned, else None."""
 
     t_start_s: float
     t_end_s: float
@@ -118,7 +119,7 @@ class Disturbance:
     max_field_deviation_ut: float
     max_inclination_deviation_deg: float
     position_nav_m: tuple[float, float, float] | None = None
-    kind: str = "world-fixed"
+    kind: str = "undetermined"
     regime: int | None = None
     evidence: dict[str, Any] | None = None
 
@@ -140,7 +141,7 @@ class Disturbance:
         return cls(float(d["t_start_s"]), float(d["t_end_s"]), int(d["samples"]),
                    nan if d.get("max_field_deviation_uT") is None else float(d["max_field_deviation_uT"]),
                    nan if d.get("max_inclination_deviation_deg") is None else float(d["max_inclination_deviation_deg"]),
-                   tuple(pos) if pos else None, d.get("kind", "world-fixed"), d.get("regime"), d.get("evidence"))
+                   tuple(pos) if pos else None, d.get("kind", "undetermined"), d.get("regime"), d.get("evidence"))
 
 
 def _num(v: Any) -> float:
