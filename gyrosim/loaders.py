@@ -36,8 +36,8 @@ from .errors import RecordingError
 from .recording import Recording, Truth
 from .units import DEG, G0
 
-__all__ = ["data_root", "available_datasets", "load_dataset", "load_broad", "load_imu_tk", "load_ferraris",
-           "load_xio_fusion", "load_xio_thermometer"]
+__all__ = ["data_root", "available_datasets", "describe_available", "load_dataset", "load_broad", "load_imu_tk",
+           "load_ferraris", "load_xio_fusion", "load_xio_thermometer"]
 
 
 
@@ -48,6 +48,37 @@ def data_root() -> Path:
         return Path(env)
     here = Path(__file__).resolve().parents[2] / "shared" / "data"
     return here if here.is_dir() else Path.cwd().parent / "shared" / "data"
+
+
+def _where(root: Path, given: bool) -> str:
+    """Where the data were looked for, and why there (for the messages of :func:`load_dataset`)."""
+    if given:
+        return f"{root}"
+    env = os.environ.get("GYROSIM_DATA")
+    if env:
+        return f"{root} (GYROSIM_DATA)"
+    return f"{root} (the default: GYROSIM_DATA is not set)"
+
+
+def _dataset_missing(name: str, root: Path, given: bool) -> RecordingError:
+    """The error for a dataset name that is not there: where it looked, what is there, what to do."""
+    where = _where(root, given)
+    if not root.is_dir():
+        return RecordingError(f"dataset:{name}: no data folder at {where}; set GYROSIM_DATA to the folder that holds "
+                              "the measured recordings (broad/, xio_fusion/, ...)")
+    return RecordingError(f"dataset:{name} is not in {where}; available: {describe_available(root)}; check the "
+                          "name, or set GYROSIM_DATA to the folder that holds it")
+
+
+def describe_available(root: str | Path | None = None) -> str:
+    """The names of :func:`available_datasets` on one line: the BROAD trials by number (``broad/02_…``)."""
+    names = available_datasets(root)
+    broad = [n for n in names if n.startswith("broad/")]
+    out = [n for n in names if not n.startswith("broad/")]
+    if broad:
+        nums = ", ".join(n.split("/", 1)[1].split("_", 1)[0] for n in broad)
+        out.append(f"broad/<trial> for {len(broad)} BROAD trials (numbers {nums}; e.g. {broad[0]})")
+    return ", ".join(out) if out else "none"
 
 
 def _source(folder: Path) -> str:
@@ -185,14 +216,17 @@ def available_datasets(root: str | Path | None = None) -> list[str]:
 
 
 def load_dataset(name: str, root: str | Path | None = None) -> Recording:
-    """Load a measured recording by its name in :func:`available_datasets`."""
+    """Load a measured recording by its name in :func:`available_datasets`.  A name that is not there
+    raises :class:`RecordingError` naming the folder looked in (and ``GYROSIM_DATA``) and the names
+    that are."""
+    given = root is not None
     root = Path(root) if root else data_root()
-    if name.startswith("broad/"):
-        return load_broad(root / "broad" / f"{name.split('/', 1)[1]}.hdf5")
     loaders = {"imu_tk_xsens": lambda: load_imu_tk(root / "imu_tk_xsens"),
                "imucal_ferraris": lambda: load_ferraris(root / "imucal_ferraris"),
                "xio_fusion": lambda: load_xio_fusion(root / "xio_fusion" / "sensor_data.csv"),
                "xio_ximu_thermometer": lambda: load_xio_thermometer(root / "xio_ximu_thermometer")}
-    if name not in loaders:
-        raise RecordingError(f"unknown dataset {name!r}; available under {root}: {', '.join(available_datasets(root))}")
+    if not root.is_dir() or name not in available_datasets(root):
+        raise _dataset_missing(name, root, given)
+    if name.startswith("broad/"):
+        return load_broad(root / "broad" / f"{name.split('/', 1)[1]}.hdf5")
     return loaders[name]()

@@ -17,7 +17,8 @@ HDF5 layout (all arrays float64, one row per sample; see docs/recording-format.m
                      number or string).
 
 Files are written to a temporary name in the target folder and renamed into place, so a failed
-write leaves nothing half-written; the same content always gives the same bytes (no timestamps).
+write leaves nothing half-written, with the mode the user's umask gives a new file (0644 under the
+usual 022); the same content always gives the same bytes (no timestamps).
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -34,8 +34,9 @@ import h5py
 import numpy as np
 
 from .errors import RecordingError
+from .outputs import atomic_path
 
-__all__ = ["Truth", "Recording", "save_hdf5", "load_hdf5", "save_csv", "FRAMES"]
+__all__ = ["Truth", "Recording", "save_hdf5", "load_hdf5", "save_csv", "FRAMES", "CSV_HEADER_UNITS"]
 
 FRAMES = "body RFU, navigation ENU"
 
@@ -197,26 +198,25 @@ def _attr_value(v: Any) -> Any:
     return json.dumps(v, sort_keys=True)
 
 
+def _writable_folder(path: Path) -> None:
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise RecordingError(f"cannot write {path}: folder {folder} does not exist; create it first")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise RecordingError(f"cannot write {path}: folder {folder} is not writable; choose a writable folder")
+
+
 def save_hdf5(rec: Recording, path: str | os.PathLike[str]) -> Path:
-    """Write ``rec`` to ``path`` atomically (temp file in the same folder, then rename).
+    """Write ``rec`` to ``path`` atomically (temp file in the same folder, then rename), with the mode
+    a new file gets under the user's umask (0644 under the usual 022).
 
     Raises :class:`RecordingError` if the folder does not exist or is not writable; an existing
     file at ``path`` is replaced only once the new one is complete.
     """
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise RecordingError(f"cannot write {path}: folder {folder} does not exist; create it first")
+    _writable_folder(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
-    except OSError as exc:
-        raise RecordingError(f"cannot write {path}: {exc.strerror}; choose a writable folder") from exc
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a recording gets the user's usual mode
-    try:
-        with h5py.File(tmp, "w", track_order=False) as f:
+        with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=False) as f:
             def put(name: str, arr: np.ndarray) -> None:
                 f.create_dataset(name, data=np.asarray(arr, dtype=np.float64), track_times=False)
 
@@ -234,39 +234,36 @@ def save_hdf5(rec: Recording, path: str | os.PathLike[str]) -> Path:
             meta = {"frames": FRAMES, **rec.meta}
             for key in sorted(meta):
                 f.attrs[key] = _attr_value(meta[key])
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    except PermissionError as exc:
+        raise RecordingError(f"cannot write {path}: {exc.strerror}; choose a writable folder") from exc
     return path
 
 
+CSV_HEADER_UNITS = {"t": "t_s", "gyro": ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"),
+                    "acc": ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"), "temp": "temp_c",
+                    "mag": ("mag_x_ut", "mag_y_ut", "mag_z_ut")}
+
+
 def save_csv(rec: Recording, path: str | os.PathLike[str]) -> Path:
-    """Write ``rec``'s samples as CSV (SI units, the layout ``calib`` reads with its default units):
-    header ``t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z[,temp][,mag_x,mag_y,mag_z]`` — s, rad/s, m/s²,
-    °C, µT, body frame RFU — 17 significant digits (float64 round-trips exactly).  Truth and
-    metadata are not written (use HDF5 for those).  Atomic like :func:`save_hdf5`."""
+    """Write ``rec``'s samples as CSV with the unit in every column name: ``t_s,gyro_x_rad_s,gyro_y_rad_s,
+    gyro_z_rad_s,acc_x_m_s2,acc_y_m_s2,acc_z_m_s2[,temp_c][,mag_x_ut,mag_y_ut,mag_z_ut]`` — s, rad/s, m/s²,
+    °C, µT, body frame RFU (calib reads these names, and the plain ``t,gyro_x,…`` of older files, back).
+    17 significant digits (float64 round-trips exactly).  Truth and metadata are not written (use HDF5
+    for those).  Atomic like :func:`save_hdf5`, with the same file mode."""
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise RecordingError(f"cannot write {path}: folder {folder} does not exist; create it first")
+    _writable_folder(path)
     cols = [rec.t_s[:, None], rec.gyro_rad_s, rec.acc_m_s2]
-    header = ["t", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"]
+    h = CSV_HEADER_UNITS
+    header = [h["t"], *h["gyro"], *h["acc"]]
     if rec.temp_c is not None:
         cols.append(rec.temp_c[:, None])
-        header.append("temp")
+        header.append(h["temp"])
     if rec.mag_ut is not None:
         cols.append(rec.mag_ut)
-        header += ["mag_x", "mag_y", "mag_z"]
+        header += list(h["mag"])
     data = np.hstack(cols)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
-    os.close(fd)
-    try:
+    with atomic_path(path) as tmp:
         np.savetxt(tmp, data, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path
 
 

@@ -4,7 +4,9 @@ method gets data it can use — or a named error saying what is wrong and what t
 Entry points:
 
 * :func:`open_recording` (path → :class:`Loaded`: recording + :class:`InputReport`) and
-  :func:`load_recording` (path → Recording, the historical signature);
+  :func:`load_recording` (path → Recording, the historical signature); both take ``columns=`` (a CSV
+  column mapping, :func:`parse_columns` reads the command lines' ``--columns t=…,gyro_x=…``) and
+  ``topic=`` (a ROS bag's ``sensor_msgs/Imu`` topic);
 * :func:`prepare_recording` (Recording → :class:`Loaded`), for recordings made in code or by a loader;
 * :func:`check_recording` (Recording → :class:`InputCheck`), the cheap re-check every method runs;
 * :class:`Requirements` and the per-method presets (``KF``, ``CLOSELOOP``, ``ALLAN``, ``INSPECT``, …).
@@ -15,6 +17,8 @@ The classes of bad input and what each gets (docs/bad-input.md):
 class              examples                                                             result
 =================  ===================================================================  =====================
 format             empty, binary, truncated HDF5, no header, missing column             FormatError
+format             ambiguous header, a mapping naming a missing column, no IMU topic    FormatError
+unit               a column name's unit contradicted by --gyro-unit/--acc-unit          UnitError
 field              wrong field count, text in a number column, NaN/inf, empty cell     FieldError (line, column)
 time               ms/µs/ns or Unix epoch time column                                   converted, warning
 time               ambiguous or implausible unit, not increasing                        TimeBaseError
@@ -40,6 +44,7 @@ from calib.inputs.boundary import (
                        read_recording,
                        repaired_mask,
 )
+from calib.inputs.columns import parse_columns
 from calib.inputs.csvfile import CSV_COLUMNS, KNOWN_COLUMNS, resample_temperature
 from calib.inputs.errors import (
                        DegenerateError,
@@ -78,6 +83,7 @@ __all__ = [
     "load_recording",
     "prepare_recording",
     "read_recording",
+    "parse_columns",
     "check_recording",
     "repaired_mask",
     "Loaded",

@@ -87,7 +87,8 @@ class ReadInfo:
     notes: list[str] = field(default_factory=list)
 
 
-def _convert_units(rec: Recording, gyro_unit: str, acc_unit: str) -> Recording:
+def _convert_units(rec: Recording, gyro_unit: str | None, acc_unit: str | None) -> Recording:
+    gyro_unit, acc_unit = gyro_unit or "rad/s", acc_unit or "m/s^2"
     f_g = float(to_si(1.0, gyro_unit, "rate"))
     f_a = float(to_si(1.0, acc_unit, "acceleration"))
     meta = {**rec.meta, "gyro_unit": gyro_unit, "acc_unit": acc_unit}
@@ -96,27 +97,58 @@ def _convert_units(rec: Recording, gyro_unit: str, acc_unit: str) -> Recording:
     return Recording(rec.t_s, rec.gyro_rad_s * f_g, rec.acc_m_s2 * f_a, rec.temp_c, rec.mag_ut, rec.truth, meta)
 
 
-def read_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "m/s^2") -> tuple[Recording, ReadInfo]:
-    """Read a file (format by content), a measured-data folder, or ``dataset:NAME``; no checks
-    beyond what reading needs.  Files are only read, never modified."""
+def _read_dataset(name: str, gyro_unit: str | None, acc_unit: str | None) -> tuple[Recording, ReadInfo]:
     from gyrosim import loaders
 
-    to_si(1.0, gyro_unit, "rate")  # an unknown unit is refused before anything is read
-    to_si(1.0, acc_unit, "acceleration")
-    default_units = gyro_unit == "rad/s" and acc_unit in ("m/s^2", "m/s²")
-    if str(path).startswith("dataset:"):
-        name = str(path)[len("dataset:"):]
+    try:
         rec = loaders.load_dataset(name)
-        info = ReadInfo(str(path), "measured dataset", notes=[] if default_units else
-                        [f"--gyro-unit/--acc-unit ignored: dataset {name} is converted to SI by its loader"])
-        return rec, info
+    except RecordingError as err:  # a name that is not there: the message names the folder and what is
+        raise FormatError(str(err)) from err
+    given = gyro_unit not in (None, "rad/s") or acc_unit not in (None, "m/s^2", "m/s²")
+    info = ReadInfo(f"dataset:{name}", "measured dataset", notes=[] if not given else
+                    [f"--gyro-unit/--acc-unit ignored: dataset {name} is converted to SI by its loader"])
+    return rec, info
+
+
+def _refuse_options(p: Path, what: str, columns: dict[str, str] | None, topic: str | None) -> None:
+    """A column mapping is for CSV files and a topic for ROS bags: given for another input, it is a mistake."""
+    if columns and what != "CSV":
+        raise FormatError(f"{p} is {what}, not a CSV: a column mapping (--columns) applies to CSV files only")
+    if topic is not None and what != "ROS bag":
+        raise FormatError(f"{p} is {what}, not a ROS bag: --topic applies to ROS bags only")
+
+
+def read_recording(path: str | Path, gyro_unit: str | None = None, acc_unit: str | None = None, *,
+                   columns: dict[str, str] | None = None, topic: str | None = None) -> tuple[Recording, ReadInfo]:
+    """Read a file (format by content), a measured-data folder, a ROS 2 bag folder, or ``dataset:NAME``;
+    no checks beyond what reading needs.  Files are only read, never modified.
+
+    ``gyro_unit``/``acc_unit``: the user's units (None: the file's, else rad/s and m/s²; a CSV header
+    that says another unit is refused); ``columns``: a CSV column mapping channel → column name
+    (:func:`calib.inputs.columns.parse_columns`); ``topic``: the ``sensor_msgs/Imu`` topic of a ROS bag
+    (:mod:`calib.inputs.rosbag`)."""
+    from gyrosim import loaders
+
+    from calib.inputs.rosbag import is_bag_folder, read_rosbag
+
+    for unit, q in ((gyro_unit, "rate"), (acc_unit, "acceleration")):
+        if unit is not None:
+            to_si(1.0, unit, q)  # an unknown unit is refused before anything is read
+    if str(path).startswith("dataset:"):
+        _refuse_options(Path(str(path)), "a measured dataset", columns, topic)
+        return _read_dataset(str(path)[len("dataset:"):], gyro_unit, acc_unit)
     p = Path(path)
+    if is_bag_folder(p):
+        _refuse_options(p, "ROS bag", columns, None)
+        rec, notes, _ = read_rosbag(p, "ROS 2 bag folder", topic)
+        return _bag_units(rec, gyro_unit, acc_unit, p), ReadInfo(str(p), "ROS 2 bag", notes=notes, time_unit="s")
     if p.is_dir():
+        _refuse_options(p, "a folder", columns, topic)
         for name in loaders.available_datasets(p.parent):
             if name == p.name:
                 return loaders.load_dataset(name, p.parent), ReadInfo(str(p), "measured dataset")
         raise FormatError(f"{p} is a folder but not a known measured dataset "
-                          f"({', '.join(loaders.available_datasets(p.parent)) or 'none'}); give a file")
+                          f"({', '.join(loaders.available_datasets(p.parent)) or 'none'}) nor a ROS 2 bag; give a file")
     if not p.exists():
         raise FormatError(f"no such recording: {p}")
     if not p.is_file():
@@ -125,16 +157,31 @@ def read_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "
         s = sniff(p)
     except PermissionError as exc:
         raise FormatError(f"cannot read {p}: {exc.strerror}") from exc
+    if s.kind == "rosbag":
+        _refuse_options(p, "ROS bag", columns, None)
+        rec, notes, _ = read_rosbag(p, s.encoding, topic)
+        return _bag_units(rec, gyro_unit, acc_unit, p), ReadInfo(str(p), s.encoding, notes=notes, time_unit="s")
     if s.kind == "hdf5":
+        _refuse_options(p, "HDF5", columns, topic)
         rec, notes = read_hdf5(p)
         info = ReadInfo(str(p), "HDF5 (BROAD)" if notes else "HDF5 (gyrosim)", notes=list(notes))
         if notes:  # BROAD: SI as published
             return rec, info
         return _convert_units(rec, gyro_unit, acc_unit), info
-    r = read_csv_text(s.text, p, gyro_unit, acc_unit)
+    _refuse_options(p, "CSV", columns, topic)
+    r = read_csv_text(s.text, p, gyro_unit, acc_unit, columns)
     info = ReadInfo(str(p), "CSV", s.encoding, r.separator, r.columns, r.ignored_columns, r.time_unit,
                     list(s.notes) + r.notes)
     return r.recording, info
+
+
+def _bag_units(rec: Recording, gyro_unit: str | None, acc_unit: str | None, p: Path) -> Recording:
+    """sensor_msgs/Imu is rad/s and m/s² by definition: a unit option that says otherwise is refused."""
+    for unit, si, q, opt in ((gyro_unit, "rad/s", "rate", "--gyro-unit"),
+                             (acc_unit, "m/s^2", "acceleration", "--acc-unit")):
+        if unit is not None and float(to_si(1.0, unit, q)) != 1.0:
+            raise UnitError(f"{p}: sensor_msgs/Imu holds {si} (REP 145) but {opt} says {unit}: drop {opt}")
+    return rec
 
 
 def _ranges(mask: np.ndarray) -> list[list[int]]:
@@ -403,13 +450,15 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
     return Loaded(rec, report)
 
 
-def open_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "m/s^2", *,
+def open_recording(path: str | Path, gyro_unit: str | None = None, acc_unit: str | None = None, *,
                    requirements: Requirements = GENERIC, time_unit: str | None = None,
-                   decimate: int | str | None = None) -> Loaded:
-    """Read ``path`` and pass it through the boundary for ``requirements`` (module docstring)."""
+                   decimate: int | str | None = None, columns: dict[str, str] | None = None,
+                   topic: str | None = None) -> Loaded:
+    """Read ``path`` (:func:`read_recording`: units, column mapping, ROS topic) and pass it through the
+    boundary for ``requirements`` (module docstring)."""
     normalise_time_unit(time_unit)
     try:
-        rec, info = read_recording(path, gyro_unit, acc_unit)
+        rec, info = read_recording(path, gyro_unit, acc_unit, columns=columns, topic=topic)
     except InputError:
         raise
     except RecordingError as err:  # the Recording's own checks (NaN, shapes, order) on an HDF5/dataset
@@ -419,18 +468,22 @@ def open_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "
     return prepare_recording(rec, requirements, time_unit=time_unit, decimate=decimate, info=info)
 
 
-def load_recording(path: str | Path, gyro_unit: str = "rad/s", acc_unit: str = "m/s^2", *,
+def load_recording(path: str | Path, gyro_unit: str | None = None, acc_unit: str | None = None, *,
                    requirements: Requirements = GENERIC, time_unit: str | None = None,
-                   decimate: int | str | None = None) -> Recording:
+                   decimate: int | str | None = None, columns: dict[str, str] | None = None,
+                   topic: str | None = None) -> Recording:
     """Load a recording through the input boundary; files are only read, never modified.
 
     Accepts a gyrosim HDF5, a BROAD trial (HDF5 as published), a CSV (``t,gyro_x,gyro_y,gyro_z,
-    acc_x,acc_y,acc_z[,temp][,mag_x,mag_y,mag_z]``, see :mod:`calib.inputs.csvfile`), a
-    measured-data folder known to :mod:`gyrosim.loaders`, or ``dataset:NAME`` resolved under
-    ``$GYROSIM_DATA``.  The format is found from the content, not the name.  Use
+    acc_x,acc_y,acc_z[,temp][,mag_x,mag_y,mag_z]``, common loggers' headers, units in column names;
+    see :mod:`calib.inputs.columns`), a ROS 1 or ROS 2 bag (``topic``: its ``sensor_msgs/Imu`` topic,
+    needed when it has several), a measured-data folder known to :mod:`gyrosim.loaders`, or
+    ``dataset:NAME`` resolved under ``$GYROSIM_DATA``.  The format is found from the content, not the
+    name.  ``columns``: channel → CSV column name, e.g. ``{"t": "timestamp_ms", "gyro_x": "gx_dps", …}``;
+    ``gyro_unit``/``acc_unit``: the units when the file does not say them (None: rad/s, m/s²).  Use
     :func:`open_recording` for the :class:`InputReport` (warnings) too."""
     return open_recording(path, gyro_unit, acc_unit, requirements=requirements, time_unit=time_unit,
-                          decimate=decimate).recording
+                          decimate=decimate, columns=columns, topic=topic).recording
 
 
 def check_recording(

@@ -3,9 +3,11 @@
 Layout: a header row naming the columns, then one row per sample.  Required columns
 ``t,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z`` (any order, any case, surrounding spaces and quotes
 ignored); known optional columns ``temp`` (°C; empty cells between the readings of a slower
-thermometer are interpolated) and ``mag_x,mag_y,mag_z`` (µT, body frame).  Any other column is
-listed in a note and ignored.  The time column may carry its unit in its name (``t_ms``,
-``time [us]``, ``timestamp_ns``, ...): that unit is then used as declared.  Lines starting with
+thermometer are interpolated) and ``mag_x,mag_y,mag_z`` (µT, body frame).  The headers of common
+loggers, units in column names (``gx_dps``, ``Timestamp (us)``) and a user's column mapping are
+resolved by :mod:`calib.inputs.columns`.  Any other column is listed in a note and ignored (it may
+hold text: a date, a frame id).  The time column's unit, when its name says it (``t_ms``,
+``time [us]``, ``timestamp_ns``, ...), is used as declared.  Lines starting with
 ``#`` are comments.  Separators ``,`` ``;`` tab ``|`` or spaces; with ``;``, tab or spaces, decimal
 commas (``0,125``) are read as decimal points.
 
@@ -24,6 +26,7 @@ import numpy as np
 from gyrosim.recording import Recording
 from gyrosim.units import to_si
 
+from calib.inputs.columns import REQUIRED, ColumnMap, describe_units, resolve_columns
 from calib.inputs.errors import FieldError, FormatError, TimeBaseError, TooShortError
 from calib.inputs.sniff import SEPARATOR_NAMES, detect_separator
 
@@ -31,9 +34,6 @@ __all__ = ["CSV_COLUMNS", "KNOWN_COLUMNS", "CsvRead", "read_csv_text", "resample
 
 CSV_COLUMNS = ("t", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
 KNOWN_COLUMNS = {"temp": "°C", "mag_x": "µT", "mag_y": "µT", "mag_z": "µT"}
-_TIME_NAMES = {"t": None, "time": None, "timestamp": None}
-_TIME_UNITS = {"s": "s", "sec": "s", "ms": "ms", "us": "us", "µs": "us", "μs": "us", "ns": "ns"}
-_ALIASES = {"temperature": "temp", "temp_c": "temp", "mag_x_ut": "mag_x", "mag_y_ut": "mag_y", "mag_z_ut": "mag_z"}
 
 
 @dataclass
@@ -47,18 +47,6 @@ class CsvRead:
     columns: tuple[str, ...]
     ignored_columns: tuple[str, ...]
     notes: list[str] = field(default_factory=list)
-
-
-def _norm(name: str) -> str:
-    return name.strip().strip("\"'").strip().lower()
-
-
-def _time_column(name: str) -> tuple[bool, str | None]:
-    """(is it the time column, unit named in it)."""
-    m = re.fullmatch(r"(t|time|timestamp)(?:[ _]*[\[(]?\s*(s|sec|ms|us|µs|μs|ns)\s*[\])]?)?", name)
-    if not m:
-        return False, None
-    return True, _TIME_UNITS[m.group(2)] if m.group(2) else None
 
 
 def resample_temperature(t_s: np.ndarray, temp_c: np.ndarray, meta: dict, where: str) -> np.ndarray | None:
@@ -105,72 +93,76 @@ def _fast_float(texts: list[str], sep: str, n_fields: int) -> np.ndarray | None:
     return flat.reshape(len(texts), n_fields)
 
 
-def _to_float(rows: list[list[str]], lines: list[tuple[int, str]], header: list[str], allow_empty: set[int],
-              path: Path) -> np.ndarray:
-    """rows → float array; the first bad cell is named with its line and column."""
-    try:
-        return np.array(rows, dtype=float)
-    except ValueError:
-        pass
-    out = np.empty((len(rows), len(header)))
-    for i, r in enumerate(rows):
-        for j, v in enumerate(r):
-            s = v.strip()
-            if not s:
-                if j in allow_empty:
-                    out[i, j] = np.nan
-                    continue
-                raise FieldError(f"{path}: line {lines[i][0]}, column {header[j]!r} is empty; every row needs "
-                                 "a number in every inertial column: fill or drop that row")
-            try:
-                out[i, j] = float(s)
-            except ValueError:
-                raise FieldError(f"{path}: line {lines[i][0]}, column {header[j]!r}: {s[:40]!r} is not a number; "
-                                 "only numbers are allowed below the header") from None
-    return out
-
-
-def read_csv_text(text: str, path: Path, gyro_unit: str, acc_unit: str) -> CsvRead:
-    """Parse the decoded text of a CSV recording (see the module docstring)."""
-    raw_lines = text.splitlines()
-    ends_with_newline = text.endswith(("\n", "\r"))
+def _data_lines(text: str, path: Path) -> list[tuple[int, str]]:
+    """(line number, text) of every line that is not blank or a comment."""
     lines = [
         (i + 1, s)
-        for i, s in enumerate(raw_lines)
+        for i, s in enumerate(text.splitlines())
         if s and s[0] != "#" and not ((s[0] in " \t" or s[-1] in " \t") and (not s.strip() or s.lstrip()[0] == "#"))
     ]
     if not lines:
         raise FormatError(f"{path} holds no rows (only blank or comment lines): not a recording")
-    (header_line, header_text), body = lines[0], lines[1:]
-    sep = detect_separator(header_text, body[0][1] if body else None)
-    header = [_norm(h) for h in (header_text.split() if sep == " " else next(csv.reader([header_text], delimiter=sep)))]
-    if not any(re.search(r"[a-z]", h) for h in header):
+    return lines
+
+
+def _clean(name: str) -> str:
+    return name.strip().strip("\"'").strip()
+
+
+def _header(lines: list[tuple[int, str]], path: Path) -> tuple[int, str, list[str]]:
+    """(line number, separator, cells) of the header row; refuses a first row that names nothing."""
+    header_line, header_text = lines[0]
+    sep = detect_separator(header_text, lines[1][1] if len(lines) > 1 else None)
+    cells = [_clean(h) for h in _cells(header_text, sep)]
+    if not any(re.search(r"[a-z]", h.lower()) for h in cells):
         raise FormatError(f"{path}: line {header_line} is not a header ({header_text[:60]!r}); the first row must name "
                           f"the columns: {','.join(CSV_COLUMNS)}[,temp][,mag_x,mag_y,mag_z]")
-    header = [_ALIASES.get(h, h) for h in header]
-    time_unit = None
-    for j, h in enumerate(header):
-        is_t, unit = _time_column(h)
-        if is_t and "t" not in header[:j] + header[j + 1:]:
-            header[j], time_unit = "t", unit
-            break
-    dup = sorted({h for h in header if header.count(h) > 1 and h})
-    if dup:
-        raise FormatError(f"{path}: column(s) {dup} appear more than once in the header (line {header_line}); "
-                          "name each column once")
-    missing = [c for c in CSV_COLUMNS if c not in header]
+    return header_line, sep, cells
+
+
+def _ximu_rate(path: Path) -> tuple[float, str]:
+    """The inertial sample rate of an x-IMU GUI export, from the ``*_Registers.csv`` beside it
+    (register InertialAndMagneticDataRate: code k → 2^(k−1) Hz)."""
+    found = sorted(path.parent.glob(f"{path.name.split('_')[0]}_Registers.csv")) or sorted(
+        path.parent.glob("*Registers.csv"))
+    how = ("the x-IMU exports the sample rate in the Registers.csv file written beside it: copy that file next to "
+           "this one, or add a time column")
+    if len(found) != 1:
+        raise FormatError(f"{path}: an x-IMU export ('Packet number', no time column) and "
+                          f"{'no' if not found else 'more than one'} *_Registers.csv beside it; {how}")
+    for row in csv.reader(found[0].read_text(errors="replace").splitlines()):
+        if len(row) >= 5 and row[4].strip() == "InertialAndMagneticDataRate" and row[2].strip().isdigit():
+            code = int(row[2])
+            if code >= 1:
+                return 2.0 ** (code - 1), found[0].name
+    raise FormatError(f"{path}: {found[0].name} has no InertialAndMagneticDataRate register (or it is off); {how}")
+
+
+def _require(cmap: ColumnMap, header: list[str], header_line: int, sep: str, path: Path) -> float | None:
+    """Refuse a header without the required channels (naming them); an x-IMU export's missing time column
+    is made from its sample rate (returned, else None)."""
+    keys = [_clean(h).lower() for h in header]
+    rate = None
+    if "t" not in cmap.index and "packet number" in keys and all(c in cmap.index for c in REQUIRED[1:]):
+        rate, _ = _ximu_rate(path)
+        return rate
+    missing = [c for c in REQUIRED if c not in cmap.index]
     if missing:
         how = SEPARATOR_NAMES.get(sep, repr(sep))
         raise FormatError(
             f"{path}: missing column(s) {missing} in the header (line {header_line}, read with separator {how}: "
-            f"{len(header)} column(s) {header[:8]}{' …' if len(header) > 8 else ''}); the CSV needs a header "
-            f"{','.join(CSV_COLUMNS)}[,temp][,mag_x,mag_y,mag_z]")
-    notes = []
-    if sep != ",":
-        notes.append(f"read with separator {SEPARATOR_NAMES.get(sep, repr(sep))}")
+            f"{len(keys)} column(s) {keys[:8]}{' …' if len(keys) > 8 else ''}); the CSV needs a header "
+            f"{','.join(CSV_COLUMNS)}[,temp][,mag_x,mag_y,mag_z], or a column mapping (--columns t=…,gyro_x=…)")
+    return rate
+
+
+def _complete_rows(body: list[tuple[int, str]], sep: str, n_fields: int, header_line: int, ends_with_newline: bool,
+                   path: Path, notes: list[str]) -> tuple[list[tuple[int, str]], list[str], list[list[str]] | None]:
+    """The data rows, each with the header's field count: a last line cut mid-write is dropped (noted),
+    any other count mismatch refused; decimal commas become points.  Returns (body, texts, split rows or
+    None when the fast parser can take the texts as they are)."""
     if not body:
         raise FormatError(f"{path} has a header but no data rows: not a recording")
-    n_fields = len(header)
     texts = [t for _, t in body]
     simple = sep != " " and not any('"' in t for t in texts[:1000]) and '"' not in "".join(texts[1000:])
     rows = None if simple else _split_rows(body, sep)
@@ -196,29 +188,64 @@ def read_csv_text(text: str, path: Path, gyro_unit: str, acc_unit: str) -> CsvRe
         body = [(i, t) for (i, _), t in zip(body, texts)]
         rows = None if rows is None else _split_rows(body, sep)
         notes.append("decimal commas read as decimal points")
-    col = {name: j for j, name in enumerate(header)}
-    allow_empty = {col["temp"]} if "temp" in col else set()
-    data = _fast_float(texts, sep, n_fields) if rows is None else None
-    if data is None:
-        data = _to_float(rows if rows is not None else _split_rows(body, sep), body, header, allow_empty, path)
-    core = [col[c] for c in CSV_COLUMNS]
-    nonfinite = ~np.isfinite(data[:, core])
-    if nonfinite.any():
-        i, j = np.argwhere(nonfinite)[0]
-        raise FieldError(
-            f"{path}: line {body[i][0]}, column {CSV_COLUMNS[j]!r} is {_cells(body[i][1], sep)[core[j]].strip()!r}: "
-            "NaN/inf is not a "
-            f"measurement ({int(nonfinite.sum())} such value(s)); drop or interpolate those rows"
-        )
-    t = data[:, col["t"]]
+    return body, texts, rows
+
+
+def _column(cells: list[str], j: int, name: str, body: list[tuple[int, str]], allow_empty: bool,
+            path: Path) -> tuple[np.ndarray, tuple[int, FieldError] | None]:
+    """One column's cells → floats, or the first bad cell (row index, its error)."""
+    try:
+        return np.array(cells, dtype=float), None
+    except ValueError:
+        pass
+    out = np.empty(len(cells))
+    for i, v in enumerate(cells):
+        s = v.strip()
+        if not s and allow_empty:
+            out[i] = np.nan
+            continue
+        if not s:
+            return out, (i, FieldError(f"{path}: line {body[i][0]}, column {name!r} is empty; every row needs a number "
+                                       "in every inertial column: fill or drop that row"))
+        try:
+            out[i] = float(s)
+        except ValueError:
+            return out, (i, FieldError(f"{path}: line {body[i][0]}, column {name!r}: {s[:40]!r} is not a number; "
+                                       "only numbers are allowed below the header"))
+    return out, None
+
+
+def _numbers(body: list[tuple[int, str]], texts: list[str], rows: list[list[str]] | None, sep: str,
+             header: list[str], used: dict[str, int], path: Path) -> dict[str, np.ndarray]:
+    """The used columns as floats (channel → array).  Other columns are not parsed: they may hold text.
+    The first bad cell of a used column, in file order, is refused with its line and column."""
+    data = _fast_float(texts, sep, len(header)) if rows is None else None
+    if data is not None:
+        return {ch: data[:, j] for ch, j in used.items()}
+    rows = rows if rows is not None else _split_rows(body, sep)
+    out, first = {}, None
+    for ch, j in sorted(used.items(), key=lambda kv: kv[1]):
+        out[ch], bad = _column([r[j] for r in rows], j, header[j], body, ch == "temp", path)
+        if bad is not None and (first is None or bad[0] < first[0]):
+            first = bad
+    if first is not None:
+        raise first[1]
+    return out
+
+
+def _increasing_time(cols: dict[str, np.ndarray], body: list[tuple[int, str]], path: Path,
+                     notes: list[str]) -> tuple[dict[str, np.ndarray], list[tuple[int, str]]]:
+    """Rows that repeat the previous one exactly are dropped (noted); any other step that is not forward
+    in time is refused with its lines."""
+    t = cols["t"]
     dt = np.diff(t)
     if np.any(dt <= 0):
-        same = (dt == 0) & np.all(data[1:] == data[:-1], axis=1)
+        same = (dt == 0) & np.all([c[1:] == c[:-1] for c in cols.values()], axis=0)
         if same.any():
             keep = np.concatenate([[True], ~same])
             notes.append(f"{int(same.sum())} row(s) repeat the previous row exactly (same time and values): dropped")
-            data, body = data[keep], [b for b, k in zip(body, keep) if k]
-            t = data[:, col["t"]]
+            cols, body = {k: v[keep] for k, v in cols.items()}, [b for b, k in zip(body, keep) if k]
+            t = cols["t"]
             dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.argmax(dt <= 0))
@@ -228,28 +255,89 @@ def read_csv_text(text: str, path: Path, gyro_unit: str, acc_unit: str) -> CsvRe
             "timestamps must "
             f"be strictly increasing ({int(np.sum(dt <= 0))} such step(s)); sort or de-duplicate the rows first"
         )
-    unknown = [h for h in header if h not in CSV_COLUMNS and h not in KNOWN_COLUMNS]
-    mag_cols = [c for c in ("mag_x", "mag_y", "mag_z") if c in col]
+    return cols, body
+
+
+def _finite_core(cols: dict[str, np.ndarray], header: list[str], used: dict[str, int], body: list[tuple[int, str]],
+                 sep: str, path: Path) -> None:
+    core = [c for c in REQUIRED if c in cols]
+    nonfinite = ~np.isfinite(np.column_stack([cols[c] for c in core]))
+    if nonfinite.any():
+        i, j = np.argwhere(nonfinite)[0]
+        col = used[core[j]]
+        raise FieldError(
+            f"{path}: line {body[i][0]}, column {header[col]!r} is {_cells(body[i][1], sep)[col].strip()!r}: "
+            f"NaN/inf is not a measurement ({int(nonfinite.sum())} such value(s)); drop or interpolate those rows")
+
+
+def _magnetometer(cols: dict[str, np.ndarray], cmap: ColumnMap, body: list[tuple[int, str]],
+                  notes: list[str]) -> tuple[np.ndarray | None, list[str]]:
+    """The (N, 3) magnetometer in µT, or None (noted) when an axis is missing or a row is empty; and the
+    mag channels that were not used."""
+    from gyrosim.units import to_si
+
+    mag_cols = [c for c in ("mag_x", "mag_y", "mag_z") if c in cols]
     if mag_cols and len(mag_cols) < 3:
         notes.append(f"magnetometer column(s) {mag_cols} without the other axes: ignored (needs mag_x, mag_y, mag_z)")
-        unknown += mag_cols
+        return None, mag_cols
+    if not mag_cols:
+        return None, []
+    mag = np.column_stack([cols[c] for c in mag_cols]) * float(to_si(1.0, cmap.units.get("mag", "uT"),
+                                                                        "magnetic_field"))
+    bad_m = ~np.isfinite(mag).all(axis=1)
+    if bad_m.any():
+        notes.append(f"the magnetometer has {int(bad_m.sum())} empty/NaN row(s) (first at line "
+                     f"{body[int(np.argmax(bad_m))][0]}): the mag columns are ignored")
+        return None, []
+    return mag, []
+
+
+def read_csv_text(text: str, path: Path, gyro_unit: str | None = None, acc_unit: str | None = None,
+                  columns: dict[str, str] | None = None) -> CsvRead:
+    """Parse the decoded text of a CSV recording (see the module docstring).  ``gyro_unit``/``acc_unit``:
+    the user's units (None: the header's, else rad/s and m/s²); ``columns``: the user's mapping
+    channel → column name (:func:`calib.inputs.columns.parse_columns`)."""
+    lines = _data_lines(text, path)
+    header_line, sep, header = _header(lines, path)
+    body = lines[1:]
+    cmap = resolve_columns(header, columns, gyro_unit, acc_unit, where=str(path))
+    rate = _require(cmap, header, header_line, sep, path)
+    notes = [f"read with separator {SEPARATOR_NAMES.get(sep, repr(sep))}"] if sep != "," else []
+    body, texts, rows = _complete_rows(body, sep, len(header), header_line, text.endswith(("\n", "\r")), path, notes)
+    used = dict(cmap.index) | ({"t_nanosec": cmap.t_nanosec} if cmap.t_nanosec is not None else {})
+    cols = _numbers(body, texts, rows, sep, header, used, path)
+    if rate is not None:
+        cols["t"] = np.arange(len(body)) / rate
+        notes.append(f"an x-IMU export without times: t = sample index / {rate:g} Hz (the rate in its Registers.csv); "
+                     "the packet numbers are not used")
+    if "t_nanosec" in cols:
+        cols["t"] = cols["t"] + 1e-9 * cols.pop("t_nanosec")
+    _finite_core(cols, header, used, body, sep, path)
+    cols, body = _increasing_time(cols, body, path, notes)
+    return _assemble(cols, cmap, body, header, sep, path, notes, "s" if rate is not None else cmap.units.get("t"))
+
+
+def _assemble(cols: dict[str, np.ndarray], cmap: ColumnMap, body: list[tuple[int, str]], header: list[str], sep: str,
+              path: Path, notes: list[str], time_unit: str | None) -> CsvRead:
+    """The Recording in SI units, and what the reader made of the file."""
+    t = cols["t"]
+    mag, unused_mag = _magnetometer(cols, cmap, body, notes)
+    unknown = list(cmap.ignored) + [header[cmap.index[c]] for c in unused_mag]
     if unknown:
-        notes.append(f"column(s) {unknown} are not known (t, gyro_*, acc_*, temp, mag_*): ignored")
-    g = np.asarray(to_si(1.0, gyro_unit, "rate")) * data[:, [col["gyro_x"], col["gyro_y"], col["gyro_z"]]]
-    a = np.asarray(to_si(1.0, acc_unit, "acceleration")) * data[:, [col["acc_x"], col["acc_y"], col["acc_z"]]]
-    meta = {"source": str(path), "gyro_unit": gyro_unit, "acc_unit": acc_unit}
-    temp = resample_temperature(t, data[:, col["temp"]], meta, str(path)) if "temp" in col else None
+        shown = f"{unknown}" if len(unknown) <= 8 else f"{unknown[:6]} and {len(unknown) - 6} more"
+        notes.append(f"column(s) {shown} are not known (t, gyro_*, acc_*, temp, mag_*): ignored")
+    said = describe_units(cmap)
+    if said:
+        notes.insert(0, said)
+    gu, au = cmap.units["gyro"], cmap.units["acc"]
+    g = np.asarray(to_si(1.0, gu, "rate")) * np.column_stack([cols["gyro_x"], cols["gyro_y"], cols["gyro_z"]])
+    a = np.asarray(to_si(1.0, au, "acceleration")) * np.column_stack([cols["acc_x"], cols["acc_y"], cols["acc_z"]])
+    meta = {"source": str(path), "gyro_unit": gu, "acc_unit": au}
+    if cmap.layout != "calib":
+        meta["column_layout"] = cmap.layout
+    temp = resample_temperature(t, cols["temp"], meta, str(path)) if "temp" in cols else None
     if "temperature_note" in meta:
         notes.append(meta["temperature_note"])
-    mag = None
-    if len(mag_cols) == 3:
-        mag = data[:, [col["mag_x"], col["mag_y"], col["mag_z"]]]
-        bad_m = ~np.isfinite(mag).all(axis=1)
-        if bad_m.any():
-            notes.append(f"the magnetometer has {int(bad_m.sum())} empty/NaN row(s) (first at line "
-                         f"{body[int(np.argmax(bad_m))][0]}): "
-                         "the mag columns are ignored")
-            mag = None
-    used = [c for c in header if c not in unknown]
+    used = [c for c in sorted(cmap.index, key=cmap.index.get) if c not in unused_mag]
     rec = Recording(t_s=t, gyro_rad_s=g, acc_m_s2=a, temp_c=temp, mag_ut=mag, meta=meta)
     return CsvRead(rec, time_unit, sep, tuple(used), tuple(unknown), notes)

@@ -1,6 +1,8 @@
 r"""What a file is, from its content (never from its name): HDF5 or text, and for text the encoding
 (UTF-8, with or without a byte-order mark; UTF-16 with one) and the field separator.
 
+* ROS bags: ``#ROSBAG V2.0`` (ROS 1), the MCAP magic ``\x89MCAP0\r\n`` or an SQLite database (a ROS 2
+  bag's storage file, ``.db3``): kind ``"rosbag"``, read by :mod:`calib.inputs.rosbag`.
 * HDF5: the 8-byte signature ``\x89HDF\r\n\x1a\n`` at offset 0, 512, 1024, 2048, … (a user block
   may precede it; HDF5 spec §II.A).
 * Text: decodes as UTF-8 (a leading BOM is removed and named), or as UTF-16 when it starts with a
@@ -18,16 +20,19 @@ from pathlib import Path
 
 from calib.inputs.errors import FormatError
 
-__all__ = ["Sniffed", "sniff", "detect_separator", "HDF5_SIGNATURE", "SEPARATOR_NAMES"]
+__all__ = ["Sniffed", "sniff", "detect_separator", "HDF5_SIGNATURE", "ROSBAG_SIGNATURES", "SEPARATOR_NAMES"]
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+ROSBAG_SIGNATURES = {b"#ROSBAG V2.0": "ROS 1 bag", b"\x89MCAP0\r\n": "MCAP (ROS 2 bag)",
+                     b"SQLite format 3\x00": "SQLite (ROS 2 bag)"}
 SEPARATOR_NAMES = {",": "comma ','", ";": "semicolon ';'", "\t": "tab", "|": "vertical bar '|'", " ": "spaces"}
 _MAX_TEXT_BYTES = 2_000_000_000
 
 
 @dataclass(frozen=True)
 class Sniffed:
-    """``kind``: "hdf5" or "text"; ``text`` (decoded, BOM removed) and ``encoding`` for text."""
+    """``kind``: "hdf5", "rosbag" or "text"; ``text`` (decoded, BOM removed) and ``encoding`` for text
+    (for "rosbag": which storage)."""
 
     kind: str
     encoding: str | None = None
@@ -70,6 +75,9 @@ def sniff(path: Path) -> Sniffed:
         head = fh.read(4096)
     if _hdf5_signature_at(head, size, path):
         return Sniffed("hdf5")
+    for magic, what in ROSBAG_SIGNATURES.items():
+        if head.startswith(magic):
+            return Sniffed("rosbag", what)
     if size > _MAX_TEXT_BYTES:
         raise FormatError(f"{path} is {size / 1e9:.1f} GB of text: too large to read as CSV; convert it to HDF5")
     data = path.read_bytes()

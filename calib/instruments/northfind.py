@@ -191,6 +191,91 @@ def _heading(w2: np.ndarray, basis: np.ndarray, axis: np.ndarray, up: np.ndarray
 
 
 # ---------------------------------------------------------------- main
+def _site_latitude(rec: Recording, latitude_deg: float | None, accuracy_deg: float | None) -> float:
+    """The site's latitude (°): given, or ``meta['northfind']['latitude_deg']``; refused outside ±90°."""
+    if latitude_deg is None:
+        nf = rec.meta.get("northfind")
+        if not isinstance(nf, dict) or "latitude_deg" not in nf:
+            raise RecordingError("north-finding needs the site's latitude: pass --latitude-deg (latitude_deg=...)")
+        latitude_deg = float(nf["latitude_deg"])
+    if not abs(latitude_deg) < 90.0:
+        raise RecordingError(f"latitude {latitude_deg}° must be strictly inside ±90° (at a pole there is no North)")
+    if accuracy_deg is not None and not accuracy_deg > 0:
+        raise RecordingError("accuracy_deg must be > 0")
+    return latitude_deg
+
+
+def _levelled_axis(f: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(turning axis, plane basis, up, table tilt °) from the holds' accelerometer means ``f`` (P, 3) turned by
+    ``alpha``: the axis starts at the cone centre of the means (a bias only tilts it, to second order) and is refined
+    twice by the constant part of the accelerometer's turning fit."""
+    axis = f.mean(axis=0) / np.linalg.norm(f.mean(axis=0))
+    for _ in range(2):
+        basis = _plane_basis(axis)
+        th, *_ = _fit_turning(f, alpha, basis)
+        c = th[:2] @ basis + (f @ axis).mean() * axis
+        axis = c / np.linalg.norm(c)
+    basis = _plane_basis(axis)
+    th_f, *_ = _fit_turning(f, alpha, basis)
+    g_mag = float(np.linalg.norm(f.mean(axis=0)))
+    u_perp = th_f[2:] @ basis / g_mag
+    up = u_perp + math.sqrt(max(0.0, 1 - u_perp @ u_perp)) * axis
+    tilt_deg = float(np.degrees(np.arcsin(min(1.0, float(np.linalg.norm(u_perp))))))
+    return axis, basis, up, tilt_deg
+
+
+def _heading_jacobian(w: np.ndarray, basis: np.ndarray, axis: np.ndarray, up: np.ndarray, lat: float,
+                      omega_h: float) -> tuple[np.ndarray, np.ndarray]:
+    """(North's unit vector in the plane, ∂ψ/∂w): the derivative is taken at the Earth rate the latitude predicts,
+    in ŵ's direction, so σ_ψ = σ_res/(Ω_E cos L) even when noise dominates |ŵ| (linearising at ŵ would shrink σ_ψ by
+    Ω_E cos L/|ŵ|)."""
+    north_unit = w / np.linalg.norm(w)
+    w0 = north_unit * omega_h
+    h = 1e-4 * omega_h
+    jac = np.array([(_heading(w0 + h * e, basis, axis, up, lat) - _heading(w0 - h * e, basis, axis, up, lat)) / (2 * h)
+                    for e in np.eye(2)])
+    return north_unit, jac
+
+
+def _verdict(result: dict, *, sig_psi: float, sig_res: float, sig_rad: float, w_mag: float, omega_h: float,
+             chi2: float, chi2_f: float, dof: int, latitude_deg: float, accuracy_deg: float | None,
+             noise_terms: tuple[NoiseTerms, ...], rate_hz: float, positions: int) -> tuple[str, str]:
+    """(status, reason) of a north-finding: refused beyond the accuracy asked (or beyond any use), refused when the
+    accelerometer says the positions are not one turn about one axis, inconsistent when the rate that turns with the
+    board is not the Earth's or the hold means do not fit the model.  Adds the rest time needed to ``result``."""
+    from calib.instruments.northfind_plan import rest_time_needed
+
+    need_acc = accuracy_deg if accuracy_deg is not None else math.degrees(MAX_SIGMA_RAD)
+    if sig_psi > MAX_SIGMA_RAD or sig_psi > math.radians(need_acc):
+        need, note = rest_time_needed(noise_terms, latitude_deg, need_acc, rate_hz, positions=positions)
+        where = (f"; to {need_acc:g}° this gyro reaches only up to latitude {result.get('max_latitude_deg'):.1f}°"
+                 if result.get("max_latitude_deg") is not None else "")
+        reason = (
+            f"the limit of this record is σ_ψ = {math.degrees(sig_psi):.3g}° at latitude {latitude_deg:g}° "
+            f"(bias residual {sig_res * DEG_H:.3g} °/h against a horizontal Earth rate of {omega_h * DEG_H:.3g} °/h)"
+            + (f", worse than the requested {accuracy_deg:g}°" if accuracy_deg is not None
+               else ": the gyro cannot see the Earth's rotation here")
+            + where
+        )
+        result.update(rest_time_needed_s=need, rest_time_note=note)
+        return "refused", reason
+    if dof > 0 and stats.chi2.sf(chi2_f, dof) < P_CHECK:
+        return "refused", (
+            f"the accelerometer says the positions are not one turn about one axis (χ² = {chi2_f:.3g} on {dof} dof): "
+            "the board moved between or during the holds; hold it on a fixture that only turns")
+    if abs(w_mag - omega_h) > stats.norm.isf(P_CHECK / 2) * sig_rad:
+        return "inconsistent", (
+            f"the horizontal rate that turns with the board is {w_mag * DEG_H:.4g} ± {sig_rad * DEG_H:.2g} °/h but "
+            f"the Earth's at {latitude_deg:g}° is {omega_h * DEG_H:.4g} °/h: wrong latitude, a gyro scale error, "
+            "motion, or a world-fixed disturbance (e.g. the magnetic sensitivity of an unshielded FOG coil); the "
+            "heading is not trusted")
+    if dof > 0 and stats.chi2.sf(chi2, dof) < P_CHECK:
+        return "inconsistent", (
+            f"the hold means do not fit one bias plus the turning Earth rate (χ² = {chi2:.3g} on {dof} dof, p < "
+            f"{P_CHECK:g}): the noise model or the index angles are wrong, or the bias jumped")
+    return "ok", "north found"
+
+
 def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_deg: float | None = None,
                noise: tuple[NoiseTerms, ...] | None = None, min_hold_s: float = 10.0,
                index: str = "auto") -> tuple[NorthFinding, Design | None]:
@@ -206,15 +291,7 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
     """
     from calib.instruments.northfind_plan import rest_time_needed
 
-    if latitude_deg is None:
-        nf = rec.meta.get("northfind")
-        if not isinstance(nf, dict) or "latitude_deg" not in nf:
-            raise RecordingError("north-finding needs the site's latitude: pass --latitude-deg (latitude_deg=...)")
-        latitude_deg = float(nf["latitude_deg"])
-    if not abs(latitude_deg) < 90.0:
-        raise RecordingError(f"latitude {latitude_deg}° must be strictly inside ±90° (at a pole there is no North)")
-    if accuracy_deg is not None and not accuracy_deg > 0:
-        raise RecordingError("accuracy_deg must be > 0")
+    latitude_deg = _site_latitude(rec, latitude_deg, accuracy_deg)
     lat = math.radians(latitude_deg)
     omega_h = EARTH_RATE_RAD_S * math.cos(lat)
     ranges, encoder, source = _find_ranges(rec, min_hold_s)
@@ -249,12 +326,11 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
                       "the gyro bias cancels; this record is moving or too short", holds0, noise_terms)
     m = np.array([rec.gyro_rad_s[a:b].mean(axis=0) for a, b in (ranges[i] for i in used)])
     f = np.array([rec.acc_m_s2[a:b].mean(axis=0) for a, b in (ranges[i] for i in used)])
-    # turning axis: the cone centre of the accelerometer means (bias only tilts it: second order)
-    axis = f.mean(axis=0) / np.linalg.norm(f.mean(axis=0))
+    axis0 = f.mean(axis=0) / np.linalg.norm(f.mean(axis=0))
     if source == "encoder":
         alpha_all = np.radians(np.array([float(e) for e in encoder]))
     else:
-        alpha_all = _gyro_index_angles(rec, ranges, used, m, axis)
+        alpha_all = _gyro_index_angles(rec, ranges, used, m, axis0)
     alpha = alpha_all[used] - alpha_all[used[0]]
     holds = tuple(HoldInfo(a, b, float(np.degrees(alpha_all[i] - alpha_all[used[0]])), r)
                   for i, ((a, b), r) in enumerate(zip(ranges, reasons)))
@@ -262,34 +338,15 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
     if spread < math.radians(30.0):
         return refuse(f"the still holds are at most {math.degrees(spread):.1f}° apart about the vertical: the bias "
                       "cannot be told from the Earth rate; turn the board by 90–180° between holds", holds, noise_terms)
-    # refine the axis: the constant part of the accelerometer fit (two passes)
-    for _ in range(2):
-        basis = _plane_basis(axis)
-        th, *_ = _fit_turning(f, alpha, basis)
-        c = th[:2] @ basis + (f @ axis).mean() * axis
-        axis = c / np.linalg.norm(c)
-    basis = _plane_basis(axis)
-    th_f, *_ = _fit_turning(f, alpha, basis)
-    g_mag = float(np.linalg.norm(f.mean(axis=0)))
-    u_perp = th_f[2:] @ basis / g_mag
-    up = u_perp + math.sqrt(max(0.0, 1 - u_perp @ u_perp)) * axis
-    tilt_deg = float(np.degrees(np.arcsin(min(1.0, float(np.linalg.norm(u_perp))))))
+    axis, basis, up, tilt_deg = _levelled_axis(f, alpha)
     windows = np.array([ranges[i] for i in used])
     design = Design(windows, turning_design(alpha), basis, np.zeros(2), np.zeros(2), rec.rate_hz, rec.n)
     if noise_terms is None:
         return refuse("the holds are too short to measure the gyro noise on", holds)
-    sigma = design.sigma_matrix(noise_terms)
-    th, res, cov_th, chi2 = _fit_turning(m, alpha, basis, sigma)
-    w = th[2:]
-    cov_w = cov_th[2:, 2:]
+    th, res, cov_th, chi2 = _fit_turning(m, alpha, basis, design.sigma_matrix(noise_terms))
+    w, cov_w = th[2:], cov_th[2:, 2:]
     psi = _heading(w, basis, axis, up, lat)
-    # ∂ψ/∂w at the Earth rate the latitude predicts, in ŵ's direction: σ_ψ = σ_res/(Ω_E cos L)
-    # even when noise dominates |ŵ| (linearising at ŵ would shrink σ_ψ by Ω_E cos L/|ŵ|)
-    north_unit = w / np.linalg.norm(w)
-    w0 = north_unit * omega_h
-    h = 1e-4 * omega_h
-    jac = np.array([(_heading(w0 + h * e, basis, axis, up, lat) - _heading(w0 - h * e, basis, axis, up, lat)) / (2 * h)
-                    for e in np.eye(2)])
+    north_unit, jac = _heading_jacobian(w, basis, axis, up, lat, omega_h)
     design = Design(windows, design.design, basis, jac, north_unit, rec.rate_hz, rec.n)
     sig_psi = float(math.sqrt(jac @ cov_w @ jac))
     t_perp = np.array([-north_unit[1], north_unit[0]])
@@ -297,15 +354,9 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
     sig_rad = float(math.sqrt(north_unit @ cov_w @ north_unit))
     w_mag = float(np.linalg.norm(w))
     dof = 2 * len(used) - 4
-    headings = tuple(float((math.degrees(psi - a)) % 360.0) for a in alpha)   # turning by +α about up: ψ − α
-    warnings: list[str] = []
-    excluded = [
-        f"hold {i} ({rec.t_s[a]:.0f}–{rec.t_s[b - 1]:.0f} s): {r}"
-        for i, ((a, b), r) in enumerate(zip(ranges, reasons))
-        if r
-    ]
-    if excluded:
-        warnings.append("left out: " + "; ".join(excluded))
+    excluded = [f"hold {i} ({rec.t_s[a]:.0f}–{rec.t_s[b - 1]:.0f} s): {r}"
+                for i, ((a, b), r) in enumerate(zip(ranges, reasons)) if r]
+    warnings = ["left out: " + "; ".join(excluded)] if excluded else []
     # accelerometer: are the positions one turn about one axis? (its noise from the holds)
     acc_noise = fit_hold_noise(rec, [ranges[i] for i in used], "acc")
     *_, chi2_f = _fit_turning(f, alpha, basis, design.sigma_matrix(acc_noise))
@@ -313,7 +364,7 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
         base,
         heading_deg=float(math.degrees(psi) % 360.0),
         heading_sigma_deg=math.degrees(sig_psi),
-        headings_deg=headings,
+        headings_deg=tuple(float((math.degrees(psi - a)) % 360.0) for a in alpha),  # turning by +α about up: ψ − α
         bias_residual_sigma_deg_h=sig_res * DEG_H,
         horizontal_rate_deg_h=w_mag * DEG_H,
         horizontal_rate_expected_deg_h=omega_h * DEG_H,
@@ -328,48 +379,9 @@ def find_north(rec: Recording, latitude_deg: float | None = None, *, accuracy_de
     if accuracy_deg is not None:
         ratio = sig_res / (EARTH_RATE_RAD_S * math.radians(accuracy_deg))
         result["max_latitude_deg"] = float(math.degrees(math.acos(ratio))) if ratio < 1 else None
-    status, reason = "ok", "north found"
-    need_acc = accuracy_deg if accuracy_deg is not None else math.degrees(MAX_SIGMA_RAD)
-    if sig_psi > MAX_SIGMA_RAD or sig_psi > math.radians(need_acc):
-        need, note = rest_time_needed(noise_terms, latitude_deg, need_acc, rec.rate_hz, positions=len(used))
-        where = (f"; to {need_acc:g}° this gyro reaches only up to latitude {result.get('max_latitude_deg'):.1f}°"
-                 if result.get("max_latitude_deg") is not None else "")
-        status = "refused"
-        reason = (
-            f"the limit of this record is σ_ψ = {math.degrees(sig_psi):.3g}° at latitude {latitude_deg:g}° "
-            f"(bias residual {sig_res * DEG_H:.3g} °/h against a horizontal Earth rate of {omega_h * DEG_H:.3g} °/h)"
-            + (
-                f", worse than the requested {accuracy_deg:g}°"
-                if accuracy_deg is not None
-                else ": the gyro cannot see the Earth's rotation here"
-            )
-            + where
-        )
-        result.update(rest_time_needed_s=need, rest_time_note=note)
-    elif dof > 0 and stats.chi2.sf(chi2_f, dof) < P_CHECK:
-        status, reason = "refused", (
-            f"the accelerometer says the positions are not one turn about one axis (χ² = {chi2_f:.3g} on {dof} dof): "
-            "the board moved between or during the holds; hold it on a fixture that only turns")
-    elif abs(w_mag - omega_h) > stats.norm.isf(P_CHECK / 2) * sig_rad:
-        status, reason = (
-            "inconsistent",
-            (
-                f"the horizontal rate that turns with the board is {w_mag * DEG_H:.4g} ± {sig_rad * DEG_H:.2g} °/h but "
-                f"the Earth's at {latitude_deg:g}° is {omega_h * DEG_H:.4g} °/h: wrong latitude, a gyro scale error, "
-                "motion, or a "
-                "world-fixed disturbance (e.g. the magnetic sensitivity of an unshielded FOG coil); the heading is not "
-                "trusted"
-            ),
-        )
-    elif dof > 0 and stats.chi2.sf(chi2, dof) < P_CHECK:
-        status, reason = (
-            "inconsistent",
-            (
-                f"the hold means do not fit one bias plus the turning Earth rate (χ² = {chi2:.3g} on {dof} dof, p < "
-                f"{P_CHECK:g}): "
-                "the noise model or the index angles are wrong, or the bias jumped"
-            ),
-        )
+    status, reason = _verdict(result, sig_psi=sig_psi, sig_res=sig_res, sig_rad=sig_rad, w_mag=w_mag, omega_h=omega_h,
+                              chi2=chi2, chi2_f=chi2_f, dof=dof, latitude_deg=latitude_deg, accuracy_deg=accuracy_deg,
+                              noise_terms=noise_terms, rate_hz=rec.rate_hz, positions=len(used))
     return NorthFinding(status, reason, warnings=tuple(warnings), **result), design
 
 

@@ -34,7 +34,7 @@ from typing import Callable
 
 import numpy as np
 import pytest
-from bad_inputs import Base, derived, make_base
+from bad_inputs import Base, csv_text, derived, make_base
 
 from gyrosim.cli import main as gyrosim_main
 
@@ -469,9 +469,112 @@ OUTPUTS = [
 CASES = _input_cases() + ARGS + OUTPUTS
 
 
+# ---------------------------------------------------------------- the user's files as they are (columns, bags)
+def _once(b: Base, name: str, build: Callable[[Base], Path]) -> Path:
+    if name not in b.cache:
+        b.cache[name] = Path(build(b))
+    return b.cache[name]
+
+
+def _ambiguous_header(b: Base) -> Path:
+    """'time' and 'timestamp' both look like the time column, and there is no 't' to decide."""
+    return b.text("ambiguous_header.csv", csv_text(b.t, b.g, b.a, extra=b.t,
+                                                   header="time,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z,timestamp"))
+
+
+def _dps_header(b: Base) -> Path:
+    return b.write_csv("dps_header.csv", g=np.degrees(b.g), header="t,gx_dps,gy_dps,gz_dps,acc_x,acc_y,acc_z")
+
+
+def _ros_csv(b: Base) -> Path:
+    """rostopic echo -p of the base session: stamps in ns from a Unix origin, a text frame id, covariances."""
+    stamp = 1_700_000_000_000_000_000 + np.round(b.t * 1e9)
+    head = ["%time", "field.header.stamp", "field.header.frame_id"] + [f"field.angular_velocity.{a}" for a in "xyz"] + [
+        f"field.angular_velocity_covariance{i}" for i in range(9)] + [f"field.linear_acceleration.{a}" for a in "xyz"]
+    data = np.column_stack([stamp + 1e6, stamp, b.g, np.zeros((b.t.size, 9)), b.a])
+    rows = [",".join(["%.19g" % r[0], "%.19g" % r[1], "imu_link"] + ["%.17g" % v for v in r[2:]]) for r in data]
+    return b.text("ros_echo.csv", ",".join(head) + "\n" + "\n".join(rows) + "\n")
+
+
+def _bag(b: Base, with_imu: bool) -> Path:
+    """A ROS 1 bag of the base session on /imu/data (or one with only a String topic); without the
+    optional rosbags library, a file that starts like a bag (the refusal then names the extra)."""
+    path = b.folder / ("session.bag" if with_imu else "no_imu.bag")
+    try:
+        from rosbags.rosbag1 import Writer
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        path.write_bytes(b"#ROSBAG V2.0\n" + bytes(4096))
+        return path
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    T, imu = ts.types, "sensor_msgs/msg/Imu"
+    with Writer(path) as w:
+        if not with_imu:
+            c = w.add_connection("/chatter", "std_msgs/msg/String", typestore=ts)
+            w.write(c, 10**18, ts.serialize_ros1(T["std_msgs/msg/String"](data="x"), "std_msgs/msg/String"))
+            return path
+        c = w.add_connection("/imu/data", imu, typestore=ts)
+        v3, z = T["geometry_msgs/msg/Vector3"], np.zeros(9)
+        for k, t_ns in enumerate(1_700_000_000_000_000_000 + np.round(b.t * 1e9).astype(np.int64)):
+            stamp = T["builtin_interfaces/msg/Time"](sec=int(t_ns) // 10**9, nanosec=int(t_ns) % 10**9)
+            msg = T[imu](header=T["std_msgs/msg/Header"](seq=k, stamp=stamp, frame_id="imu"),
+                         orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                         orientation_covariance=-np.ones(9), angular_velocity=v3(x=b.g[k, 0], y=b.g[k, 1], z=b.g[k, 2]),
+                         angular_velocity_covariance=z, linear_acceleration=v3(x=b.a[k, 0], y=b.a[k, 1], z=b.a[k, 2]),
+                         linear_acceleration_covariance=z)
+            w.write(c, int(t_ns), ts.serialize_ros1(msg, imu))
+    return path
+
+
+FILES: dict[str, Callable[[Base], Path]] = {
+    "ambiguous_header": _ambiguous_header, "dps_header": _dps_header, "ros_csv": _ros_csv,
+    "bag": lambda b: _bag(b, True), "bag_without_imu": lambda b: _bag(b, False),
+}
+
+
+def _file_case(id_: str, cmd: str, name: str, extra: tuple[str, ...], **e) -> Case:
+    def argv(b, tmp):
+        p = str(_once(b, name, FILES[name]))
+        return [cmd, p, *extra] + (["--json", str(tmp / "out.json")] if cmd == "run" else [])
+    return Case(f"{cmd}-{id_}", argv, e["rc"], e["pattern"], lambda b: [_once(b, name, FILES[name])],
+                e.get("same_as"), e.get("tolerance_sigma", 0.0), e.get("slow", False))
+
+
+FILE_CASES = [
+    _file_case("ambiguous_header", "run", "ambiguous_header", (),
+               **err(r"columns 'time', 'timestamp' all look like t: say which .*--columns t=time")),
+    _file_case("unit_conflict", "run", "dps_header", ("--gyro-unit", "rad/s"),
+               **err(r"column 'gx_dps' says deg/s but --gyro-unit says rad/s: drop --gyro-unit")),
+    _file_case("bag_without_imu", "run", "bag_without_imu", (),
+               **err(r"no sensor_msgs/Imu topic in this bag|pip install gyrosim-calib\[ros\]")),
+    _file_case("ros_csv", "inspect", "ros_csv", (),
+               **ok(r"(?=.*ROS sensor_msgs/Imu)(?=.*samples, .* s, rate)", slow=False)),
+    _file_case("bag", "inspect", "bag", (), **ok(r"(?=.*ROS bag topic /imu/data)(?=.*samples, .* s, rate)",
+                                                  slow=False)),
+    # float64 holds a 1.7e18 ns stamp to 256 ns: the steps differ from 10 ms by ≤ 2.6e-5 of themselves
+    _file_case("ros_csv", "run", "ros_csv", (), **ok(r"ROS sensor_msgs/Imu", SAME, tol=1e-3)),
+    # a bag's float64 values and whole-ns stamps from 0 give the CSV's numbers: float rounding only
+    _file_case("bag", "run", "bag", (), **ok(r"ROS bag topic /imu/data", SAME)),
+    Case("run-dataset_unknown", lambda b, t: ["run", "dataset:no_such_set", "--json", str(t / "out.json")], (2,),
+         r"dataset:no_such_set (is not in .*available: |: no data folder at ).*GYROSIM_DATA"),
+]
+
+
+try:
+    import rosbags  # noqa: F401
+    NO_ROSBAGS: set[str] = set()
+except ImportError:  # the optional extra ros: the accepted bag cases need it (the refusals name it)
+    NO_ROSBAGS = {"inspect-bag", "run-bag"}
+
+
+def _marks(c: Case) -> list:
+    return ([pytest.mark.slow] if c.slow else []) + (
+        [pytest.mark.skip(reason="the optional extra ros (rosbags) is not installed")] if c.id in NO_ROSBAGS else [])
+
+
 def test_the_table_has_the_issues_242_cases():
     assert len(CASES) == 242, len(CASES)
-    assert len({c.id for c in CASES}) == len(CASES)
+    assert len({c.id for c in CASES + FILE_CASES}) == len(CASES) + len(FILE_CASES)
 
 
 @pytest.fixture(scope="session")
@@ -504,7 +607,7 @@ def _clean_run(b: Base, name: str, tmp: Path) -> dict:
     return _CLEAN[name]
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, id=c.id, marks=[pytest.mark.slow] if c.slow else []) for c in CASES])
+@pytest.mark.parametrize("case", [pytest.param(c, id=c.id, marks=_marks(c)) for c in CASES + FILE_CASES])
 def test_bad_input_gets_a_named_error_or_a_correct_answer(case: Case, base: Base, tmp_path):
     inputs = case.inputs(base)
     before = _digest(inputs)
