@@ -327,9 +327,10 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
     f_hat = compensate_acc(rec.acc_m_s2, acc_theta(th)) if estimate else rec.acc_m_s2
     rest_g = rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg.gravity_m_s2, math.sqrt(cfg.r_var(rec.rate_hz)),
                           fitted_g=not estimate)
-    status, notes = verdict(cons, sanity, rest_g, "estimate" if estimate else "calibrated")
+    mode = "estimate" if estimate else "calibrated"
+    status, notes = verdict(cons, sanity, rest_g, mode, method=method)
     if infl is not None:
-        status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
+        status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free, accelerometer=mode)
         if infl.factor > 1 and not lay.has("gyro_bias") and (note := bias_drift_note(rec, prep)) is not None:
             notes.append(note)
     diagnostics = {
@@ -462,7 +463,8 @@ def _paper_filter(rec: Recording, params: PaperParams, name: str, prep: Prepared
     cov[:3, 3:] = cov[3:, :3].T
     values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
-    status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2))
+    status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2),
+                            accelerometer="calibrated", method=name)
     status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
     if infl.factor > 1 and (note := bias_drift_note(rec, prep)) is not None:
         notes.append(note)
