@@ -251,10 +251,10 @@ def inconsistent_sigma_limit(dof: int, quantile: float = INFLATION_QUANTILE) -> 
     freedom: √(κ_max · χ²_q(d)/d), κ_max = ``INFLATION_INCONSISTENT_SIGMA``².  κ̂ is an estimate, κ χ²(d)/d for a true
     long-run variance κ (the block sums are independent Gaussians of variance κ n_block), so comparing κ̂ itself with
     κ_max would call half the sessions at κ = κ_max inconsistent and many just below it (measured on gyrosim's
-    typical hand, kf_hand_joint, 80 blocks: κ̂ 2.5 — σ ×1.58 — with every error within 1.8 of the inflated σ); the
+    typical hand, kf_hand_joint, d = 80: κ̂ 2.5 — σ ×1.58 — with every error within 1.8 of the inflated σ); the
     limit is the ``quantile`` (95 %, the level at which the inflation itself is applied) of κ̂ at κ = κ_max, so a
     session at the limit is called inconsistent in 5 % of draws and one whose σ had to grow ×2 (κ = 4) in
-    97 % at 80 blocks (83 % at 40).  No degrees of freedom: the bare ×1.5."""
+    97 % at d = 80 (83 % at 40).  No degrees of freedom: the bare ×1.5."""
     if dof <= 0:
         return INFLATION_INCONSISTENT_SIGMA
     return float(INFLATION_INCONSISTENT_SIGMA * np.sqrt(stats.chi2.ppf(quantile, dof) / dof))
@@ -278,10 +278,10 @@ def apply_inflation(status: str, notes: list[str], infl: Inflation, can_fail: bo
     limit = infl.limit_sigma
     if can_fail and status == "ok" and infl.sigma_factor > limit:
         notes.append(f"inconsistent: σ had to grow ×{infl.sigma_factor:.1f} from the innovations, more than "
-                     f"×{INFLATION_INCONSISTENT_SIGMA} even at the top of the estimate's own sampling range (×"
-                     f"{limit:.2f} with {infl.dof} blocks): the model misses a disturbance of this session, and what "
-                     "it aliased into the parameters does not show in the residuals — the error can exceed even the "
-                     "inflated σ. " + ("Its cause is in the line above" if hand_aware
+                     f"×{INFLATION_INCONSISTENT_SIGMA} by more than that estimate's own 95 % sampling range (limit ×"
+                     f"{limit:.2f} at {infl.dof} degrees of freedom): the model misses a disturbance of this "
+                     "session, and what it aliased into the parameters does not show in the residuals — the error can "
+                     "exceed even the inflated σ. " + ("Its cause is in the line above" if hand_aware
                                        else f"Use the hand-aware method ({hand_aware_name(accelerometer)}) or a "
                                        "steadier hand"))
         return "inconsistent"

@@ -3,9 +3,10 @@
 
 κ̂, the whitened innovations' long-run variance from d block sums, is κ χ²(d)/d for a true long-run variance κ.  The
 rule "σ had to grow more than ×1.5" compared κ̂ itself with 1.5² = 2.25, so a session at the limit was called
-inconsistent half the time and sessions below it often (gyrosim's typical hand with kf_hand_joint: κ̂ 2.5, every
-error within 1.8 inflated σ — benchmarks/false_alarm.py).  Now the limit is κ̂'s 95 % quantile at κ = 2.25: at the
-limit the rule fires in 5 % of draws; a σ understated ×2 (κ = 4) still fires nearly always.
+inconsistent half the time and sessions below it often (gyrosim's typical hand with kf_hand_joint: κ̂ 2.5 on 80
+degrees of freedom, every error within 1.8 inflated σ — benchmarks/false_alarm.py).  Now the limit is κ̂'s 95 %
+quantile at κ = 2.25: at the limit the rule fires in 5 % of draws; a σ understated ×2 (κ = 4) still fires nearly
+always.
 """
 
 from __future__ import annotations
@@ -70,5 +71,5 @@ def test_the_readme_sessions_statistic_is_inflated_but_not_inconsistent():
     notes = []
     infl = Inflation(kappa=4.0, dof=40, threshold=float(stats.chi2.ppf(0.95, 40) / 40), factor=4.0)
     assert apply_inflation("ok", notes, infl, hand_aware=True, accelerometer="estimate") == "inconsistent"
-    assert f"×{inconsistent_sigma_limit(40):.2f} with 40 blocks" in notes[-1]
+    assert f"×{inconsistent_sigma_limit(40):.2f} at 40 degrees of freedom" in notes[-1]
     assert infl.to_dict()["inconsistent_above_sigma_factor"] == inconsistent_sigma_limit(40)
