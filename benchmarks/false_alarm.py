@@ -3,7 +3,8 @@ states comes back not ``ok`` (exit 1), on the README's own session (zhou2020 sch
 ``mpu9250``, 100 Hz), one seed after another as ``gyrosim simulate --seed K`` draws them.
 
     nice python benchmarks/false_alarm.py --seeds 50 --out docs/results/false_alarm.json
-    python benchmarks/false_alarm.py --table docs/results/false_alarm.json          # the table again, no runs
+    python benchmarks/false_alarm.py --table docs/results/false_alarm_before.json docs/results/false_alarm.json \
+        --markdown docs/results/false_alarm.md                # the table of runs, one row each (no runs)
 
 Each seed: :func:`gyrosim.simulate` (the seeding of ``gyrosim simulate --seed``), then
 :func:`calib.session.run.run_session` with the default options (what ``calib run rec.h5`` does), scored on the gyro's
@@ -101,18 +102,21 @@ def summary(rows: list[dict]) -> dict:
             "sigma_factor_median": float(np.median([r["sigma_factor"] for r in rows])) if n else None}
 
 
-def table(doc: dict) -> str:
-    """The Markdown table of a result file."""
-    s = doc["summary"]
-    lines = [f"Commit `{doc['provenance']['commit']}`; `{doc['provenance']['command']}`; {doc['provenance']['date']}.",
-             "", "| method | hand | sensor | seeds | not ok although truth within σ | ok although truth outside | "
-             "statuses | NEES(6) mean (95 % band) | σ factor median |", "|" + "---|" * 9,
-             f"| {doc['method']} | {doc['hand']} | {doc['sensor']} | {s['seeds']} | {s['false_alarms']} "
-             f"({100 * s['false_alarm_rate']:.0f} %) | {s['misses']} ({100 * s['miss_rate']:.0f} %) | "
-             + ", ".join(f"{k} {v}" for k, v in s["statuses"].items())
-             + f" | {s['nees_mean']:.2f} ({s['nees_band_95'][0]:.2f}–{s['nees_band_95'][1]:.2f}) | "
-             f"{s['sigma_factor_median']:.2f} |"]
-    return "\n".join(lines)
+def table(docs: list[dict]) -> str:
+    """The Markdown table of result files, one row each, with the commit and command each was run at."""
+    lines = ["| run | method | hand | sensor | seeds | not ok although truth within σ | ok although truth outside | "
+             "statuses | NEES(6) mean (95 % band) | σ factor median |", "|" + "---|" * 10]
+    notes = []
+    for i, doc in enumerate(docs, 1):
+        s, pv = doc["summary"], doc["provenance"]
+        notes.append(f"{i}. commit `{pv['commit']}`; `{pv['command']}`; {pv['date']}")
+        lines.append(
+            f"| {i} | {doc['method']} | {doc['hand']} | {doc['sensor']} | {s['seeds']} | {s['false_alarms']} "
+            f"({100 * s['false_alarm_rate']:.0f} %) | {s['misses']} ({100 * s['miss_rate']:.0f} %) | "
+            + ", ".join(f"{k} {v}" for k, v in s["statuses"].items())
+            + f" | {s['nees_mean']:.2f} ({s['nees_band_95'][0]:.2f}–{s['nees_band_95'][1]:.2f}) | "
+            f"{s['sigma_factor_median']:.2f} |")
+    return "\n".join(lines + [""] + notes)
 
 
 def run(out: str, seeds: int, first_seed: int, schedule: str, hand: str, sensor: str) -> dict:
@@ -121,10 +125,13 @@ def run(out: str, seeds: int, first_seed: int, schedule: str, hand: str, sensor:
     rows: dict[int, dict] = {}
     stamp = provenance()   # the code that ran: taken before the first seed
     setting = {"schedule": schedule, "hand": hand, "sensor": sensor, "method": "calib run (default)"}
+    resumed: list = []
     if Path(out).exists():
         old = json.loads(Path(out).read_text())
         if all(old.get(k) == v for k, v in setting.items()):
             rows = {r["seed"]: r for r in old["per_seed"]}
+            # the seeds kept were run at the file's stamp; a resumed run's own stamp is listed beside it
+            stamp, resumed = old["provenance"], old.get("resumed", []) + [stamp]
     for seed in range(first_seed, first_seed + seeds):
         if seed in rows:
             continue
@@ -136,7 +143,7 @@ def run(out: str, seeds: int, first_seed: int, schedule: str, hand: str, sensor:
         doc = {"provenance": stamp, **setting, "definition": {
             "truth_within": f"NEES(S, G) ≤ χ²₆ {NEES_QUANTILE:.0%} or every |error/σ| ≤ {Z_LIMIT}",
             "false_alarm": "status not ok and truth within", "miss": "status ok and truth not within"},
-            "summary": summary(kept), "per_seed": kept}
+            "summary": summary(kept), "per_seed": kept, **({"resumed": resumed} if resumed else {})}
         write_json_atomic(out, doc)
     doc = json.loads(Path(out).read_text())
     doc["method"] = doc.get("method", "calib run (default)")
@@ -152,13 +159,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hand", default="typical")
     p.add_argument("--sensor", default="mpu9250")
     p.add_argument("--out", default="docs/results/false_alarm.json")
-    p.add_argument("--table", metavar="JSON", help="print the table of a result file and exit")
+    p.add_argument("--table", metavar="JSON", nargs="+", help="print the table of result files (one row each) and "
+                   "exit; with --markdown, write it there too")
+    p.add_argument("--markdown", metavar="MD", help="with --table: write the table to this Markdown file")
     args = p.parse_args(argv)
     if args.table:
-        print(table(json.loads(Path(args.table).read_text())))
+        text = table([json.loads(Path(t).read_text()) for t in args.table])
+        print(text)
+        if args.markdown:
+            Path(args.markdown).write_text(
+                "# False alarms of calib run's default\n\nGenerated by `benchmarks/false_alarm.py` (its docstring "
+                "defines the columns); nothing here is edited by hand.\n\n" + text + "\n")
         return 0
     doc = run(args.out, args.seeds, args.first_seed, args.schedule, args.hand, args.sensor)
-    print(table(doc))
+    print(table([doc]))
     return 0
 
 
