@@ -38,7 +38,9 @@ correlation time of u (the sandwich / long-run-variance argument of Newey & West
 P is multiplied by κ = 2π S_u(0), the long-run variance of u.  κ is estimated by batch means
 (sums of u over blocks of ``INFLATION_BLOCK_S`` seconds, both levelling rows pooled): under the model
 κ̂ ~ χ²(d)/d; it is applied when above its 95 % quantile (:func:`innovation_inflation`), with a warning
-saying by how much the filter's own σ was understated.
+saying by how much the filter's own σ was understated.  Beyond ×1.5 the inflated σ is no longer trusted
+(:func:`apply_inflation`): ``inconsistent`` when κ̂ exceeds 1.5² by more than its own sampling range, κ̂'s 95 %
+quantile at κ = 1.5² (:func:`inconsistent_sigma_limit`).
 
 **Parameters the filter holds fixed.**  The paper's 9-state filter compensates the gyro with the
 static bias b̂ of the first rest (§3.2) and treats it as exact; its error δb (σ_b = ARW/√T_rest; with the
