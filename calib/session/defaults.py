@@ -14,7 +14,7 @@ former behaviour.
 
 from __future__ import annotations
 
-__all__ = ["DEFAULT_METHOD", "HAND_AWARE_METHODS", "default_method"]
+__all__ = ["DEFAULT_METHOD", "HAND_AWARE_METHODS", "default_method", "method_label"]
 
 DEFAULT_METHOD = "kf_hand_joint"
 # the hand-aware methods by registered name → their accelerometer mode
@@ -31,3 +31,9 @@ def default_method(accelerometer: str | None = None, external_acc_allowance_m_s2
     mode = accelerometer or "estimate"
     table = _HAND_BLIND if external_acc_allowance_m_s2 is not None else _HAND_AWARE
     return table.get(mode, table["estimate"])
+
+
+def method_label(name: str) -> str:
+    """What a report calls the filter a registered ``name`` ran: the hand-aware one or Zhou 2020's family."""
+    return "hand-aware filter (Zhou 2020's, with the hand in the model)" if name in HAND_AWARE_METHODS else (
+        "Zhou 2020 filter")
