@@ -35,6 +35,8 @@ from gyrosim.viewer import (
     story_blueprint,
 )
 
+from calib.session.defaults import method_label
+
 TIMELINE = "sensor_time"
 AXES = ("x", "y", "z")
 
@@ -150,7 +152,7 @@ def calibration_story(rec: Recording, result, truth: dict | None) -> str:
     h = result.history.arrays() if result.history is not None else None
     dur = float(rec.t_s[-1] - rec.t_s[0]) if rec.n else 0.0
     lines = [f"**{'Simulated' if truth is not None else 'Recorded'} session, {dur:.0f} s at {rec.rate_hz:.0f} Hz — "
-             f"Zhou 2020 filter (`{result.method}`), status {result.status}.**", ""]
+             f"{method_label(result.method)} (`{result.method}`), status {result.status}.**", ""]
     if h is not None and h["t_s"].size > 1:
         names = list(result.history.state_names)
         sd, t = h["sd"], h["t_s"]

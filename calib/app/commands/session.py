@@ -36,9 +36,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from gyrosim.simulate import simulation_grid
 
     from calib.app.demo import DEMO_FILES, run_demo
+    from calib.session.run import RunOptions, resolve_run_method
 
     check_output_paths({"--out": args.out}, [args.schedule, args.hand, args.sensor], folders=["--out"],
                        folder_files={"--out": DEMO_FILES})
+    # the method as calib run takes it (one default: calib.session.defaults), resolved before the simulation
+    name, mode, note = resolve_run_method(RunOptions(method=args.method, accelerometer=args.accelerometer),
+                                          flag="--method")
+    if note:
+        print(f"warning: {note}", file=sys.stderr)
     grid = simulation_grid(load_schedule(args.schedule).duration_s, args.rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating session", leave=False) as bar:
         def log(msg: str) -> None:
@@ -46,7 +52,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             print(msg, flush=True)
 
         res = run_demo(args.out, schedule=args.schedule, hand=args.hand, sensor=args.sensor, rate_hz=args.rate,
-                       seed=args.seed, accelerometer=args.accelerometer, progress=bar.update, log=log)
+                       seed=args.seed, accelerometer=mode, method=name, progress=bar.update, log=log)
     print(f"wrote {res.recording}, {res.report}, {res.report_json} and {res.rrd}")
     print(f"open the recording with:  rerun {res.rrd}")
     return 0
@@ -315,8 +321,11 @@ def _add_demo(sub) -> None:
                    help="sample rate, Hz, in [20, 1000] (what the filter supports; default 100)")
     d.add_argument("--seed", type=integer(0, 2**32 - 1001), default=1,
                    help="seed, 0 … 2³²−1001 (the validation session uses seed + 1000; default 1)")
-    d.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
+    d.add_argument("--accelerometer", default=None, choices=("estimate", "calibrated"),
                    help="estimate the accelerometer with the gyro (default) or assume it calibrated (Zhou §3.3.2)")
+    d.add_argument("--method", default=None, type=_method_name, metavar="NAME",
+                   help="the method, as calib run --method (default calib run's, kf_hand_joint; kf_joint is the "
+                   "demo's former hand-blind filter)")
     d.set_defaults(func=cmd_demo)
 
 
