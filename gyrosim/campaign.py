@@ -336,6 +336,15 @@ DASK_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": Non
                "distributed.worker.profile.enabled": False}
 
 
+def _require_dask() -> None:
+    """Dask is the ``campaign`` extra: without it, say how to install it or run in this process."""
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError as exc:
+        raise GyrosimError("campaigns on a scheduler run on Dask, which is not installed: pip install "
+                           "'gyrosim-calib[campaign]', or pass --scheduler none to run them in this process") from exc
+
+
 def _local_cluster(n: int):
     import dask
     from dask.distributed import LocalCluster
@@ -403,6 +412,7 @@ def run_tasks(tasks: list, run: Callable[[object], list], rows: list, flush: Cal
             if (i + 1) % 20 == 0:
                 flush()
     else:
+        _require_dask()
         from dask.distributed import as_completed
 
         client, cluster = _client(scheduler, workers, connect_timeout_s)
@@ -628,6 +638,7 @@ def _plot(summary: list[dict], path: Path) -> None:
 def bench_scaling(sessions: int = 12, spec: CampaignSpec | None = None) -> list[dict]:
     """Sessions per second in-process, on a 1-worker and a 2-worker LocalCluster, same tasks, same run
     (the clusters are started before timing; each timing covers submit → last result)."""
+    _require_dask()
     from dask.distributed import Client, wait
 
     spec = spec or CampaignSpec(hands=("typical",), seeds=sessions, estimators=("kf",), calibrated_accelerometer=True)

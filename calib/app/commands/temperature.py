@@ -20,6 +20,12 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     from gyrosim.recording import save_hdf5
 
     from calib.inputs import RATETABLE, TEMPERATURE
+
+    if args.compensate and not args.out:
+        raise GyrosimError("--compensate needs --out PATH for the compensated recording")
+    check_output_paths({"--json": args.json, "--out": args.out, "--rrd": args.rrd},
+                       input_files(args.recording, args.train, args.ratetable))
+    loaded = open_input(args, TEMPERATURE)  # a bad file is refused before the models (scipy) are imported
     from calib.temperature.compensation import (
         METHODS,
         ThermalCompensation,
@@ -29,11 +35,6 @@ def cmd_temperature(args: argparse.Namespace) -> int:
         split_cycles,
     )
 
-    if args.compensate and not args.out:
-        raise GyrosimError("--compensate needs --out PATH for the compensated recording")
-    check_output_paths({"--json": args.json, "--out": args.out, "--rrd": args.rrd},
-                       input_files(args.recording, args.train, args.ratetable))
-    loaded = open_input(args, TEMPERATURE)
     rec = loaded.recording
     print_input_warnings(loaded.report)
     if args.train:
@@ -83,9 +84,11 @@ def cmd_ratetable(args: argparse.Namespace) -> int:
     """Bias and scale per axis at every calibration temperature of a rate-table recording ("Measurement Error and
     Calibration of FOG IMU")."""
     from calib.inputs import RATETABLE
+
+    rec = open_input(args, RATETABLE).recording  # a bad file is refused before the analysis (scipy) is imported
     from calib.temperature.ratetable import calibrate_rate_table
 
-    points = calibrate_rate_table(open_input(args, RATETABLE).recording)
+    points = calibrate_rate_table(rec)
     print(f"{'T °C':>7} {'axis':>4} {'bias °/s':>10} {'±1σ':>8} {'scale ppm':>10} {'±1σ':>7}")
     for p in points:
         for i, a in enumerate("xyz"):
