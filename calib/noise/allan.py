@@ -20,7 +20,7 @@ suite compares them), so that the runtime install does not carry allantools' run
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +63,15 @@ class NoiseTerms:
     arw_std: float
     bias_instability_std: float
     rate_random_walk_std: float
+    # 2σ upper bound of each term (SI, N, B, K) from its fitted variance coefficient: what a term the record does
+    # not determine (fitted to 0, where its own σ is unbounded) can still be said to be below; NaN when not computed
+    upper_2sigma: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+
+    def determined(self, term: str) -> bool:
+        """Whether the record determines ``term`` (one of :data:`TERMS`): fitted above 2σ of its own (a term fitted
+        to 0 has an unbounded σ; one within 2σ of 0 is not told apart from none)."""
+        value, std = getattr(self, term), getattr(self, f"{term}_std")
+        return value > 0 and math.isfinite(std) and value > 2 * std
 
     def model(self, tau_s: np.ndarray) -> np.ndarray:
         return np.sqrt(
@@ -146,7 +155,9 @@ def fit_noise_terms(curves: list[AllanCurve], iterations: int = 5, terms: tuple[
     with standard error 0 (e.g. leave out a random walk the τ range cannot show).
     """
     full, cov = fit_allan_variance(curves, iterations, terms)
-    return _terms_from_coefficients(full, np.sqrt(np.diag(cov)))
+    std = np.sqrt(np.diag(cov))
+    upper = np.sqrt(full + 2 * std) / np.array([1.0, FLICKER, 1.0])
+    return replace(_terms_from_coefficients(full, std), upper_2sigma=tuple(float(u) for u in upper))
 
 
 def fit_allan_variance(curves: list[AllanCurve], iterations: int = 5,
