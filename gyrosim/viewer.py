@@ -226,14 +226,19 @@ def board_eye(board_m: np.ndarray, context_m: np.ndarray | None = None, *, eleva
     """A camera on the board: it looks at the board's median position from the side of the arm
     (perpendicular to the horizontal line from the context point — the shoulder — to the board, so the
     arm runs across the view toward the board) and ``elevation_deg`` above, at ``fill`` × the radius of
-    the board's path (95 % quantile, clipped to [``min_radius_m``, ``max_radius_m``]): the board is
-    large in the view and the arm is seen near it.  With ``tracking_entity`` (the board's entity) the
-    camera follows the board, for paths longer than the clipped radius.  Frame: nav ENU (z up), metres."""
+    the board's path (95 % quantile, at least ``min_radius_m``): a hand-held session's board (a path within
+    ``max_radius_m``) is large in the view with the arm near it; a board carried further (a measured
+    session walking ±0.6 m) is framed with all of its path (from 1.25 × as far: every position within 25° of
+    the view axis), so it is in view wherever the time cursor is — the viewer's tracking (``tracking_entity``,
+    also set) did not move the camera in rerun 0.41's web viewer.  Frame: nav ENU (z up), metres."""
     board_m = np.atleast_2d(np.asarray(board_m, float))
     board_m = board_m[np.all(np.isfinite(board_m), axis=1)]
     centre = np.median(board_m, axis=0) if board_m.size else np.zeros(3)
     spread = float(np.quantile(np.linalg.norm(board_m - centre, axis=1), 0.95)) if board_m.size else 0.0
-    radius = min(max_radius_m, max(min_radius_m, spread))
+    if spread > max_radius_m:  # all of the path: its farthest point from the centre
+        radius = 1.25 * float(np.max(np.linalg.norm(board_m - centre, axis=1)))
+    else:
+        radius = min(max_radius_m, max(min_radius_m, spread))
     side = np.array([-1.0, -1.0, 0.0])
     if context_m is not None:
         d = centre - np.atleast_2d(np.asarray(context_m, float))[0]

@@ -77,6 +77,8 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
         rr.Arrows3D(vectors=np.eye(3) * 0.05, colors=[[255, 0, 0], [0, 255, 0], [0, 0, 255]]),
         static=True,
     )
+    # the board's whole path, thin and grey: where the board goes, seen from any time
+    stream.log("world/path", rr.LineStrips3D([pos], radii=[0.002], colors=[[150, 150, 150]]), static=True)
     stream.send_columns(
         "world/board",
         indexes=[rr.TimeColumn(TIMELINE, duration=t[sel])],
