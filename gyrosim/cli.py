@@ -29,11 +29,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .hand import load_hand
-    from .magnetic import environment_from_text
+    from .magnetic import attached_magnet_from_text, environment_from_text
     from .recording import save_hdf5
     from .schedule import load_schedule
     from .sensor_model import load_sensor
-    from .simulate import simulate, simulation_grid
+    from .simulate import simulate, simulation_grid, with_attached_magnet
 
     out = Path(args.out)
     _check_writable(out, args.schedule, args.hand, args.sensor)  # fail before minutes of simulation, not after
@@ -41,6 +41,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     hand = load_hand(args.hand)
     sensor = load_sensor(args.sensor) if args.sensor else None
     magnetic = environment_from_text(args.mag_field, args.location, args.anomaly or ())
+    if args.attach_magnet:
+        if sensor is None:
+            raise GyrosimError("--attach-magnet needs a sensor with a magnetometer (e.g. --sensor mpu9250_9axis)")
+        sensor = with_attached_magnet(sensor, attached_magnet_from_text(args.attach_magnet))
     grid = simulation_grid(schedule.duration_s, args.rate, args.physics_rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating", disable=args.quiet, leave=False) as bar:
         rec = simulate(
@@ -389,6 +393,12 @@ def _add_sessions(sub) -> None:
         "--anomaly",
         action="append",
         help="ferrous sphere X,Y,Z,RADIUS_M in the room (m, ENU; the hand starts at 0.18,0.30,1.15); repeatable",
+    )
+    s.add_argument(
+        "--attach-magnet",
+        metavar="T_ON,HX,HY,HZ[,T_OFF]",
+        help="a magnet attached to the board at T_ON s (taken off at T_OFF s): a hard iron HX,HY,HZ µT (body frame) "
+             "that switches on; needs a --sensor with a magnetometer",
     )
     s.add_argument("--quiet", action="store_true", help="no progress bar and no summary line")
     s.set_defaults(func=cmd_simulate)
