@@ -36,9 +36,13 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
+
+from gyrosim.lazy import lazy_module
 
 from calib.mag.offsets import MIN_TURN, WindowOffsets, window_offsets
+
+# imported on first use (gyrosim.lazy), so that start-up and a refused file do not pay for it
+stats = lazy_module("scipy.stats")
 
 __all__ = ["RegimeSettings", "Hypothesis", "Change", "RegimeSplit", "detect_regimes", "offset_change_test",
            "stretch_offset_test", "merge_hypotheses"]

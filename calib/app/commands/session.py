@@ -181,14 +181,17 @@ def cmd_export(args: argparse.Namespace) -> int:
     from gyrosim.calibration import Calibration
     from gyrosim.exchange import imucal_json, kalibr_imu_yaml
 
-    check_output_paths({"--out": args.out}, [args.calibration])
+    check_output_paths({"--out": args.out}, [args.calibration, args.noise])
     cal = Calibration.load(args.calibration)
     if args.format == "kalibr":
+        from calib.noise.allan_triads import read_kalibr_noise
+
         rate = args.rate or cal.diagnostics.get("filter", {}).get("rate_hz")
         if not rate:
             raise GyrosimError("Kalibr's imu.yaml needs the IMU rate: pass --rate HZ")
         text = kalibr_imu_yaml(cal, float(rate), rostopic=args.rostopic, gyro_random_walk=args.gyro_random_walk,
-                               acc_random_walk=args.acc_random_walk)
+                               acc_random_walk=args.acc_random_walk,
+                               noise=read_kalibr_noise(args.noise) if args.noise else None)
     else:
         text = imucal_json(cal)
     out = Path(args.out)
@@ -300,6 +303,8 @@ def _add_apply_export_inspect(sub) -> None:
                          "calib allan on a long static recording, or the datasheet)")
     ex.add_argument("--acc-random-walk", type=number(0, None, unit="m/s³/√Hz"), default=None,
                     help="accelerometer bias random walk, m/s³/√Hz, ≥ 0")
+    ex.add_argument("--noise", help="the noise calib allan --json measured on a long static recording of this IMU: "
+                                    "both triads' white noise and random walk (the two options above win over it)")
     ex.set_defaults(func=cmd_export)
     i = sub.add_parser("inspect", help="what a recording holds, what a method would refuse",
                        description="Summarise a recording: format, length, rate, channels, truth, what the input "
