@@ -50,7 +50,7 @@ def optical_attitude_error_deg(rec, gyro, window_s=5.0, step_s=0.5):
 
 
 def _acc_first(rec):
-    joint = calibrate(rec)
+    joint = calibrate(rec, "kf_joint")
     th = np.concatenate([joint.value("accelerometer", k) for k in ("bias", "scale_factor", "nonorthogonality")])
     return kf_hand(rec.with_signals(acc_m_s2=compensate_acc(rec.acc_m_s2, th)))
 
@@ -59,8 +59,8 @@ METHODS = {
     "kf_hand": kf_hand,
     "kf_hand, acc. first": _acc_first,
     "kf_hand_joint (default)": lambda r: kf_hand(r, accelerometer="estimate"),
-    "kf_session_r": lambda r: calibrate(r, accelerometer="calibrated"),
-    "kf_joint": lambda r: calibrate(r),
+    "kf_session_r": lambda r: calibrate(r, "kf_session_r"),
+    "kf_joint": lambda r: calibrate(r, "kf_joint"),
 }
 
 

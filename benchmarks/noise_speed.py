@@ -6,7 +6,7 @@ A static record of the ``mpu9250`` gyro's noise terms (white + flicker + random 
 the effect vocabulary), 3 axes.  Rows, interleaved per repeat, CPU time (``time.process_time``:
 on the shared machine the wall clock measures the scheduler), median over the repeats:
 
-* allan — what ``calib allan`` computes: overlapping Allan deviation of 3 axes (allantools) and the
+* allan — what ``calib allan`` computes: overlapping Allan deviation of 3 axes (calib.noise.allan) and the
   IRLS fit of N, B, K;
 * noise — what ``calib noise`` computes: wavelet variance, 32 candidates fitted per axis, WIC, Σ,
   intervals, inflation figure (:func:`calib.noise.identify_noise`).

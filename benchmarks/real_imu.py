@@ -60,7 +60,7 @@ def noise_free() -> str:
             "accelerometer bias max error (m/s²) | status |", "|---|---|---|---|---|---|"]
     for name in ("STEPS", "MULTIPOSE_STEPS"):
         d = ig.generate_arrays(steps=getattr(ig, name), gyro_noise_deg_s=0.0, acc_noise_g=0.0, **RAW)
-        c = calibrate(_rec(d))
+        c = calibrate(_rec(d), "kf_joint")
         e = np.abs(c.parameters() - _truth(d))
         rows.append(
             f"| {name} | {e[3:9].max():.1e} | {e[0:3].max():.1e} | {e[12:18].max():.1e} | {e[9:12].max():.1e} | "
@@ -81,13 +81,13 @@ def mc_independent(seeds: int) -> tuple[str, dict]:
         errs, zs, nees, ref = [], [], [], []
         for s in range(1000, 1000 + seeds):
             d = ig.generate_arrays(seed=s, kin=kin, **DATASHEET, **RAW)
-            c = calibrate(_rec(d), keep_history=False)
+            c = calibrate(_rec(d), "kf_joint", keep_history=False)
             e = c.parameters() - _truth(d)
             errs.append(e)
             zs.append(e / np.sqrt(np.diag(c.covariance)))
             nees.append(e @ np.linalg.solve(c.covariance, e))
             clean = ig.generate_arrays(seed=s, kin=kin, **DATASHEET)
-            cp = calibrate(_rec(clean), accelerometer="calibrated", keep_history=False)
+            cp = calibrate(_rec(clean), "kf_session_r", accelerometer="calibrated", keep_history=False)
             ref.append(np.r_[cp.scale_factor - clean["scale_factor"], cp.nonorthogonality - clean["nonorthogonality"]])
         errs, zs, nees, ref = map(np.array, (errs, zs, nees, ref))
         z = np.sqrt(np.mean(zs**2, axis=0))
@@ -128,7 +128,7 @@ def hands(seeds: int = 5) -> str:
         errs, zs, st = [], [], []
         for seed in range(seeds):
             rec = simulate("zhou2020", hand, "mpu9250_linear", 100.0, seed=seed)
-            c = calibrate(rec, keep_history=False)
+            c = calibrate(rec, "kf_joint", keep_history=False)
             e = c.parameters() - truth_calibration(rec).parameters()
             errs.append(e)
             zs.append(e / np.sqrt(np.diag(c.covariance)))
@@ -266,7 +266,7 @@ def imu_tk() -> str:
     if "imu_tk_xsens" not in available_datasets():
         return "imu_tk's Xsens session is not in the data folder: skipped."
     rec = load_dataset("imu_tk_xsens")
-    cal = calibrate(rec)
+    cal = calibrate(rec, "kf_joint")
     ranges, res, ang = _rest_table(rec, cal)
     mg = res * 1000 / G0
     lines = [
@@ -324,7 +324,7 @@ def broad() -> str:
     for trial in trials:
         rec = load_dataset(trial)
         try:
-            cal = calibrate(rec)
+            cal = calibrate(rec, "kf_joint")
         except GyrosimError as exc:
             lines.append(f"| {trial.split('/')[1]} | refused: {str(exc)[:160]}… | | | | |")
             continue
@@ -364,7 +364,7 @@ def xio() -> str:
     lines = [f"Input: {'; '.join(loaded.report.warnings)}."]
     for mode in ("estimate", "calibrated"):
         try:
-            cal = calibrate(rec, accelerometer=mode)
+            cal = calibrate(rec, ("kf_joint" if mode == "estimate" else "kf_session_r"), accelerometer=mode)
         except GyrosimError as exc:
             lines.append(f"`calib run dataset:xio_fusion --accelerometer {mode}`: refused — {exc}")
             continue

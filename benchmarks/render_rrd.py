@@ -100,7 +100,7 @@ def render(rrd: Path, png: Path, *, size: tuple[int, int] = (1600, 1000), wait_s
             page.goto(url)
             time.sleep(wait_s)
             png.parent.mkdir(parents=True, exist_ok=True)
-            page.screenshot(path=str(png))
+            page.screenshot(path=str(png), timeout=180_000)  # software WebGL on a loaded machine: minutes
             browser.close()
     finally:
         http.shutdown()

@@ -198,6 +198,15 @@ REGISTRY: tuple[Result, ...] = (
            (S("python benchmarks/real_imu.py --part simulated --seeds 60 --gyrosim-seeds 20 "
               "--out {results}/real_imu_simulated.md"),),
            ("real_imu_simulated.md",), 20),
+    Result("false_alarm", "how often calib run's default says not ok while the truth lies within its σ, 50 seeds",
+           (S("python benchmarks/false_alarm.py --seeds 50 --out {results}/false_alarm.json"),),
+           ("false_alarm.json",), 25,
+           note="false_alarm_before.json is the same run on the code before the verdict's rule changed (its stamp "
+                "names that commit); it is an input of the table, not regenerated"),
+    Result("false_alarm_table", "the false-alarm runs as a table, one row each",
+           (S("python benchmarks/false_alarm.py --table {results}/false_alarm_before.json {results}/false_alarm.json "
+              "--markdown {results}/false_alarm.md"),),
+           ("false_alarm.md",), 0.1, inputs=("false_alarm_before.json", "false_alarm.json")),
     Result("measured", "calib run, apply and mag as a user runs them on every measured recording, judged by what "
            "comes next", (S("python -m benchmarks.measured {results}"),), ("measured.json", "measured.md"), 11,
            data=True),

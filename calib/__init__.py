@@ -24,7 +24,6 @@ line).  Old module paths (``calib.handkf``, ``calib.estimators``…) still impor
 Frames: body Right-Forward-Up, navigation East-North-Up; quaternions (w, x, y, z) body→navigation.
 """
 
-from gyrosim.calibration import Calibration
 from gyrosim.exports import lazy_exports
 
 from calib.compat import install as install_moved_modules
@@ -32,6 +31,7 @@ from calib.compat import install as install_moved_modules
 __version__ = "0.1.0"
 
 _EXPORTS = {
+    "Calibration": "gyrosim.calibration",
     "calibrate": "calib.session.paper", "METHODS": "calib.session.paper",
     "load_recording": "calib.inputs", "open_recording": "calib.inputs", "check_recording": "calib.inputs",
     "InputError": "calib.inputs",
@@ -41,6 +41,6 @@ _EXPORTS = {
     "tilt_test": "calib.instruments.tilt",
     "allan_deviation": "calib.noise.allan", "fit_noise_terms": "calib.noise.allan",
 }
-__all__ = ["__version__", "Calibration", *_EXPORTS]
+__all__ = ["__version__", *_EXPORTS]
 lazy_exports(__name__, _EXPORTS)
 install_moved_modules()

@@ -326,7 +326,8 @@ class Calibration:
     def from_dict(cls, d: Mapping[str, Any]) -> "Calibration":
         """Inverse of :meth:`to_dict` (the ``effects`` and ``covariance`` keys are authoritative)."""
         if d.get("format") != CALIBRATION_FORMAT:
-            raise GyrosimError(f"not a calibration file: format {d.get('format')!r}, expected {CALIBRATION_FORMAT!r}")
+            raise GyrosimError(f"not a calibration file: format {d.get('format')!r}, expected {CALIBRATION_FORMAT!r}; "
+                               "pass the JSON calib run --json wrote, or calib demo's report.json")
         version = d.get("version")
         if not isinstance(version, int) or version > CALIBRATION_VERSION or version < 1:
             raise GyrosimError(f"calibration format version {version!r} is not supported (this gyrosim reads 1–"
@@ -351,10 +352,19 @@ class Calibration:
 
     @classmethod
     def from_json(cls, text: str) -> "Calibration":
+        """The calibration in ``text``: a calibration JSON (:meth:`to_json`), or a report that carries one under
+        ``"calibration"`` (``calib demo``'s ``report.json``)."""
         try:
             d = json.loads(text)
         except json.JSONDecodeError as exc:
             raise GyrosimError(f"not a calibration JSON: {exc}") from exc
+        if not isinstance(d, Mapping):
+            raise GyrosimError(f"not a calibration JSON: its top level is a {type(d).__name__}, not an object; pass "
+                               "the JSON calib run --json wrote, or calib demo's report.json")
+        inner = d.get("calibration")
+        if d.get("format") != CALIBRATION_FORMAT and isinstance(inner, Mapping) and \
+                inner.get("format") == CALIBRATION_FORMAT:
+            d = inner  # a report around its calibration (calib demo's report.json)
         return cls.from_dict(d)
 
     @classmethod

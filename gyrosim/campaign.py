@@ -336,6 +336,15 @@ DASK_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": Non
                "distributed.worker.profile.enabled": False}
 
 
+def _require_dask() -> None:
+    """Dask is the ``campaign`` extra: without it, say how to install it or run in this process."""
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError as exc:
+        raise GyrosimError("campaigns on a scheduler run on Dask, which is not installed: pip install "
+                           "'gyrosim-calib[campaign]', or pass --scheduler none to run them in this process") from exc
+
+
 def _local_cluster(n: int):
     import dask
     from dask.distributed import LocalCluster
@@ -403,6 +412,7 @@ def run_tasks(tasks: list, run: Callable[[object], list], rows: list, flush: Cal
             if (i + 1) % 20 == 0:
                 flush()
     else:
+        _require_dask()
         from dask.distributed import as_completed
 
         client, cluster = _client(scheduler, workers, connect_timeout_s)
@@ -534,28 +544,62 @@ def summary_story(summary: list[dict]) -> str:
                      f"{b['rms_S_pct']:.3g} % at {b['ext_acc_rms_m_s2'] * 1000:.0f} mm/s², failed "
                      f"{max(int(r['failed']) for r in rs)}/{max(int(r['n']) for r in rs)} at worst")
     lines.append("; ".join(parts) + ".")
+    same = _same_curves(summary)
+    if same:
+        lines.append("Identical numbers (their lines lie on each other, the first drawn wider): "
+                     + ", ".join(f"{a} = {b}" for a, b in same) + ".")
     return "\n".join(lines)
 
 
-def summary_blueprint(x_span: tuple[float, float], log_range: tuple[float, float] | None):
+def summary_blueprint(x_span: tuple[float, float], log_range: dict | tuple[float, float] | None):
     """One view per error group (S and G on one log10 y range), the failure rate; x = the external
-    acceleration RMS over the whole span of the campaign (a sequence timeline)."""
+    acceleration RMS over the whole span of the campaign (a sequence timeline, so the unit is in each view's name).
+    ``log_range``: the y range by group (``S_pct``, ``G_pct``, ``bias_deg_s``), or one range for S and G."""
     import rerun.blueprint as rrb
 
     from .viewer import Span, series_view, story_blueprint
 
     span = Span(x_span[0], x_span[1], CAMPAIGN_TIMELINE, sequence=True)
-    views = [series_view(f"campaign/log10_rms_{g}", f"log10 {label}", span,
-                         y_range=log_range if g in ("S_pct", "G_pct") else None) for g, label in _GROUPS]
-    views.append(series_view("campaign/failed_pct", "failed or diverged (%)", span, y_range=(-2.0, 102.0)))
+    ranges = log_range if isinstance(log_range, dict) else {"S_pct": log_range, "G_pct": log_range}
+    x = " vs external acc. RMS (mm/s²)"  # the x axis is a sequence timeline: rerun labels it #0 … #N, no unit
+    views = [series_view(f"campaign/log10_rms_{g}", f"log10 {label}{x}", span, y_range=ranges.get(g))
+             for g, label in _GROUPS]
+    views.append(series_view("campaign/failed_pct", f"failed or diverged (%){x}", span, y_range=(0.0, 100.0)))
     return story_blueprint(rrb.Grid(*views, grid_columns=2), timeline=CAMPAIGN_TIMELINE)
+
+
+def _log_ranges(summary: list[dict], min_decades: float = 0.5) -> dict[str, tuple[float, float]]:
+    """The y range of each error group's log10 plot: S and G share one, bias its own; each at least ``min_decades``
+    wide (a factor of 3), so a 5 % change stays a small step instead of filling the plot as a V."""
+    from .viewer import nice_range, shared_range
+
+    def rng(groups: tuple[str, ...]) -> tuple[float, float] | None:
+        v = [np.log10(max(r[f"rms_{g}"], 1e-12)) for r in summary for g in groups if f"rms_{g}" in r]
+        if not v:
+            return None
+        lo, hi = shared_range(v, quantile=0.0, nice=False)
+        mid, half = (lo + hi) / 2, max(hi - lo, min_decades) / 2
+        return nice_range(mid - half, mid + half)
+
+    out = {"S_pct": rng(("S_pct", "G_pct")), "bias_deg_s": rng(("bias_deg_s",))}
+    out["G_pct"] = out["S_pct"]
+    return {k: v for k, v in out.items() if v is not None}
+
+
+def _same_curves(summary: list[dict]) -> list[tuple[str, str]]:
+    """Pairs of estimators whose rows give the same numbers in every cell (one line would hide the other)."""
+    by_est: dict[str, list] = {}
+    for r in sorted(summary, key=lambda r: (r["estimator"], r.get("hand", ""))):
+        by_est.setdefault(r["estimator"], []).append(tuple(r.get(f"rms_{g}") for g, _ in _GROUPS))
+    names = sorted(by_est)
+    return [(a, b) for i, a in enumerate(names) for b in names[i + 1:] if by_est[a] == by_est[b]]
 
 
 def save_summary_rrd(summary: list[dict], path: str | Path) -> Path:
     """``summary.rrd``: the summary's plots (module docstring) with a story; open with ``rerun PATH``."""
     import rerun as rr
 
-    from .viewer import PALETTE, log_story, scalar_style, send_series, shared_range
+    from .viewer import PALETTE, log_story, scalar_style, send_series
 
     path = Path(path)
     stream = rr.RecordingStream("gyrosim_campaign")
@@ -564,11 +608,13 @@ def save_summary_rrd(summary: list[dict], path: str | Path) -> Path:
     x_span = (min(x_all), max(x_all)) if x_all else (0.0, 1.0)
     if x_span[1] - x_span[0] < 1:
         x_span = (x_span[0], x_span[0] + 1.0)
-    logs = [np.log10(max(r[f"rms_{g}"], 1e-12)) for r in summary for g in ("S_pct", "G_pct") if f"rms_{g}" in r]
-    stream.send_blueprint(summary_blueprint(x_span, shared_range(logs, quantile=0.0) if logs else None))
+    stream.send_blueprint(summary_blueprint(x_span, _log_ranges(summary)))
     log_story(stream, summary_story(summary))
-    for k, est in enumerate(sorted({r["estimator"] for r in summary})):
+    ests = sorted({r["estimator"] for r in summary})
+    for k, est in enumerate(ests):
         colour = PALETTE[k % len(PALETTE)]  # the same colour for an estimator in every view
+        # drawn first is widest: an estimator with the same numbers as another stays visible around it
+        width = 2.0 + 2.0 * (len(ests) - 1 - k)
         # one curve per estimator: the hands (and their severities) are points along the x axis
         ok = sorted([r for r in summary if r["estimator"] == est and "ext_acc_rms_m_s2" in r and "rms_S_pct" in r],
                     key=lambda r: r["ext_acc_rms_m_s2"])
@@ -577,11 +623,11 @@ def save_summary_rrd(summary: list[dict], path: str | Path) -> Path:
         x = np.array([r["ext_acc_rms_m_s2"] * 1000.0 for r in ok])
         for g, _ in _GROUPS:
             p = f"campaign/log10_rms_{g}/{_segment(est)}"
-            scalar_style(stream, p, est, colour, width=2.0)
+            scalar_style(stream, p, est, colour, width=width)
             send_series(stream, p, x, np.log10(np.maximum([r[f"rms_{g}"] for r in ok], 1e-12)), CAMPAIGN_TIMELINE,
                         sequence=True)
         p = f"campaign/failed_pct/{_segment(est)}"
-        scalar_style(stream, p, est, colour, width=2.0)
+        scalar_style(stream, p, est, colour, width=width)
         send_series(stream, p, x, [100.0 * r["failed"] / r["n"] for r in ok], CAMPAIGN_TIMELINE, sequence=True)
     stream.flush()
     return path
@@ -628,6 +674,7 @@ def _plot(summary: list[dict], path: Path) -> None:
 def bench_scaling(sessions: int = 12, spec: CampaignSpec | None = None) -> list[dict]:
     """Sessions per second in-process, on a 1-worker and a 2-worker LocalCluster, same tasks, same run
     (the clusters are started before timing; each timing covers submit → last result)."""
+    _require_dask()
     from dask.distributed import Client, wait
 
     spec = spec or CampaignSpec(hands=("typical",), seeds=sessions, estimators=("kf",), calibrated_accelerometer=True)

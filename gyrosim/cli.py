@@ -10,15 +10,10 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from . import __version__
 from .cliargs import integer, number, positive_list, seed
 from .errors import GyrosimError
-from .hand import hand_preset_names, load_hand
 from .outputs import check_output_paths
-from .recording import save_hdf5
-from .schedule import builtin_schedule_names, load_schedule
 
 MAX_RATE_HZ = 1e6  # beyond any IMU; a larger --rate is a typo, and would only exhaust memory
 
@@ -33,9 +28,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     recording; prints what was written and the hand's disturbance RMS (m/s², °/s)."""
     from tqdm import tqdm
 
-    from .magnetic import environment_from_text
+    from .hand import load_hand
+    from .magnetic import attached_magnet_from_text, environment_from_text
+    from .recording import save_hdf5
+    from .schedule import load_schedule
     from .sensor_model import load_sensor
-    from .simulate import simulate, simulation_grid
+    from .simulate import simulate, simulation_grid, with_attached_magnet
 
     out = Path(args.out)
     _check_writable(out, args.schedule, args.hand, args.sensor)  # fail before minutes of simulation, not after
@@ -43,6 +41,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     hand = load_hand(args.hand)
     sensor = load_sensor(args.sensor) if args.sensor else None
     magnetic = environment_from_text(args.mag_field, args.location, args.anomaly or ())
+    if args.attach_magnet:
+        if sensor is None:
+            raise GyrosimError("--attach-magnet needs a sensor with a magnetometer (e.g. --sensor mpu9250_9axis)")
+        sensor = with_attached_magnet(sensor, attached_magnet_from_text(args.attach_magnet))
     grid = simulation_grid(schedule.duration_s, args.rate, args.physics_rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating", disable=args.quiet, leave=False) as bar:
         rec = simulate(
@@ -65,6 +67,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_hands(args: argparse.Namespace) -> int:
     """List the hand presets with the external acceleration (m/s²) and rate disturbance (°/s) each is
     expected to produce over a schedule, smallest first."""
+    from .hand import hand_preset_names, load_hand
+    from .schedule import load_schedule
+
     schedule = load_schedule(args.schedule)
     print(f"hand presets on schedule {schedule.name} (expected RMS over the session)")
     print(f"{'preset':<9} {'ext acc m/s²':>13} {'of which pivot':>15} {'rate dist °/s':>14}  description")
@@ -81,6 +86,8 @@ def cmd_hands(args: argparse.Namespace) -> int:
 
 def cmd_schedules(args: argparse.Namespace) -> int:
     """List the built-in schedules (duration, segments, description); ``--show`` prints one as JSON."""
+    from .schedule import builtin_schedule_names, load_schedule
+
     for name in builtin_schedule_names():
         s = load_schedule(name)
         print(f"{name:<14} {s.duration_s:7.1f} s  {len(s.segments):3d} segments  {s.description}")
@@ -120,6 +127,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 def cmd_chamber(args: argparse.Namespace) -> int:
     """A board fixed in a thermal chamber for a whole profile (gyrosim.chamber.simulate_chamber)."""
     from .chamber import load_chamber, simulate_chamber
+    from .recording import save_hdf5
 
     out = Path(args.out)
     _check_writable(out, args.profile, args.sensor)
@@ -137,6 +145,7 @@ def cmd_ratetable(args: argparse.Namespace) -> int:
     inside a chamber profile (``calib ratetable`` analyses the recording)."""
     from .chamber import load_chamber
     from .ratetable import RateTableSequence, simulate_rate_table
+    from .recording import save_hdf5
 
     out = Path(args.out)
     _check_writable(out, args.profile, args.sensor)
@@ -169,6 +178,7 @@ def cmd_northfind(args: argparse.Namespace) -> int:
     """A north-finding (gyrocompassing) record on the virtual indexing table (gyrosim.northfind; ``calib northfind``
     analyses it)."""
     from .northfind import NorthFindSequence, shielded, simulate_northfind
+    from .recording import save_hdf5
     from .sensor_model import load_sensor
 
     out = Path(args.out)
@@ -190,6 +200,9 @@ def cmd_northfind(args: argparse.Namespace) -> int:
 def cmd_tilttable(args: argparse.Namespace) -> int:
     """The static tilt-sensor test of "Static Capacitance Test of MEMS Tilt Sensor" on a dividing head
     (gyrosim.tilttable; ``calib tilt`` analyses the recording)."""
+    import numpy as np
+
+    from .recording import save_hdf5
     from .tilttable import SEED_001_ANGLES_DEG, TiltSequence, simulate_tilttable
 
     out = Path(args.out)
@@ -380,6 +393,12 @@ def _add_sessions(sub) -> None:
         "--anomaly",
         action="append",
         help="ferrous sphere X,Y,Z,RADIUS_M in the room (m, ENU; the hand starts at 0.18,0.30,1.15); repeatable",
+    )
+    s.add_argument(
+        "--attach-magnet",
+        metavar="T_ON,HX,HY,HZ[,T_OFF]",
+        help="a magnet attached to the board at T_ON s (taken off at T_OFF s): a hard iron HX,HY,HZ µT (body frame) "
+             "that switches on; needs a --sensor with a magnetometer",
     )
     s.add_argument("--quiet", action="store_true", help="no progress bar and no summary line")
     s.set_defaults(func=cmd_simulate)

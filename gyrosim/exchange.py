@@ -11,8 +11,11 @@ each triad, the convention of :class:`gyrosim.effects.WhiteNoise` / :class:`gyro
 * ``update_rate`` (Hz) and ``rostopic``.
 
 A calibration carries the white-noise densities it measured at rest; the random walks a 3-minute
-session cannot measure (they need an Allan deviation over hours, ``calib allan``): the export takes
-them from the calibration if it has ``random_walk`` effects, else from the caller, else refuses.
+session cannot measure (they need an Allan deviation over hours, ``calib allan``).  Each of the four
+numbers is taken, first found: from the caller's value for it (``calib export --gyro-random-walk`` …),
+from ``noise`` (Kalibr's four keys as ``calib allan --json`` measured them on a long static record of
+the same IMU, ``calib export --noise``), from the calibration's own ``white_noise`` / ``random_walk``
+effects; a number none of them has is refused, saying where to get it.
 Kalibr's own advice is to inflate the values for real-world use; nothing is inflated here.  Kalibr's
 imu.yaml has no place for scale factor or axis errors (its camera–IMU calibration estimates its own);
 they are written as comments so the file stays one a Kalibr run accepts.
@@ -28,7 +31,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -50,29 +53,36 @@ def _density(cal: Calibration, triad: str, kind: str, field: str) -> float | Non
 
 
 def kalibr_imu_yaml(cal: Calibration, update_rate_hz: float, *, rostopic: str = "/imu0",
-                    gyro_random_walk: float | None = None, acc_random_walk: float | None = None) -> str:
-    """Kalibr's ``imu.yaml`` for ``cal`` (module docstring; densities averaged over the three axes)."""
+                    gyro_random_walk: float | None = None, acc_random_walk: float | None = None,
+                    noise: Mapping[str, float | None] | None = None) -> str:
+    """Kalibr's ``imu.yaml`` for ``cal`` (module docstring; densities averaged over the three axes).
+    ``noise``: Kalibr's four keys (SI, None for a number not measured), e.g. from ``calib allan --json``; the two
+    random walks given as arguments win over it, and it wins over the calibration's own noise effects."""
     if not (math.isfinite(update_rate_hz) and update_rate_hz > 0):
         raise GyrosimError(f"update rate must be a positive number of Hz, got {update_rate_hz}")
-    gn = _density(cal, "gyro", "white_noise", "density")
-    an = _density(cal, "accelerometer", "white_noise", "density")
-    grw = gyro_random_walk if gyro_random_walk is not None else _density(cal, "gyro", "random_walk", "value")
-    arw = acc_random_walk if acc_random_walk is not None else _density(cal, "accelerometer", "random_walk", "value")
-    missing = [
-        n
-        for n, v in (
-            ("gyro white noise", gn),
-            ("accelerometer white noise", an),
-            ("--gyro-random-walk (rad/s²/√Hz)", grw),
-            ("--acc-random-walk (m/s³/√Hz)", arw),
-        )
-        if v is None
-    ]
+    noise = dict(noise or {})
+    given = {"gyroscope_random_walk": gyro_random_walk, "accelerometer_random_walk": acc_random_walk}
+    own = {"gyroscope_noise_density": ("gyro", "white_noise", "density"),
+           "accelerometer_noise_density": ("accelerometer", "white_noise", "density"),
+           "gyroscope_random_walk": ("gyro", "random_walk", "value"),
+           "accelerometer_random_walk": ("accelerometer", "random_walk", "value")}
+    values: dict[str, float | None] = {}
+    for key, where in own.items():
+        picks = (given.get(key), noise.get(key), _density(cal, *where))
+        values[key] = next((float(v) for v in picks if v is not None), None)
+    gn, an = values["gyroscope_noise_density"], values["accelerometer_noise_density"]
+    grw, arw = values["gyroscope_random_walk"], values["accelerometer_random_walk"]
+    how = {"gyroscope_noise_density": "gyro white noise density (rad/s/√Hz)",
+           "accelerometer_noise_density": "accelerometer white noise density (m/s²/√Hz)",
+           "gyroscope_random_walk": "gyro random walk (rad/s²/√Hz; or --gyro-random-walk)",
+           "accelerometer_random_walk": "accelerometer random walk (m/s³/√Hz; or --acc-random-walk)"}
+    missing = [how[k] for k, v in values.items() if v is None]
     if missing:
         raise GyrosimError(
-            f"a Kalibr imu.yaml needs {', '.join(missing)}; the calibration does not carry it: a session "
-            "of minutes cannot measure a bias random walk — take it from an Allan deviation of a long "
-            "static recording (calib allan) or the datasheet and pass it"
+            f"a Kalibr imu.yaml needs the {', '.join(missing)}, which neither the calibration nor the noise file "
+            "carries: a session of minutes cannot measure a bias random walk — measure it on a static recording of "
+            "an hour or more (calib allan REC --json noise.json, then calib export --noise noise.json) or take it "
+            "from the datasheet and pass it"
         )
     lines = [
         "# IMU noise model for Kalibr (https://github.com/ethz-asl/kalibr/wiki/IMU-Noise-Model)",

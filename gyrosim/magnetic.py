@@ -13,6 +13,9 @@
   so the field changes as the hand moves the board around: the disturbance a calibration must
   report, not absorb.  A soft-iron sphere of radius a in a uniform field B₀ (μ_r ≫ 1) carries the
   induced moment m = 4π a³ B₀ / μ₀ (Jackson §5.11): :meth:`Dipole.ferrous_sphere`.
+* **A magnet attached to the board** is the other case: its field turns with the board — a hard
+  iron that switches on (:class:`gyrosim.effects.AttachedMagnet`, a sensor effect;
+  :func:`attached_magnet_from_text` reads it from the command line).
 
 MuJoCo's ``magnetometer`` sensor reads the uniform part (``option/magnetic``, tesla, world frame)
 in the site frame; :meth:`MagneticEnvironment.anomaly_nav_ut` adds the rest at the site positions.
@@ -29,7 +32,8 @@ import numpy as np
 
 from .errors import GyrosimError
 
-__all__ = ["Dipole", "MagneticEnvironment", "DEFAULT_EARTH_FIELD_ENU_UT", "wmm_field_enu_ut", "environment_from_text"]
+__all__ = ["Dipole", "MagneticEnvironment", "DEFAULT_EARTH_FIELD_ENU_UT", "wmm_field_enu_ut", "environment_from_text",
+           "attached_magnet_from_text"]
 
 MU0_OVER_4PI = 1e-7  # T·m/A
 MU0 = 4 * math.pi * MU0_OVER_4PI
@@ -229,3 +233,17 @@ def environment_from_text(field_enu_ut: str | None = None, location: str | None 
             raise GyrosimError(f"anomaly {a!r}: four numbers X,Y,Z (m, ENU) and RADIUS_M") from exc
         dips.append(Dipole.ferrous_sphere([x, y, z], r, env.earth_enu_ut, label=f"ferrous sphere r={r:g} m"))
     return MagneticEnvironment(env.earth_enu_ut, tuple(dips), env.source)
+
+
+def attached_magnet_from_text(text: str):
+    """An :class:`gyrosim.effects.AttachedMagnet` from ``gyrosim simulate --attach-magnet``'s text
+    "T_ON,HX,HY,HZ[,T_OFF]": attached at T_ON s (taken off at T_OFF s, else it stays), its field
+    HX,HY,HZ in µT in the body frame (right, forward, up)."""
+    from .effects import AttachedMagnet
+
+    parts = _numbers(text, "attached magnet", (4, 5))
+    try:
+        vals = [float(v) for v in parts]
+    except ValueError as exc:
+        raise GyrosimError(f"attached magnet {text!r}: T_ON,HX,HY,HZ[,T_OFF] — numbers in s and µT") from exc
+    return AttachedMagnet(value=vals[1:4], t_on_s=vals[0], t_off_s=vals[4] if len(vals) == 5 else None)

@@ -26,11 +26,14 @@ from typing import Any
 
 import numpy as np
 
-from ._kernels import add_affine, add_upsampled
 from ._presets import builtin_names, load_named_toml
 from .effects import EFFECTS, Effect, SignalContext, effect_from_dict
 from .errors import GyrosimError, PresetError
+from .lazy import lazy_module
 from .thermal import ThermalModel
+
+# imported on first use (gyrosim.lazy), so that start-up and a refused file do not pay for it
+kern = lazy_module("gyrosim._kernels")
 
 __all__ = ["SensorModel", "load_sensor", "sensor_preset_names", "stored_sensor_model", "TRIADS"]
 
@@ -98,7 +101,7 @@ class SensorModel:
             factor = int(step // ctx.dt_s) if step is not None else 1
             if factor >= 4:  # slow process: draw on a coarse grid, interpolate linearly (Effect.coarse_step_s)
                 coarse = e.delta_on_grid((x.shape[0] - 1) // factor + 2, factor * ctx.dt_s, r)
-                add_upsampled(y, np.ascontiguousarray(coarse), factor)
+                kern.add_upsampled(y, np.ascontiguousarray(coarse), factor)
             else:
                 e.add_delta(y, x, ctx, r)
         # constant affine effects (bias, scale, non-orthogonality, misalignment): one pass
@@ -106,7 +109,7 @@ class SensorModel:
         if affine:
             a_sum = sum(a for _, (a, _) in affine)
             c_sum = sum(c for _, (_, c) in affine)
-            add_affine(y, x, np.asarray(a_sum, float), np.asarray(c_sum, float))
+            kern.add_affine(y, x, np.asarray(a_sum, float), np.asarray(c_sum, float))
         grouped = {id(e) for e, _ in affine}
         for e, r in error:  # the other pointwise effects: one in-place pass each (gyrosim._kernels)
             if e.pointwise and id(e) not in grouped:

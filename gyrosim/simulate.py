@@ -28,10 +28,11 @@ from .scene import ArmPose, HandScene
 from .schedule import Schedule, load_schedule
 
 if TYPE_CHECKING:
-    from .effects import SignalContext
+    from .effects import Effect, SignalContext
     from .sensor_model import SensorModel
 
-__all__ = ["SimulationGrid", "simulation_grid", "simulate_truth", "simulate", "apply_sensor", "EARTH_FIELD_ENU_UT"]
+__all__ = ["SimulationGrid", "simulation_grid", "simulate_truth", "simulate", "apply_sensor", "with_attached_magnet",
+           "EARTH_FIELD_ENU_UT"]
 
 # Default geomagnetic field at the simulated site (µT, ENU): 48° N, central Europe (WMM-class
 # values: 20 µT north, 44 µT down); a session may set its own (gyrosim.magnetic).
@@ -302,6 +303,18 @@ def apply_sensor(
     meta["sensor_model"] = device.to_json()
     meta["sensor"] = device.name
     return with_temp.with_signals(gyro_rad_s=gyro, acc_m_s2=acc, mag_ut=mag, meta=meta)
+
+
+def with_attached_magnet(sensor: "SensorModel", magnet: "Effect") -> "SensorModel":
+    """``sensor`` with a magnet attached to the board part of the session: its magnetometer's effects
+    and ``magnet`` (an :class:`gyrosim.effects.AttachedMagnet`) appended last, so the device's other
+    draws and noise stay those of the sensor alone.  A sensor without a magnetometer is refused."""
+    from dataclasses import replace
+
+    if not sensor.has_magnetometer:
+        raise GyrosimError(f"sensor {sensor.name!r} has no magnetometer: an attached magnet needs a 9-axis sensor "
+                           "(e.g. --sensor mpu9250_9axis)")
+    return replace(sensor, magnetometer=sensor.magnetometer + (magnet,))
 
 
 def simulate(

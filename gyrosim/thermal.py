@@ -16,9 +16,12 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
-from scipy import signal as sp_signal
 
 from .errors import GyrosimError
+from .lazy import lazy_module
+
+# imported on first use (gyrosim.lazy), so that start-up and a refused file do not pay for it
+sp_signal = lazy_module("scipy.signal")
 
 __all__ = ["ThermalModel"]
 

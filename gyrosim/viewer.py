@@ -11,7 +11,10 @@ from these helpers:
   ``VisibleTimeRanges``) *and* x axis (``TimeAxis.view_range``) are an absolute span, by default the
   whole recording (:class:`Span`), with an optional fixed y range;
 * :func:`shared_range` — one robust y range for series a person compares (quantiles, so a single
-  spike does not flatten the rest);
+  spike does not flatten the rest), rounded outward to a step rerun labels (:func:`nice_range`: 1, 2 or 5
+  × 10ⁿ, 4–10 steps), so the axis shows several labelled values, not one;
+* :func:`free_corner` — the legend's corner: the one whose quarter of the plot holds the fewest samples,
+  so the legend does not cover the data (e.g. the end of a run, where estimates meet the truth);
 * :func:`log10_floor` — √P spans decades and rerun 0.41's plots have no log axis, so we log
   ``log10 √P`` beside the linear value;
 * :func:`log_bars` — y against a quantity other than time (bar chart with abscissa);
@@ -48,12 +51,15 @@ import rerun.blueprint as rrb
 
 __all__ = ["TIMELINE", "STORY_PATH", "Span", "ViewInfo", "series_view", "shared_range", "log10_floor", "log_marks",
            "board_eye", "board_view", "log_story", "story_view", "story_blueprint", "read_blueprint", "read_texts",
-           "send_series", "scalar_style", "log_bars", "PALETTE"]
+           "send_series", "scalar_style", "log_bars", "PALETTE", "nice_range", "free_corner", "TRUTH_COLOUR",
+           "read_series_styles"]
 
 TIMELINE = "sensor_time"
 STORY_PATH = "story"
 PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
            (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]  # matplotlib's tab10: one colour per name
+# a true value drawn beside its estimate: dark grey, never one of the estimates' colours
+TRUTH_COLOUR = (60, 60, 60)
 MARK_COLOURS = {"rest": (40, 170, 80), "event": (230, 60, 40), "held_out": (120, 120, 220), "disturbed": (230, 40, 40)}
 
 
@@ -102,11 +108,43 @@ def series_view(origin: str, name: str, span: Span, *, contents: Sequence[str] |
                               **kw)
 
 
+def nice_range(lo: float, hi: float, steps: int = 5) -> tuple[float, float]:
+    """[lo, hi] widened to whole multiples of a round step (1, 2 or 5 × 10ⁿ, about ``steps`` of them): the
+    y axis then carries several labelled values (a range like 0.98731…1.01262 gets one label or none)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+        return (lo, hi)
+    raw = (hi - lo) / steps
+    mag = 10.0 ** math.floor(math.log10(raw))
+    step = next(m * mag for m in (1.0, 2.0, 5.0, 10.0) if m * mag >= raw * (1 - 1e-9))
+    digits = max(0, 1 - math.floor(math.log10(step)))  # the step's decimals, so 3e-05 is not 2.9999999999999997e-05
+    a, b = math.floor(lo / step + 1e-9) * step, math.ceil(hi / step - 1e-9) * step
+    return (round(float(a), digits), round(float(b), digits))
+
+
+def free_corner(t: np.ndarray, values: np.ndarray, span: "Span", y_range: tuple[float, float]) -> str:
+    """The corner ("LeftTop", "RightTop", "LeftBottom", "RightBottom") whose box — a third of the width, 40 % of
+    the height of the plot of ``span`` × ``y_range`` — holds the fewest of the samples ``values`` (N,) or (N, k)
+    at times ``t`` (N,): where the legend covers the least data.  Ties keep the order above."""
+    t = np.asarray(t, float)
+    v = np.asarray(values, float).reshape(t.size, -1)
+    x = (t - span.start) / max(span.end - span.start, 1e-300)
+    y = (v - y_range[0]) / max(y_range[1] - y_range[0], 1e-300)
+    ok = np.isfinite(y)
+    counts = {}
+    for name, left, top in (("LeftTop", True, True), ("RightTop", False, True), ("LeftBottom", True, False),
+                            ("RightBottom", False, False)):
+        in_x = (x <= 1 / 3) if left else (x >= 2 / 3)
+        in_y = (y >= 0.6) if top else (y <= 0.4)
+        counts[name] = int(np.sum(ok & in_y & in_x[:, None]))
+    return min(counts, key=counts.get)
+
+
 def shared_range(*arrays: np.ndarray | Iterable[float], quantile: float = 0.001, pad: float = 0.08,
-                 include: Iterable[float] = ()) -> tuple[float, float]:
+                 include: Iterable[float] = (), nice: bool = True) -> tuple[float, float]:
     """One y range for several series: the [q, 1−q] quantiles of all finite values together (so one
     spike does not squash the rest), widened by ``pad`` of the width on each side, and always
-    containing ``include`` (e.g. the true value).  Never zero width."""
+    containing ``include`` (e.g. the true value), then rounded outward to round steps (:func:`nice_range`;
+    ``nice=False`` keeps the exact range).  Never zero width."""
     vals = [np.asarray(a, float).ravel() for a in arrays]
     v = np.concatenate(vals + [np.asarray(list(include), float)]) if vals or include else np.zeros(1)
     v = v[np.isfinite(v)]
@@ -120,7 +158,8 @@ def shared_range(*arrays: np.ndarray | Iterable[float], quantile: float = 0.001,
     w = hi - lo
     if w <= 0:
         w = max(abs(lo), 1.0) * 0.1
-    return (lo - pad * w, hi + pad * w)
+    out = (lo - pad * w, hi + pad * w)
+    return nice_range(*out) if nice else out
 
 
 def log10_floor(x: np.ndarray, floor: float = 1e-15) -> np.ndarray:
@@ -187,14 +226,19 @@ def board_eye(board_m: np.ndarray, context_m: np.ndarray | None = None, *, eleva
     """A camera on the board: it looks at the board's median position from the side of the arm
     (perpendicular to the horizontal line from the context point — the shoulder — to the board, so the
     arm runs across the view toward the board) and ``elevation_deg`` above, at ``fill`` × the radius of
-    the board's path (95 % quantile, clipped to [``min_radius_m``, ``max_radius_m``]): the board is
-    large in the view and the arm is seen near it.  With ``tracking_entity`` (the board's entity) the
-    camera follows the board, for paths longer than the clipped radius.  Frame: nav ENU (z up), metres."""
+    the board's path (95 % quantile, at least ``min_radius_m``): a hand-held session's board (a path within
+    ``max_radius_m``) is large in the view with the arm near it; a board carried further (a measured
+    session walking ±0.6 m) is framed with all of its path (from 1.25 × as far: every position within 25° of
+    the view axis), so it is in view wherever the time cursor is — the viewer's tracking (``tracking_entity``,
+    also set) did not move the camera in rerun 0.41's web viewer.  Frame: nav ENU (z up), metres."""
     board_m = np.atleast_2d(np.asarray(board_m, float))
     board_m = board_m[np.all(np.isfinite(board_m), axis=1)]
     centre = np.median(board_m, axis=0) if board_m.size else np.zeros(3)
     spread = float(np.quantile(np.linalg.norm(board_m - centre, axis=1), 0.95)) if board_m.size else 0.0
-    radius = min(max_radius_m, max(min_radius_m, spread))
+    if spread > max_radius_m:  # all of the path: its farthest point from the centre
+        radius = 1.25 * float(np.max(np.linalg.norm(board_m - centre, axis=1)))
+    else:
+        radius = min(max_radius_m, max(min_radius_m, spread))
     side = np.array([-1.0, -1.0, 0.0])
     if context_m is not None:
         d = centre - np.atleast_2d(np.asarray(context_m, float))[0]
@@ -250,7 +294,8 @@ class ViewInfo:
     "Spatial3D", "TextDocument", ...); ``time_ranges`` maps a timeline to its absolute (start, end)
     (seconds for a duration timeline, raw integers for a sequence: see ``sequence``); ``x_range`` the
     x-axis view range in the same units; ``y_range`` the fixed y range or None; ``eye`` the 3-D
-    camera's (position, look_target, tracked entity or None) or None."""
+    camera's (position, look_target, tracked entity or None) or None; ``legend_corner`` the plot legend's corner
+    ("LeftTop", …) or None."""
 
     kind: str
     name: str
@@ -260,6 +305,7 @@ class ViewInfo:
     x_range: tuple | None = None
     y_range: tuple | None = None
     eye: tuple | None = None
+    legend_corner: str | None = None
 
 
 def _store_chunks(path: Path, blueprint: bool):
@@ -321,6 +367,8 @@ def read_blueprint(path: str | Path, sequence_timelines: Iterable[str] = ()) -> 
                 v["eye_target"] = tuple(val[0])
             elif k == "EyeControls3D:tracking_entity":
                 v["eye_tracking"] = val[0]
+            elif k == "PlotLegend:corner":
+                v["legend_corner"] = rrb.components.Corner2D(val[0]).name
     out = []
     for v in views.values():
         if "kind" not in v:
@@ -336,7 +384,7 @@ def read_blueprint(path: str | Path, sequence_timelines: Iterable[str] = ()) -> 
         eye = (v["eye_position"], v["eye_target"], v.get("eye_tracking")) if "eye_position" in v and "eye_target" in v \
             else None
         out.append(ViewInfo(v["kind"], v.get("name", ""), v.get("origin", ""), v.get("contents", ()), time_ranges,
-                            conv(tl0, x) if x is not None else None, v.get("y_range"), eye))
+                            conv(tl0, x) if x is not None else None, v.get("y_range"), eye, v.get("legend_corner")))
     return out
 
 
@@ -349,4 +397,26 @@ def read_texts(path: str | Path) -> dict[str, str]:
             col = rb.column("TextDocument:text").to_pylist()
             if col and col[-1]:
                 out[chunk.entity_path.strip("/")] = col[-1][0]
+    return out
+
+
+def read_series_styles(path: str | Path) -> dict[str, tuple[str | None, tuple[int, ...] | None, float | None]]:
+    """Every series' legend name, colour (RGB) and line width in the recording store of an .rrd: entity path →
+    (name, colour, width); None where the writer left it to the viewer."""
+    out = {}
+    for chunk in _store_chunks(Path(path), blueprint=False):
+        rb = chunk.to_record_batch()
+        cols = set(rb.schema.names)
+        for prefix in ("SeriesLines", "SeriesPoints"):
+            names, colours, widths = f"{prefix}:names", f"{prefix}:colors", f"{prefix}:widths"
+            if names in cols or colours in cols:
+                def last(col: str):
+                    v = rb.column(col).to_pylist()[-1] if col in cols else None
+                    return v[0] if v else None
+
+                rgba = last(colours)
+                width = last(widths)
+                out[chunk.entity_path.strip("/")] = (
+                    last(names), tuple((int(rgba) >> sh) & 0xFF for sh in (24, 16, 8)) if rgba is not None else None,
+                    float(width) if width is not None else None)
     return out

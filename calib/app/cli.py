@@ -10,17 +10,18 @@ with the one table of :data:`gyrosim.cli.EXIT_CODES` (0 ok, 1 done but not ok, 2
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 from gyrosim.cli import EXIT_CODES_HELP, run_cli
 
 from calib import __version__
-from calib.app.commands import closeloop, instruments, lab, mag, noise, session, temperature
 
 __all__ = ["build_parser", "main"]
 
-# the command groups in the order of calib --help (lab last)
-GROUPS = (session, noise, temperature, closeloop, mag, instruments, lab)
+# the command groups (modules of calib.app.commands) in the order of calib --help (lab last); imported when the
+# parser is built, so that ``calib --version`` answers from this module alone
+GROUPS = ("session", "noise", "temperature", "closeloop", "mag", "instruments", "lab")
 
 
 class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -44,13 +45,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"calib {__version__}")
     sub = p.add_subparsers(dest="command", required=True, title="commands", metavar="COMMAND")
     for group in GROUPS:
-        group.add_parsers(sub)
+        importlib.import_module(f"calib.app.commands.{group}").add_parsers(sub)
     return p
 
 
 def _moved(argv: list[str]) -> list[str]:
     """``argv`` with a former top-level spelling of a lab command (``calib montecarlo``) moved under ``lab``,
     saying so on stderr."""
+    from calib.app.commands import lab
+
     if argv and argv[0] in lab.COMMANDS:
         print(f"warning: calib {argv[0]} is deprecated: use calib lab {argv[0]} (the same command; research and "
               "benchmark commands live under calib lab)", file=sys.stderr)
@@ -62,6 +65,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run the ``calib`` command line on ``argv`` (default ``sys.argv[1:]``) and return its exit code
     (:func:`gyrosim.cli.run_cli`)."""
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv == ["--version"]:  # the one answer that needs no parser (and so none of the commands' imports)
+        print(f"calib {__version__}")
+        return 0
     return run_cli(build_parser(), _moved(argv))
 
 

@@ -38,13 +38,14 @@ def run_demo(
     rate_hz: float = 100.0,
     seed: int = 1,
     accelerometer: str = "estimate",
+    method: str | None = None,
     progress: Callable[[int], None] | None = None,
     log: Callable[[str], None] = lambda msg: None,
 ) -> DemoResult:
-    """Simulate ``schedule`` × ``hand`` × ``sensor`` (seed ``seed``), calibrate it with the paper-family joint filter
-    (:func:`calib.session.paper.calibrate`, ``kf_joint``: Zhou's Figures 2–3 on the paper's sensor; ``calib run``'s
-    default is the hand-aware filter (docs/hand.md) — with this preset's noise the two agree in S, G, and the filter's
-    own gyro bias is 3× tighter than the rest mean the hand-aware one reports, measured on seed 1), validate the
+    """Simulate ``schedule`` × ``hand`` × ``sensor`` (seed ``seed``), calibrate it with ``method`` (a registered name;
+    None: ``calib run``'s default, :func:`calib.session.defaults.default_method` — the hand-aware ``kf_hand_joint``,
+    ``kf_hand`` with ``accelerometer="calibrated"``; the demo ran the hand-blind ``kf_joint`` before, which
+    ``method="kf_joint"`` still does: Zhou's Figures 2–3 on the paper's sensor), validate the
     attitude on the free-style session of seed + 1000 (:func:`calib.session.validation.validate_attitude`), and write
     :data:`DEMO_FILES` into ``out`` (created).  ``progress(physics_steps)`` follows the simulation; ``log(text)`` the
     stages."""
@@ -56,6 +57,7 @@ def run_demo(
 
     from calib.app.report import write_session_report
     from calib.app.rerun import save_calibration_rrd
+    from calib.session.defaults import default_method
     from calib.session.paper import calibrate, true_gyro_parameters
     from calib.session.validation import validate_attitude
 
@@ -64,8 +66,9 @@ def run_demo(
     sched, hnd, model = load_schedule(schedule), load_hand(hand), load_sensor(sensor)
     rec = simulate(sched, hnd, model, rate_hz, seed=seed, progress=progress)
     rec_path = save_hdf5(rec, out / "session.h5")
-    log(f"calibrating {rec.n} samples (Zhou 2020 filter) …")
-    result = calibrate(rec, accelerometer=accelerometer)   # kf_joint, or kf_session_r with it calibrated
+    name = method or default_method(accelerometer)
+    log(f"calibrating {rec.n} samples ({name}) …")
+    result = calibrate(rec, name, accelerometer=accelerometer)
     truth = true_gyro_parameters(rec)
     log("validating the attitude on a free-style session of the same device …")
     validation = validate_attitude(rec, result, hand=hnd.name, seed=seed + 1000)

@@ -12,6 +12,8 @@ import numpy as np
 from gyrosim.outputs import write_json_atomic
 from gyrosim.recording import Recording
 
+from calib.session.defaults import method_label
+
 __all__ = ["write_session_report", "plot_convergence"]
 
 
@@ -40,7 +42,7 @@ def plot_convergence(result, truth: dict | None, path: Path) -> Path:
         axes[row, 0].legend(fontsize=8)
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
-    fig.suptitle("Zhou 2020 filter: estimates (dashed: truth) and √P")
+    fig.suptitle(f"{method_label(result.method)}: estimates (dashed: truth) and √P")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -76,8 +78,8 @@ def write_session_report(out: Path, rec: Recording, result, truth: dict | None, 
         "",
         f"{rec.n} samples at {rec.rate_hz:g} Hz ({rec.duration_s:.1f} s) simulated in MuJoCo (`session.h5`), "
         "calibrated with "
-        f"the Zhou 2020 filter (method `{result.method}`). Open `session.rrd` with `rerun session.rrd` to watch P "
-        "converge.",
+        f"the {method_label(result.method)} (method `{result.method}`). Open `session.rrd` with `rerun session.rrd` "
+        "to watch P converge.",
         "",
         "## What the hand did",
         "",

@@ -11,7 +11,8 @@ Timeline ``sensor_time`` (s, the recording's own clock).  Entities:
 * ``calib/estimate/{S,G}/{x,y,z}``: the estimates; ``calib/estimate/{S,G}/{x,y,z}_true``: the true
   values as flat lines when the recording knows them (simulation); ``calib/estimate/{ba,Sa,Ga}``
   the accelerometer's;
-* ``calib/nis``: normalised innovation squared of the two attitude rows (expected 2).
+* ``calib/nis``: normalised innovation squared of the attitude update (expected: its rows, 2 or 3), at the steps
+  with an update (NaN steps left out, so the values join up).
 """
 
 from __future__ import annotations
@@ -24,16 +25,23 @@ import rerun.blueprint as rrb
 
 from gyrosim.recording import Recording
 from gyrosim.viewer import (
+    PALETTE,
+    TRUTH_COLOUR,
     Span,
     board_eye,
     board_view,
+    free_corner,
     log10_floor,
     log_marks,
     log_story,
+    nice_range,
+    scalar_style,
     series_view,
     shared_range,
     story_blueprint,
 )
+
+from calib.session.defaults import method_label
 
 TIMELINE = "sensor_time"
 AXES = ("x", "y", "z")
@@ -71,6 +79,8 @@ def log_recording(stream: rr.RecordingStream, rec: Recording, pose_rate_hz: floa
         rr.Arrows3D(vectors=np.eye(3) * 0.05, colors=[[255, 0, 0], [0, 255, 0], [0, 0, 255]]),
         static=True,
     )
+    # the board's whole path, thin and grey: where the board goes, seen from any time
+    stream.log("world/path", rr.LineStrips3D([pos], radii=[0.002], colors=[[150, 150, 150]]), static=True)
     stream.send_columns(
         "world/board",
         indexes=[rr.TimeColumn(TIMELINE, duration=t[sel])],
@@ -96,16 +106,23 @@ def log_calibration(stream: rr.RecordingStream, result, truth: dict | None = Non
         _series(stream, f"calib/P/{names[i].split('_')[0]}", t, sd[:, i:i + 3])
     _series(stream, "calib/estimate/S", t, h["scale"])
     _series(stream, "calib/estimate/G", t, h["nonorthogonality"])
+    for name in ("S", "G"):  # one colour per axis; the truths in their own colour (below), never an estimate's
+        for i, ax in enumerate(AXES):
+            scalar_style(stream, f"calib/estimate/{name}/{ax}", f"{name} {ax}", PALETTE[i])
     if "ba_x" in names:
         for block, key in (("ba", "acc_bias"), ("Sa", "acc_scale"), ("Ga", "acc_nonorthogonality")):
             _series(stream, f"calib/estimate/{block}", t, h[key])
-    stream.send_columns(
-        "calib/nis", indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=rr.Scalars.columns(scalars=h["nis"])
-    )
+    nis = np.asarray(h["nis"], float)
+    ok = np.isfinite(nis)  # NaN where the filter made no attitude update: left out, so the finite values join up
+    if ok.any():
+        stream.send_columns(
+            "calib/nis", indexes=[rr.TimeColumn(TIMELINE, duration=t[ok])], columns=rr.Scalars.columns(scalars=nis[ok])
+        )
     if truth is not None:
         ends = np.array([t[0], t[-1]])
         for name, key in (("S", "scale_factor"), ("G", "nonorthogonality")):
             for i, ax in enumerate(AXES):
+                scalar_style(stream, f"calib/estimate/{name}/{ax}_true", f"{ax} true", TRUTH_COLOUR, width=1.0)
                 stream.send_columns(
                     f"calib/estimate/{name}/{ax}_true",
                     indexes=[rr.TimeColumn(TIMELINE, duration=ends)],
@@ -150,7 +167,7 @@ def calibration_story(rec: Recording, result, truth: dict | None) -> str:
     h = result.history.arrays() if result.history is not None else None
     dur = float(rec.t_s[-1] - rec.t_s[0]) if rec.n else 0.0
     lines = [f"**{'Simulated' if truth is not None else 'Recorded'} session, {dur:.0f} s at {rec.rate_hz:.0f} Hz — "
-             f"Zhou 2020 filter (`{result.method}`), status {result.status}.**", ""]
+             f"{method_label(result.method)} (`{result.method}`), status {result.status}.**", ""]
     if h is not None and h["t_s"].size > 1:
         names = list(result.history.state_names)
         sd, t = h["sd"], h["t_s"]
@@ -173,7 +190,12 @@ def calibration_story(rec: Recording, result, truth: dict | None) -> str:
         eg = (g - np.asarray(truth["nonorthogonality"])) / np.maximum(gs, 1e-300)
         est += f"; error/σ: S {np.round(es, 1).tolist()}, G {np.round(eg, 1).tolist()}"
     if h is not None and h["nis"].size:
-        est += f"; NIS mean {float(np.mean(h['nis'])):.2f} (expected 2)"
+        nis = np.asarray(h["nis"], float)
+        ok = np.isfinite(nis)
+        expected = nis_expected(result)
+        est += (f"; NIS mean {float(np.mean(nis[ok])):.2f} (expected {expected:g}) over the {int(ok.sum())} of "
+                f"{nis.size} steps with an attitude update" if ok.any() else
+                "; no NIS: the filter made no attitude update")
     lines.append(est + ".")
     rest = _rest_segments(result)
     if rest:
@@ -189,29 +211,42 @@ def calibration_story(rec: Recording, result, truth: dict | None) -> str:
     return "\n".join(lines)
 
 
+def nis_expected(result) -> float:
+    """The NIS a consistent filter averages: its attitude update's rows (2 for the paper's filter, 3 with a
+    heading row), as the consistency check recorded it."""
+    return float(((getattr(result, "diagnostics", {}) or {}).get("consistency") or {}).get("nis_expected", 2.0))
+
+
 def calibration_blueprint(span: Span | None = None, *, has_pose: bool = True, has_truth: bool = True,
                           acc_estimated: bool = False, ranges: dict | None = None,
-                          eye: rrb.EyeControls3D | None = None) -> rrb.Blueprint:
+                          eye: rrb.EyeControls3D | None = None, legends: dict | None = None,
+                          nis_expected: float = 2.0, has_nis: bool = True) -> rrb.Blueprint:
     """Open on P converging (log10 √P, the whole session on every plot) and the estimates, with the raw
     signals (rest segments marked) and the board in 3-D beside, under the story text.
 
     ``ranges``: y ranges by key ``logP`` (S and G share it), ``phi``, ``S``, ``G``, ``nis``, ``gyro``,
-    ``acc`` (computed by :func:`save_calibration_rrd` from the data)."""
+    ``acc`` (computed by :func:`save_calibration_rrd` from the data); ``legends``: the legend corner by the same
+    keys (:func:`gyrosim.viewer.free_corner`), top right where not given."""
     span = span or Span(0.0, 1.0)
     r = ranges or {}
+    lg = legends or {}
+    nis_name = f"NIS (expected {nis_expected:g})" if has_nis else "NIS: none (no attitude update)"
     true = " (— true)" if has_truth else ""
     cols = [
         rrb.Vertical(
             series_view("calib/log10_sqrtP/S", "log10 √P scale factor", span, y_range=r.get("logP"),
-                        contents=["$origin/**", "marks/rest/logP_S"]),
+                        contents=["$origin/**", "marks/rest/logP_S"], legend_corner=lg.get("logP_S", "RightTop")),
             series_view("calib/log10_sqrtP/G", "log10 √P non-orthogonality", span, y_range=r.get("logP"),
-                        contents=["$origin/**", "marks/rest/logP_G"]),
-            series_view("calib/log10_sqrtP/phi", "log10 √P attitude (rad)", span, y_range=r.get("phi")),
+                        contents=["$origin/**", "marks/rest/logP_G"], legend_corner=lg.get("logP_G", "RightTop")),
+            series_view("calib/log10_sqrtP/phi", "log10 √P attitude (rad)", span, y_range=r.get("phi"),
+                        legend_corner=lg.get("phi", "RightTop")),
         ),
         rrb.Vertical(
-            series_view("calib/estimate/S", "scale factor" + true, span, y_range=r.get("S")),
-            series_view("calib/estimate/G", "non-orthogonality" + true, span, y_range=r.get("G")),
-            series_view("calib/nis", "NIS (expected 2)", span, y_range=r.get("nis")),
+            series_view("calib/estimate/S", "scale factor" + true, span, y_range=r.get("S"),
+                        legend_corner=lg.get("S", "RightTop")),
+            series_view("calib/estimate/G", "non-orthogonality" + true, span, y_range=r.get("G"),
+                        legend_corner=lg.get("G", "RightTop")),
+            series_view("calib/nis", nis_name, span, y_range=r.get("nis"), legend_corner=lg.get("nis", "RightTop")),
         ),
     ]
     right = [board_view("world", "hand and board (ENU, m)", eye)] if has_pose else []
@@ -239,6 +274,7 @@ def save_calibration_rrd(path: str | Path, rec: Recording, result, truth: dict |
     h = result.history.arrays() if result.history is not None else None
     ranges = {"gyro": shared_range(rec.gyro_rad_s), "acc": shared_range(rec.acc_m_s2)}
     names = list(result.history.state_names) if h is not None else []
+    legends: dict[str, str] = {}
     if h is not None and h["t_s"].size:
         lsd = log10_floor(h["sd"])
         blk = np.array([n.split("_")[0] for n in names])
@@ -249,9 +285,12 @@ def save_calibration_rrd(path: str | Path, rec: Recording, result, truth: dict |
         inc_g = [] if truth is None else list(np.asarray(truth["nonorthogonality"], float))
         ranges["S"] = shared_range(h["scale"], quantile=0.005, include=inc_s)
         ranges["G"] = shared_range(h["nonorthogonality"], quantile=0.005, include=inc_g)
-        ranges["nis"] = (0.0, max(10.0, float(np.quantile(h["nis"], 0.99)) if h["nis"].size else 10.0))
+        nis = np.asarray(h["nis"], float)
+        nis = nis[np.isfinite(nis)]
+        ranges["nis"] = nice_range(0.0, max(10.0, float(np.quantile(nis, 0.99)) if nis.size else 10.0))
         for i in range(0, len(names), 3):
             _series(stream, f"calib/log10_sqrtP/{names[i].split('_')[0]}", h["t_s"], lsd[:, i:i + 3])
+        legends = _legend_corners(h, lsd, blk, ranges, span, truth)
     rest = _rest_segments(result)
     for view, lo_hi, at_top in (("gyro", ranges["gyro"], True), ("acc", ranges["acc"], True),
                                 ("logP_S", ranges.get("logP"), False), ("logP_G", ranges.get("logP"), False)):
@@ -260,14 +299,32 @@ def save_calibration_rrd(path: str | Path, rec: Recording, result, truth: dict |
             log_marks(stream, f"marks/rest/{view}", span, level, intervals=rest, name="rest")
     pos = _board_positions(rec)
     eye = _eye(rec, pos)
+    has_nis = h is not None and bool(np.isfinite(np.asarray(h["nis"], float)).any())
     stream.send_blueprint(calibration_blueprint(span, has_pose=pos is not None, has_truth=truth is not None,
-                                                acc_estimated="ba_x" in names, ranges=ranges, eye=eye))
+                                                acc_estimated="ba_x" in names, ranges=ranges, eye=eye,
+                                                legends=legends,
+                                                nis_expected=nis_expected(result), has_nis=has_nis))
     log_story(stream, calibration_story(rec, result, truth))
     log_recording(stream, rec)
     if h is not None:
         log_calibration(stream, result, truth)
     stream.flush()
     return path
+
+
+def _legend_corners(h: dict, lsd: np.ndarray, blk: np.ndarray, ranges: dict, span: Span,
+                    truth: dict | None) -> dict[str, str]:
+    """Each plot's legend in the corner its data leave free (:func:`gyrosim.viewer.free_corner`), the true values'
+    flat lines counted with the estimates."""
+    t = h["t_s"]
+    out = {"logP_S": free_corner(t, lsd[:, blk == "S"], span, ranges["logP"]),
+           "logP_G": free_corner(t, lsd[:, blk == "G"], span, ranges["logP"]),
+           "phi": free_corner(t, lsd[:, blk == "phi"], span, ranges["phi"]),
+           "nis": free_corner(t, h["nis"], span, ranges["nis"])}
+    for key, arr, tkey in (("S", h["scale"], "scale_factor"), ("G", h["nonorthogonality"], "nonorthogonality")):
+        flat = np.tile(np.asarray(truth[tkey], float), (t.size, 1)) if truth is not None else np.empty((t.size, 0))
+        out[key] = free_corner(t, np.hstack([arr, flat]), span, ranges[key])
+    return out
 
 
 def blueprint(span: Span | None = None, eye: rrb.EyeControls3D | None = None) -> rrb.Blueprint:

@@ -239,6 +239,33 @@ def _describe_spikes(spk, t: np.ndarray) -> str:
     return f"{spk.count} isolated corrupt sample(s) (spikes; {per}; first at t = {t[first]:.4f} s)"
 
 
+@dataclass
+class _Pass:
+    """One recording on its way through :func:`prepare_recording`'s steps: the recording as repaired so far, which
+    samples were repaired, what was said and what was found wrong (raised at once when ``strict``)."""
+
+    rec: Recording
+    req: Requirements
+    where: str
+    warnings: list[str]
+    repaired: np.ndarray
+    problems: list[str] = field(default_factory=list)
+
+    def fail(self, err: InputError) -> None:
+        """Raise ``err`` (strict requirements) or keep it as a problem."""
+        if self.req.strict:
+            raise err
+        self.problems.append(f"{err.kind}: {err}")
+
+    def replace(self, **fields) -> None:
+        """The recording with ``fields`` replaced (t_s, meta, …)."""
+        r = self.rec
+        args = dict(t_s=r.t_s, gyro_rad_s=r.gyro_rad_s, acc_m_s2=r.acc_m_s2, temp_c=r.temp_c, mag_ut=r.mag_ut,
+                    truth=r.truth, meta=r.meta)
+        args.update(fields)
+        self.rec = Recording(**args)
+
+
 def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, time_unit: str | None = None,
                       decimate: int | str | None = None, info: ReadInfo | None = None) -> Loaded:
     """Run the boundary's checks and repairs on ``rec`` for a method (module docstring).
@@ -246,119 +273,149 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
     Returns the recording to use (possibly converted, bridged, repaired, decimated; ``rec`` itself
     is not modified) and the :class:`InputReport`.  Raises an :class:`InputError` subclass on what
     the method cannot use, unless ``requirements.strict`` is False (then it is in ``problems``)."""
-    req = requirements
     info = info or ReadInfo(str(rec.meta.get("source", rec.meta.get("dataset", "recording"))), "Recording")
-    where = info.source
-    warnings: list[str] = list(info.notes)
-    problems: list[str] = []
+    ps = _Pass(rec, requirements, info.source, list(info.notes), repaired_mask(rec))
+    tb = _time_base(ps, time_unit or info.time_unit)                       # 1. time base
+    measured_rate = _stated_rate(ps)
+    # 2. degenerate data (before spikes: robust statistics of a constant channel are meaningless)
+    degenerate = degenerate_problems(ps.rec, ps.req.sensors)
+    if degenerate:
+        ps.fail(DegenerateError(f"{ps.where}: " + "; ".join(degenerate)))
+    spikes_found = {} if degenerate else _spikes(ps)                     # 3. spikes
+    bridged, inserted_n = _gaps(ps)                                      # 4. gaps
+    n_dec, rate = _rate(ps, decimate, measured_rate, tb)                 # 5. rate
+    _length(ps)                                                          # 6. length
+    if not degenerate:                                                   # 7. units, 8. motion
+        _units_and_motion(ps)
+    _stamp(ps)
+    rec = ps.rec
+    sat = int((saturated_samples(rec.gyro_rad_s) | saturated_samples(rec.acc_m_s2)).sum()) if not degenerate else 0
+    report = InputReport(
+        source=ps.where, format=info.format, encoding=info.encoding,
+        separator=SEPARATOR_NAMES.get(info.separator, info.separator) if info.separator else None,
+        columns=info.columns, ignored_columns=info.ignored_columns, time_unit=tb.unit if tb else "s",
+        time_unit_how=tb.how if tb else "unknown", time_origin_unix_s=tb.origin_unix_s if tb else None,
+        samples=rec.n, duration_s=float(rec.t_s[-1] - rec.t_s[0]), rate_hz=rate, bridged_gaps=bridged,
+        inserted_samples=inserted_n, spikes=spikes_found, saturated_samples=sat, decimated_by=n_dec,
+        warnings=tuple(ps.warnings), problems=tuple(ps.problems))
+    return Loaded(rec, report)
 
-    def fail(err: InputError) -> None:
-        if req.strict:
-            raise err
-        problems.append(f"{err.kind}: {err}")
 
-    # 1. time base
-    tb = None
+def _time_base(ps: _Pass, time_unit: str | None):
+    """Step 1: the time column's unit and origin, converted to seconds from the start."""
+    rec, tb = ps.rec, None
     try:
-        tb = detect_time_unit(rec.t_s, req, time_unit or info.time_unit, rec.meta.get("rate_hz") if
-                              isinstance(rec.meta.get("rate_hz"), (int, float)) else None, where)
+        tb = detect_time_unit(rec.t_s, ps.req, time_unit, rec.meta.get("rate_hz") if
+                              isinstance(rec.meta.get("rate_hz"), (int, float)) else None, ps.where)
     except AmbiguousTimeUnit as err:
         tb = _time_unit_from_motion(rec, err.candidates)
         if tb is None:
-            fail(err)
+            ps.fail(err)
     except TimeBaseError as err:
-        fail(err)
+        ps.fail(err)
     meta = dict(rec.meta)
     if tb is not None and (tb.factor != 1.0 or tb.origin != 0.0):
         t_new = to_seconds(rec.t_s, tb)
         if np.any(np.diff(t_new) <= 0):  # pragma: no cover - float rounding of huge epochs
-            fail(TimeBaseError(f"{where}: the time column does not increase after conversion to s"))
+            ps.fail(TimeBaseError(f"{ps.where}: the time column does not increase after conversion to s"))
         else:
             if tb.origin_unix_s is not None:
                 meta["time_origin_unix_s"] = tb.origin_unix_s
-            rec = Recording(t_new, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, rec.truth, meta)
+            ps.replace(t_s=t_new, meta=meta)
     if tb is not None and tb.warning:
-        warnings.append(tb.warning)
-    measured_rate = 1.0 / float(np.median(np.diff(rec.t_s)))
+        ps.warnings.append(tb.warning)
+    return tb
+
+
+def _stated_rate(ps: _Pass) -> float:
+    """The rate the timestamps step at (Hz); a stated ``rate_hz`` that disagrees is replaced, with a warning."""
+    measured_rate = 1.0 / float(np.median(np.diff(ps.rec.t_s)))
+    meta = dict(ps.rec.meta)
     stated = meta.get("rate_hz")
     if isinstance(stated, (int, float)) and not isinstance(stated, bool):
         if not (math.isfinite(stated) and stated > 0 and abs(measured_rate / stated - 1) < 0.02):
-            warnings.append(f"the file states rate_hz = {stated:g} but the timestamps step at {measured_rate:.6g} Hz: "
-                            "the timestamps are used")
+            ps.warnings.append(f"the file states rate_hz = {stated:g} but the timestamps step at {measured_rate:.6g} "
+                               "Hz: the timestamps are used")
             meta["rate_hz"] = measured_rate
-            rec = Recording(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, rec.truth, meta)
+            ps.replace(meta=meta)
+    return measured_rate
 
-    # 2. degenerate data (before spikes: robust statistics of a constant channel are meaningless)
-    degenerate = degenerate_problems(rec, req.sensors)
-    if degenerate:
-        fail(DegenerateError(f"{where}: " + "; ".join(degenerate)))
 
-    # 3. spikes
-    spikes_found: dict[str, int] = {}
-    repaired = repaired_mask(rec)
-    if not degenerate:
-        spk = find_spikes(rec)
-        if spk.stretches:
-            ch, a, b = spk.stretches[0]
-            fail(
-                SpikeError(
-                    f"{where}: {ch} holds a corrupt stretch of {b - a + 1} samples (t = "
-                    f"{rec.t_s[a]:.4f}–{rec.t_s[b]:.4f} s) "
-                    "far outside the rest of its "
-                    f"data{f' and {len(spk.stretches) - 1} more' if len(spk.stretches) > 1 else ''}; "
-                    "too long to be excluded as spikes: cut that part of the recording"
-                )
+def _spikes(ps: _Pass) -> dict[str, int]:
+    """Step 3: isolated spikes repaired (interpolated, no measurement update); corrupt stretches refused."""
+    rec, req, where = ps.rec, ps.req, ps.where
+    spk = find_spikes(rec)
+    if spk.stretches:
+        ch, a, b = spk.stretches[0]
+        ps.fail(
+            SpikeError(
+                f"{where}: {ch} holds a corrupt stretch of {b - a + 1} samples (t = "
+                f"{rec.t_s[a]:.4f}–{rec.t_s[b]:.4f} s) "
+                "far outside the rest of its "
+                f"data{f' and {len(spk.stretches) - 1} more' if len(spk.stretches) > 1 else ''}; "
+                "too long to be excluded as spikes: cut that part of the recording"
             )
-        elif spk.count > max(1, req.max_spike_fraction * rec.n):
-            fail(
-                SpikeError(
-                    f"{where}: {_describe_spikes(spk, rec.t_s)} — more than {req.max_spike_fraction:.0%} of the "
-                    "samples: the data are corrupt, not occasionally glitched; fix the logger or the export"
-                )
+        )
+    elif spk.count > max(1, req.max_spike_fraction * rec.n):
+        ps.fail(
+            SpikeError(
+                f"{where}: {_describe_spikes(spk, rec.t_s)} — more than {req.max_spike_fraction:.0%} of the "
+                "samples: the data are corrupt, not occasionally glitched; fix the logger or the export"
             )
-        elif spk.count:
-            rec = repair_spikes(rec, spk)
-            repaired |= spk.any_sample
-            spikes_found = spk.per_channel()
-            warnings.append(f"{_describe_spikes(spk, rec.t_s)} excluded: replaced by interpolation between their "
-                            "neighbours and given no measurement update")
+        )
+    elif spk.count:
+        ps.rec = repair_spikes(rec, spk)
+        ps.repaired |= spk.any_sample
+        ps.warnings.append(f"{_describe_spikes(spk, ps.rec.t_s)} excluded: replaced by interpolation between their "
+                           "neighbours and given no measurement update")
+        return spk.per_channel()
+    return {}
 
-    # 4. gaps
-    gaps = find_gaps(rec.t_s)
+
+def _gaps(ps: _Pass) -> tuple[int, int]:
+    """Step 4: short gaps bridged (linear interpolation, no measurement update); longer ones allowed or refused as
+    the method requires.  Returns (gaps bridged, samples inserted)."""
+    req, where = ps.req, ps.where
+    gaps = find_gaps(ps.rec.t_s)
     bridged, inserted_n = 0, 0
+    if not gaps.count:
+        return bridged, inserted_n
+    small = gaps.missing <= req.max_bridged_gap_samples
+    if small.any() and gaps.missing[small].sum() <= MAX_INSERTED_FRACTION * ps.rec.n:
+        sub = Gaps(gaps.index[small], gaps.missing[small], gaps.step_s, gaps.jitter_s, gaps.bound_s)
+        old_n = ps.rec.n
+        ps.rec, inserted = bridge_gaps(ps.rec, sub)
+        new_repaired = np.zeros(ps.rec.n, bool)
+        new_repaired[~inserted] = ps.repaired[:old_n]
+        ps.repaired = new_repaired | inserted
+        bridged, inserted_n = sub.count, int(inserted.sum())
+        ps.warnings.append(
+            f"bridged {bridged} gap(s) of {int(sub.missing.min())}–{int(sub.missing.max())} missing sample(s) "
+            f"({inserted_n} sample(s) interpolated linearly, no measurement update there; first at t = "
+            f"{ps.rec.t_s[int(np.argmax(inserted))]:.4f} s)")
+        gaps = find_gaps(ps.rec.t_s)
+    elif small.any():
+        ps.fail(GapError(f"{where}: {int(gaps.missing[small].sum())} samples are missing in {int(small.sum())} short "
+                         "gaps "
+                         f"(more than {MAX_INSERTED_FRACTION:.0%} of the record): a lossy link, not a few dropped "
+                         "packets; fix the logging"))
     if gaps.count:
-        small = gaps.missing <= req.max_bridged_gap_samples
-        if small.any() and gaps.missing[small].sum() <= MAX_INSERTED_FRACTION * rec.n:
-            sub = Gaps(gaps.index[small], gaps.missing[small], gaps.step_s, gaps.jitter_s, gaps.bound_s)
-            old_n = rec.n
-            rec, inserted = bridge_gaps(rec, sub)
-            new_repaired = np.zeros(rec.n, bool)
-            new_repaired[~inserted] = repaired[:old_n]
-            repaired = new_repaired | inserted
-            bridged, inserted_n = sub.count, int(inserted.sum())
-            warnings.append(
-                f"bridged {bridged} gap(s) of {int(sub.missing.min())}–{int(sub.missing.max())} missing sample(s) "
-                f"({inserted_n} sample(s) interpolated linearly, no measurement update there; first at t = "
-                f"{rec.t_s[int(np.argmax(inserted))]:.4f} s)")
-            gaps = find_gaps(rec.t_s)
-        elif small.any():
-            fail(GapError(f"{where}: {int(gaps.missing[small].sum())} samples are missing in {int(small.sum())} short "
-                          "gaps "
-                          f"(more than {MAX_INSERTED_FRACTION:.0%} of the record): a lossy link, not a few dropped "
-                          "packets; fix the logging"))
-        if gaps.count:
-            if req.gaps == "allow":
-                warnings.append(gaps_warning(gaps, rec.t_s))
-            else:
-                fail(
-                    GapError(
-                        f"{where}: {gaps.describe(rec.t_s)}; gaps of up to {req.max_bridged_gap_samples} missing "
-                        "samples are bridged, this one is longer: the strapdown integration cannot cross it; split "
-                        "the recording or fill it"
-                    )
+        if req.gaps == "allow":
+            ps.warnings.append(gaps_warning(gaps, ps.rec.t_s))
+        else:
+            ps.fail(
+                GapError(
+                    f"{where}: {gaps.describe(ps.rec.t_s)}; gaps of up to {req.max_bridged_gap_samples} missing "
+                    "samples are bridged, this one is longer: the strapdown integration cannot cross it; split "
+                    "the recording or fill it"
                 )
+            )
+    return bridged, inserted_n
 
-    # 5. rate
+
+def _rate(ps: _Pass, decimate: int | str | None, measured_rate: float, tb) -> tuple[int, float]:
+    """Step 5: decimated when asked; a rate outside the method's range refused.  Returns (factor, rate in Hz)."""
+    req, where = ps.req, ps.where
     n_dec = 1
     if decimate not in (None, 1, "1", "none"):
         if decimate == "auto":
@@ -366,88 +423,87 @@ def prepare_recording(rec: Recording, requirements: Requirements = GENERIC, *, t
         else:
             n_dec = int(decimate)
         if n_dec > 1:
-            if rec.n // n_dec < 2:
-                fail(TooShortError(f"{where}: decimating {rec.n} samples by {n_dec} leaves fewer than 2"))
+            if ps.rec.n // n_dec < 2:
+                ps.fail(TooShortError(f"{where}: decimating {ps.rec.n} samples by {n_dec} leaves fewer than 2"))
             else:
-                rec, repaired = _decimate(rec, n_dec, repaired)
-                warnings.append(f"decimated by {n_dec} (block means): {measured_rate:.6g} Hz → "
-                                f"{measured_rate / n_dec:.6g} Hz")
-    rate = 1.0 / float(np.median(np.diff(rec.t_s)))
+                ps.rec, ps.repaired = _decimate(ps.rec, n_dec, ps.repaired)
+                ps.warnings.append(f"decimated by {n_dec} (block means): {measured_rate:.6g} Hz → "
+                                   f"{measured_rate / n_dec:.6g} Hz")
+    rate = 1.0 / float(np.median(np.diff(ps.rec.t_s)))
     if req.rate_hz is not None:
         lo, hi = req.rate_hz
         if rate > hi * 1.02:
             n = decimation_factor(rate, hi)
-            fail(RateError(
+            ps.fail(RateError(
                 f"{where}: {rate:.6g} Hz is above the {hi:g} Hz that {req.name} supports"
                 + (f" ({req.why_max_rate})" if req.why_max_rate else "")
                 + f"; pass {req.decimate_option} {n} (or auto) to average blocks of {n} samples → {rate / n:.6g} Hz"))
         elif rate < lo * 0.98:
-            fail(
+            ps.fail(
                 RateError(
                     f"{where}: {rate:.4g} Hz is below the {lo:g} Hz that {req.name} supports (the strapdown "
                     "integration between samples aliases the hand's motion); record at a higher rate"
                     + ("; if the time column is not in seconds, pass --time-unit" if tb and tb.unit == "s" else "")
                 )
             )
-    # 6. length
+    return n_dec, rate
+
+
+def _length(ps: _Pass) -> None:
+    """Step 6: enough samples and seconds for the method."""
+    rec, req = ps.rec, ps.req
     duration = float(rec.t_s[-1] - rec.t_s[0])
     if rec.n < req.min_samples or duration < req.min_duration_s:
         need = " and ".join(
             [f"{req.min_samples} samples"] + ([f"{req.min_duration_s:g} s"] if req.min_duration_s else [])
         )
-        fail(TooShortError(f"{where}: {rec.n} samples over {duration:.4g} s; {req.name} needs at least {need}"))
+        ps.fail(TooShortError(f"{ps.where}: {rec.n} samples over {duration:.4g} s; {req.name} needs at least {need}"))
 
-    # 7. units, 8. motion
-    motion = None
-    if not degenerate:
-        motion = summarise_motion(rec)
-        consistency = None
-        if req.motion != "static" and motion.moving_fraction > 0:
-            consistency = rotation_consistency(rec, motion.rest_level_rad_s)
-        msgs = [m for m in (gyro_unit_problem(rec, motion, consistency), acc_unit_problem(rec)) if m]
-        if msgs:
-            fail(UnitError(f"{where}: " + "; and ".join(msgs)))
-        if req.motion == "static" and motion.moving_fraction > STATIC_MOVING_FRACTION:
-            still = motion.longest_still()
-            hint = (f"; its longest still stretch is t = {still[0]:.1f}–{still[1]:.1f} s: cut that out"
-                    if still and still[1] - still[0] >= 10 * motion.window_s else "")
-            fail(
-                MotionError(
-                    f"{where}: the board moves in {motion.moving_fraction:.0%} of its 1-s windows (gravity turns by up "
-                    f"to {motion.gravity_swing_deg:.0f}°, the rate departs from its level by up to "
-                    f"{motion.peak_rate_rad_s:.2f} "
-                    f"rad/s; first at t = {motion.first_motion_s():.1f} s): {req.name} needs a static recording{hint}"
-                )
-            )
-        if req.motion == "required" and motion.gravity_swing_deg < 10.0 and motion.peak_rate_rad_s < 0.2:
-            fail(
-                MotionError(
-                    f"{where}: the board never turns (gravity stays within {motion.gravity_swing_deg:.1f}° "
-                    "and the rate within "
-                    f"{motion.peak_rate_rad_s:.3f} rad/s of its level): {req.name} estimates scale factors and "
-                    "non-orthogonality from rotations; for the noise of a static record use calib allan"
-                )
-            )
 
-    meta = dict(rec.meta)
-    if repaired.any():
-        meta["input_repairs"] = {"excluded": _ranges(repaired)}
+def _units_and_motion(ps: _Pass) -> None:
+    """Steps 7 and 8: units plausible for the motion; the motion the method needs (static, or turning)."""
+    rec, req, where = ps.rec, ps.req, ps.where
+    motion = summarise_motion(rec)
+    consistency = None
+    if req.motion != "static" and motion.moving_fraction > 0:
+        consistency = rotation_consistency(rec, motion.rest_level_rad_s)
+    msgs = [m for m in (gyro_unit_problem(rec, motion, consistency), acc_unit_problem(rec)) if m]
+    if msgs:
+        ps.fail(UnitError(f"{where}: " + "; and ".join(msgs)))
+    if req.motion == "static" and motion.moving_fraction > STATIC_MOVING_FRACTION:
+        still = motion.longest_still()
+        hint = (f"; its longest still stretch is t = {still[0]:.1f}–{still[1]:.1f} s: cut that out"
+                if still and still[1] - still[0] >= 10 * motion.window_s else "")
+        ps.fail(
+            MotionError(
+                f"{where}: the board moves in {motion.moving_fraction:.0%} of its 1-s windows (gravity turns by up "
+                f"to {motion.gravity_swing_deg:.0f}°, the rate departs from its level by up to "
+                f"{motion.peak_rate_rad_s:.2f} "
+                f"rad/s; first at t = {motion.first_motion_s():.1f} s): {req.name} needs a static recording{hint}"
+            )
+        )
+    if req.motion == "required" and motion.gravity_swing_deg < 10.0 and motion.peak_rate_rad_s < 0.2:
+        ps.fail(
+            MotionError(
+                f"{where}: the board never turns (gravity stays within {motion.gravity_swing_deg:.1f}° "
+                "and the rate within "
+                f"{motion.peak_rate_rad_s:.3f} rad/s of its level): {req.name} estimates scale factors and "
+                "non-orthogonality from rotations; for the noise of a static record use calib allan"
+            )
+        )
+
+
+def _stamp(ps: _Pass) -> None:
+    """The repairs and, when every check passed, the digest that lets the method's re-check skip the expensive ones."""
+    meta = dict(ps.rec.meta)
+    if ps.repaired.any():
+        meta["input_repairs"] = {"excluded": _ranges(ps.repaired)}
     else:
         meta.pop("input_repairs", None)
     meta.pop("input_checked", None)
-    if not problems:  # every check passed: the method's re-check may skip the expensive ones for these bytes
-        meta["input_checked"] = {"by": req.name, "digest": _digest(rec)}
-    rec = Recording(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, rec.mag_ut, rec.truth, meta)
-    sat = int((saturated_samples(rec.gyro_rad_s) | saturated_samples(rec.acc_m_s2)).sum()) if not degenerate else 0
-    report = InputReport(
-        source=where, format=info.format, encoding=info.encoding,
-        separator=SEPARATOR_NAMES.get(info.separator, info.separator) if info.separator else None,
-        columns=info.columns, ignored_columns=info.ignored_columns, time_unit=tb.unit if tb else "s",
-        time_unit_how=tb.how if tb else "unknown", time_origin_unix_s=tb.origin_unix_s if tb else None,
-        samples=rec.n, duration_s=float(rec.t_s[-1] - rec.t_s[0]), rate_hz=rate, bridged_gaps=bridged,
-        inserted_samples=inserted_n, spikes=spikes_found, saturated_samples=sat, decimated_by=n_dec,
-        warnings=tuple(warnings), problems=tuple(problems))
-    return Loaded(rec, report)
+    if not ps.problems:  # every check passed: the method's re-check may skip the expensive ones for these bytes
+        meta["input_checked"] = {"by": ps.req.name, "digest": _digest(ps.rec)}
+    ps.replace(meta=meta)
 
 
 def open_recording(path: str | Path, gyro_unit: str | None = None, acc_unit: str | None = None, *,

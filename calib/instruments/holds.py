@@ -8,13 +8,16 @@ noise of a hold mean is (:mod:`calib.noise.window_means` from the fitted IEEE-95
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
-from scipy.ndimage import median_filter
 
 from gyrosim.errors import RecordingError
+from gyrosim.lazy import lazy_module
 from gyrosim.recording import Recording
 
 from calib.noise.allan import NoiseTerms, allan_deviation, fit_noise_terms
+
+# imported on first use (gyrosim.lazy), so that start-up and a refused file do not pay for it
+ndimage = lazy_module("scipy.ndimage")
+stats = lazy_module("scipy.stats")
 
 __all__ = ["still_holds", "fit_hold_noise"]
 
@@ -32,7 +35,7 @@ def _running_median(m: np.ndarray, half: int) -> np.ndarray:
     windows twice)."""
     foot = np.ones((2 * half + 1, 1), bool)
     foot[half] = False
-    out = median_filter(m, footprint=foot, mode="nearest")
+    out = ndimage.median_filter(m, footprint=foot, mode="nearest")
     n = m.shape[0]
     for k in list(range(min(half, n))) + list(range(max(half, n - half), n)):
         nb = np.concatenate([m[max(0, k - half) : k], m[k + 1 : k + half + 1]])

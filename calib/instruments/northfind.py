@@ -52,16 +52,19 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from gyrosim.effects import EARTH_RATE_RAD_S
 from gyrosim.errors import RecordingError
+from gyrosim.lazy import lazy_module
 from gyrosim.recording import Recording
 from gyrosim.units import RAD_S_TO_DEG_H as DEG_H
 
 from calib.instruments.holds import fit_hold_noise, still_holds
 from calib.instruments.northfind_design import Design, turning_design
 from calib.noise.allan import NoiseTerms
+
+# imported on first use (gyrosim.lazy), so that start-up and a refused file do not pay for it
+stats = lazy_module("scipy.stats")
 
 __all__ = ["NorthFinding", "HoldInfo", "find_north", "Design"]
 

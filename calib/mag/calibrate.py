@@ -1,28 +1,25 @@
-"""``calibrate_magnetometer``: hard and soft iron of a recording, end to end.
+"""``calibrate_magnetometer``: hard and soft iron of a recording, end to end, one calibration per
+hard-iron regime.
 
-1. checks (:mod:`calib.mag.checks`): saturation, unit (the median |m|, then a sphere's radius),
-   attitude coverage (:func:`calib.mag.gravity.direction_coverage`);
-2. the gravity reference from the gyro and accelerometer (:mod:`calib.mag.gravity`);
-3. a robust start: the sphere |m − h| = F, whose residual finds the local disturbances first
-   (:mod:`calib.mag.disturbance`) — a full ellipsoid fitted through a disturbance bends towards
-   it and then hides it;
-4. the method's fit (:data:`calib.mag.methods.METHODS`: ``ellipsoid`` — the field magnitude only;
-   ``aided`` — also the inclination against gravity, which makes the misalignment observable) on
-   the undisturbed samples, detection again on its residual, refit, until the disturbed set stops
-   changing; disturbances are reported, never absorbed;
-5. the soft iron is **refused by name** (the hard iron alone is fitted, :mod:`calib.mag.hardiron`)
-   when the coverage is below ``min_coverage``, when the data leave some soft-iron entry to the
-   prior (posterior σ above half the prior's), or when the fitted A is no magnetometer's
-   (axes more than 1.5 : 1); the warning says which rotations to add;
-6. self-consistency: when the fit's residual is well above the sensor's own white noise (the model
-   leaves structure: a field that varies with position, an effect it lacks), the delete-one-
-   cluster jackknife over 10 s stretches widens σ by its median variance ratio to the 1 s-block
-   sandwich; a parameter still off by more than 10× in variance → status ``inconsistent``.
+1. checks and the gravity reference (:func:`calib.mag.fit.prepare`);
+2. hard-iron regimes (:mod:`calib.mag.regimes`): where the field that turns with the board changed
+   — a magnet attached to it or taken off — found with the gyro's help, with each change's time,
+   σ and test;
+3. one regime (nothing changed): the session's calibration (:func:`calib.mag.fit.fit_samples`:
+   sphere start, local disturbances reported and excluded, the method's fit, the soft iron refused
+   by name when the data cannot carry it, the self-consistency check), as always;
+4. several: the regimes that share one hard iron (a magnet taken off returns the first) are
+   calibrated together on their samples, the transitions excluded; a group that is too short or
+   turned too little is ``not_calibratable`` — nothing is fitted to it, the reason is given.  The
+   top-level keys are the group with the most samples (``reference``); the others are ``attached``
+   disturbances, calibrated; the status is ``partial`` when a regime could not be calibrated to ok;
+5. every local disturbance says what it is: ``world-fixed`` when the body-frame offset did not
+   move while the board turned through it (a field tied to the room), ``attached`` when it did
+   (a field that turned with the board), ``undetermined`` when the board did not turn there.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
@@ -32,128 +29,21 @@ from gyrosim.errors import RecordingError
 from gyrosim.recording import Recording
 from gyrosim.sensor_model import stored_sensor_model
 
-from calib.mag.checks import MagInput, check_unit, prepare_magnetometer, rotations_to_add, unit_from_median
-from calib.mag.disturbance import find_disturbances
-from calib.mag.ellipsoid import white_noise_variance
-from calib.mag.gravity import GravityReference, direction_coverage, gravity_reference
-from calib.mag.hardiron import circle_hard_iron, sphere_hard_iron
-from calib.mag.lsq import block_index, cluster_jackknife
-from calib.mag.methods import METHODS, CoreFit, MagMethod, MisalignmentUnobservable, polar_rotation_deg, propagate
-from calib.mag.result import Disturbance, MagCalibration
+from calib.mag.fit import MIN_COVERAGE, SOFT_IRON_NAMES, MagSetup, NotCalibratable, fit_samples, prepare
+from calib.mag.methods import polar_rotation_deg
+from calib.mag.regimes import (
+    RegimeSettings,
+    RegimeSplit,
+    detect_regimes,
+    merge_hypotheses,
+    offset_change_test,
+    stretch_offset_test,
+)
+from calib.mag.result import Disturbance, MagCalibration, Regime
 
 __all__ = ["calibrate_magnetometer", "true_magnetometer", "SOFT_IRON_NAMES", "MIN_COVERAGE"]
 
-SOFT_IRON_NAMES = tuple(f"soft_iron[{i}][{j}]" for i in range(3) for j in range(3))
-MIN_COVERAGE = 0.1  # direction_coverage below which the soft iron is refused
-MIN_SPREAD_UT = 2.0  # samples spread less than this in their second direction: the board did not turn
-MAX_AXIS_RATIO = 1.5  # a soft iron beyond 50 % is no magnetometer's: a disturbance the detector missed
-JACKKNIFE_S = 10.0  # cluster length of the jackknife consistency check (s)
-INCONSISTENT_RATIO = 10.0  # jackknife / (widened) sandwich variance beyond which σ is not honest
-STRUCTURE_RATIO = 1.5  # residual RMS / white noise above which the residual is said to have structure
-# the ellipsoid fit's frame may be turned against the IMU's by an unseen misalignment: a separate
-# magnetometer die or chip is aligned to ~1° (AK8963 in the MPU-9250: not specified; engineering value)
-MISALIGNMENT_PRIOR_DEG = 1.0
-
-
-def _inclination_series(m: np.ndarray, l: np.ndarray, h: np.ndarray, gravity: GravityReference | None) -> np.ndarray:
-    """Per-sample inclination (°) of the calibrated field, NaN where not quasi-static."""
-    if gravity is None:
-        return np.full(m.shape[0], np.nan)
-    b = (m - h) @ l.T
-    bn = b / np.linalg.norm(b, axis=1, keepdims=True)
-    incl = np.degrees(np.arcsin(np.clip(-np.sum(bn * gravity.up_body, axis=1), -1, 1)))
-    return np.where(gravity.quasi_static, incl, np.nan)
-
-
-def _mean_with_std(x: np.ndarray, blocks: np.ndarray) -> tuple[float, float]:
-    """Mean of the finite x and its standard error from block sums (cluster-robust)."""
-    ok = np.isfinite(x)
-    if ok.sum() < 2:
-        return float("nan"), float("nan")
-    xv, bv = x[ok], blocks[ok]
-    mean = float(np.mean(xv))
-    starts = np.flatnonzero(np.r_[True, bv[1:] != bv[:-1]])
-    sums = np.add.reduceat(xv - mean, starts)
-    nb = sums.size
-    return mean, math.sqrt(float(np.sum(sums**2)) / xv.size**2 * nb / max(nb - 1, 1))
-
-
-def _disturbance_loop(residual_of, rec: Recording, inp: MagInput, gravity, refit, used0: np.ndarray,
-                      rounds: int, position_nav_m: np.ndarray | None = None
-                      ) -> tuple[np.ndarray, tuple[Disturbance, ...], np.ndarray]:
-    """Detect on the residual of the current fit, exclude, refit; until the set stops changing.
-    ``residual_of()`` → (|B| − F in µT, inclination − I in ° or None) for every sample;
-    ``refit(used)`` refits on the samples ``used``."""
-    disturbed = np.zeros_like(used0)
-    found: tuple[Disturbance, ...] = ()
-    used = used0.copy()
-    for _ in range(rounds):
-        dev_field, dev_incl = residual_of()
-        mask, new = find_disturbances(rec.t_s, dev_field, dev_incl, inp.valid, position_nav_m=position_nav_m)
-        if np.array_equal(mask, disturbed):
-            break
-        disturbed, found = mask, new
-        used = used0 & ~disturbed
-        if used.sum() < 50:
-            break
-        refit(used)
-    return used, found, disturbed
-
-
-def _jackknife_check(core: CoreFit, rate_hz: float, structured: bool) -> tuple[CoreFit, dict]:
-    """Step 6 of the module docstring."""
-    if core.jacobian is None:
-        return core, {"test": "jackknife", "skipped": "no Jacobian"}
-    clusters = (core.row_sample // max(1, int(round(JACKKNIFE_S * rate_hz)))).astype(int)
-    g = int(clusters.max()) + 1
-    if g < 8:
-        return core, {"test": "jackknife", "skipped": f"{g} clusters of {JACKKNIFE_S:g} s (needs ≥ 8)"}
-    jk = cluster_jackknife(core.jacobian, core.residual, clusters)
-    d_s, d_j = np.diag(core.cov), np.diag(jk)
-    ok = d_s > 0
-    ratio = d_j[ok] / d_s[ok]
-    inflate = max(1.0, float(np.median(ratio))) if structured else 1.0
-    out = {
-        "test": "jackknife",
-        "clusters": g,
-        "cluster_s": JACKKNIFE_S,
-        "median_variance_ratio": float(np.median(ratio)),
-        "max_variance_ratio": float(np.max(ratio)),
-        "residual_structured": structured,
-        "inflation": inflate,
-    }
-    return replace(core, cov=core.cov * inflate), out
-
-
-def _hard_iron_only_result(method: str, reason: str, rec: Recording, inp: MagInput, used: np.ndarray, blocks,
-                           cover: float, weak: np.ndarray, planar: bool, field_ut, inclination_deg, gravity,
-                           warnings: list[str], coverage: dict, diagnostics: dict,
-                           disturbances: tuple[Disturbance, ...] = (), disturbed: np.ndarray | None = None
-                           ) -> MagCalibration:
-    m = inp.mag_ut
-    notes = diagnostics.setdefault("notes", [])
-    if planar:
-        h, sig_h, radius, ref_h, hn = circle_hard_iron(m, blocks, weak, field_ut, inclination_deg, gravity, used)
-        notes += hn
-        f_val, f_sd = (float(field_ut), 0.0) if field_ut else (float("nan"), float("nan"))
-        diagnostics["circle_radius_uT"] = radius
-    else:
-        h, sig_h, f_est, f_sd, res = sphere_hard_iron(m[used], blocks[used])
-        ref_h = []
-        f_val = float(field_ut) if field_ut else f_est
-        f_sd = 0.0 if field_ut else f_sd
-        diagnostics["residual_field_rms_uT"] = float(np.sqrt(np.mean(res**2)))
-    warnings.append(f"{reason}: the soft iron ({', '.join(SOFT_IRON_NAMES)}) is refused and the hard iron alone is "
-                    "fitted (A = I); " + rotations_to_add(weak))
-    samples = {"total": rec.n, "saturated": inp.saturated_samples, "used": int(used.sum()),
-               "disturbed": int(disturbed.sum()) if disturbed is not None else 0}
-    return MagCalibration(
-        method=method, status="hard_iron_only", hard_iron_ut=h, soft_iron=np.full((3, 3), np.nan), field_ut=f_val,
-        inclination_deg=float("nan"), misalignment_deg=None, hard_iron_std_ut=sig_h,
-        soft_iron_std=np.full((3, 3), np.nan), field_std_ut=f_sd, inclination_std_deg=float("nan"),
-        misalignment_std_deg=None, field_reference="hard iron only (|m − h| = F)", warnings=tuple(warnings),
-        refused=tuple(list(SOFT_IRON_NAMES) + ref_h), disturbances=disturbances, samples=samples, coverage=coverage,
-        diagnostics=diagnostics)
+DEFAULT_REGIMES = RegimeSettings()
 
 
 def calibrate_magnetometer(rec: Recording, method: str = "ellipsoid", **kwargs) -> MagCalibration:
@@ -165,12 +55,12 @@ def calibrate_magnetometer(rec: Recording, method: str = "ellipsoid", **kwargs) 
         return _calibrate(rec, method, **kwargs)
 
 
-def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT",
-                           field_ut: float | None = None, inclination_deg: float | None = None,
-                           range_ut: float | None = None, min_coverage: float = MIN_COVERAGE,
-                           time_range_s: tuple[float, float] | None = None, detect_disturbances: bool = True,
-                           consistency_check: bool = True,
-                           position_nav_m: np.ndarray | None = None) -> MagCalibration:
+def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT", field_ut: float | None = None,
+               inclination_deg: float | None = None, range_ut: float | None = None,
+               min_coverage: float = MIN_COVERAGE, time_range_s: tuple[float, float] | None = None,
+               detect_disturbances: bool = True, consistency_check: bool = True,
+               position_nav_m: np.ndarray | None = None,
+               regimes: RegimeSettings | None = DEFAULT_REGIMES) -> MagCalibration:
     """Hard and soft iron of ``rec``'s magnetometer (module docstring).
 
     Args:
@@ -183,217 +73,260 @@ def _calibrate(rec: Recording, method: str = "ellipsoid", *, mag_unit: str = "uT
         range_ut: the magnetometer's range, if the recording does not declare one.
         min_coverage: below this :func:`direction_coverage` the soft iron is refused.
         time_range_s: calibrate only the samples with t in [t0, t1] (s).
+        detect_disturbances: find, report and exclude local disturbances (default True).
+        consistency_check: the jackknife check of σ (default True).
         position_nav_m: (N, 3) the board's position (ENU, m) from an external reference the user has
             (an optical tracker); only labels where a disturbance was, never enters the fit.
+        regimes: the hard-iron regime detector's settings (:class:`calib.mag.regimes.RegimeSettings`);
+            None calibrates the session as one regime.
 
     Reads only the samples, times and rate of ``rec`` (no truth, no stored sensor model): a
     simulated recording and its :func:`gyrosim.estimator.as_user_file` view give the same result.
     """
-    if method not in METHODS:
-        raise RecordingError(f"unknown magnetometer method {method!r}; use one of {', '.join(METHODS)}")
-    meth: MagMethod = METHODS[method]()
-    inp = prepare_magnetometer(rec, unit=mag_unit, range_ut=range_ut)
-    if position_nav_m is not None:
-        position_nav_m = np.asarray(position_nav_m, dtype=float)
-        if position_nav_m.shape != (rec.n, 3):
-            raise RecordingError(f"position_nav_m has shape {position_nav_m.shape}; the recording has {rec.n} samples: "
-                                 f"expected ({rec.n}, 3)")
-    if time_range_s is not None:
-        inside = (rec.t_s >= time_range_s[0]) & (rec.t_s <= time_range_s[1])
-        if inside.sum() < 50:
-            raise RecordingError(f"only {int(inside.sum())} samples between t = {time_range_s[0]:g} and "
-                                 f"{time_range_s[1]:g} s: too few to calibrate")
-        inp = replace(inp, valid=inp.valid & inside)
-    warnings = list(inp.warnings)
-    diagnostics: dict = {"notes": []}
-    m = inp.mag_ut
-    blocks = block_index(rec.n, max(1, int(round(rec.rate_hz))))
+    setup = prepare(rec, method, mag_unit=mag_unit, field_ut=field_ut, inclination_deg=inclination_deg,
+                    range_ut=range_ut, min_coverage=min_coverage, time_range_s=time_range_s,
+                    detect_disturbances=detect_disturbances, consistency_check=consistency_check,
+                    position_nav_m=position_nav_m)
+    if regimes is None:
+        return _one_regime(setup, fit_samples(setup), None, DEFAULT_REGIMES)
+    split = _detect(setup, regimes)
+    if not split.single:
+        # the device's own soft iron biases each window's offset by how it turned (a phone's 8 %: a
+        # few µT): look again with it removed
+        soft = _reference_soft_iron(setup, split)
+        again = _detect(setup, regimes, soft) if soft is not None else split
+        # (the longest regime's soft iron may be a magnet's, which biases the others: the look with
+        # fewer hard irons wins)
+        if len(again.hypotheses) <= len(split.hypotheses):
+            split = again
+    if split.single:
+        return _one_regime(setup, fit_samples(setup), split, regimes)
+    return _several_regimes(setup, split, regimes)
+
+
+def _detect(setup: MagSetup, st: RegimeSettings, soft_iron: np.ndarray | None = None) -> RegimeSplit:
+    """Step 2 on the samples with ``soft_iron`` (A, det 1) removed, b = A⁻¹ m (default A = I)."""
+    rec, g = setup.rec, setup.gravity
+    m = setup.inp.mag_ut if soft_iron is None else setup.inp.mag_ut @ np.linalg.inv(soft_iron).T
+    split = detect_regimes(rec.t_s, m, setup.inp.valid, rec.gyro_rad_s,
+                           g.gyro_bias_rad_s if g is not None else np.zeros(3),
+                           up_body=None if g is None else g.up_body, quasi_static=None if g is None else g.quasi_static,
+                           settings=st)
+    if soft_iron is not None:
+        split = replace(split, notes={**split.notes, "soft_iron_removed": np.round(soft_iron, 4).tolist()})
+    return split
+
+
+def _reference_soft_iron(setup: MagSetup, split: RegimeSplit) -> np.ndarray | None:
+    """A soft iron (A, det 1) to look again with: that of the hypothesis labelling the most samples,
+    else the whole session's calibration's (its disturbance detector excludes a magnet's stretch, as
+    it did before regimes were sought); None when neither carries a soft iron."""
+    quick = replace(setup, consistency_check=False)
+    j = int(np.argmax([(split.labels == k).sum() for k in range(len(split.hypotheses))]))
+    for mask in (split.labels == j, None):
+        try:
+            a = fit_samples(quick, mask).soft_iron
+        except RecordingError:  # (the whole session around two hard irons far apart is no sphere at all)
+            continue
+        if np.all(np.isfinite(a)):
+            return a / np.cbrt(np.linalg.det(a))
+    return None
+
+
+# ---------------------------------------------------------------------------------------- disturbances
+def _classify(setup: MagSetup, d: Disturbance, split: RegimeSplit | None, hypothesis: int, st: RegimeSettings
+              ) -> Disturbance:
+    """Module docstring, step 5 (:func:`calib.mag.regimes.stretch_offset_test`)."""
+    if split is None:  # no test was made
+        return replace(d, kind="undetermined", evidence=None)
+    ev = stretch_offset_test(split, setup.rec.t_s, setup.inp.mag_ut, d.t_start_s, d.t_end_s, hypothesis, st)
+    kind = ev.pop("verdict")
+    return replace(d, kind=kind, evidence=ev or None)
+
+
+def _field_deviation(ref: MagCalibration, m: np.ndarray) -> float:
+    """The largest | |B| − F | (µT) the reference calibration leaves on the samples ``m``."""
+    if m.shape[0] == 0:
+        return float("nan")
+    return float(np.max(np.abs(np.linalg.norm(ref.compensate(m), axis=1) - ref.field_ut)))
+
+
+# ---------------------------------------------------------------------------------------- regimes
+def _regime(index: int, start: float, end: float, group: int, kind: str, res: MagCalibration | None, reason: str,
+            samples: dict, change: dict | None, setup: MagSetup) -> Regime:
+    """One :class:`Regime` from its group's calibration (None: not calibratable, ``reason`` says why)."""
+    nan3, nan33 = np.full(3, np.nan), np.full((3, 3), np.nan)
+    if res is None:
+        return Regime(index, start, end, group, kind, "not_calibratable", reason, nan3, nan33, float("nan"), nan3,
+                      nan33, float("nan"), samples, change, ())
+    own = tuple(w for w in res.warnings if w not in setup.warnings)
+    why = "" if res.status == "ok" else (own[-1] if own else res.status)
+    return Regime(index, start, end, group, kind, res.status, why, res.hard_iron_ut, res.soft_iron, res.field_ut,
+                  res.hard_iron_std_ut, res.soft_iron_std, res.field_std_ut, samples, change, own)
+
+
+def _one_regime(setup: MagSetup, res: MagCalibration, split: RegimeSplit | None, st: RegimeSettings
+                ) -> MagCalibration:
+    """Step 3: the session's calibration, listed as its only regime, its disturbances classified."""
+    t = setup.rec.t_s[setup.inp.valid]
+    samples = {"total": int(setup.inp.valid.sum())}
+    reg = _regime(0, float(t[0]), float(t[-1]), 0, "reference", res, "", samples, None, setup)
+    diagnostics = dict(res.diagnostics)
+    if split is not None:
+        diagnostics["regimes"] = dict(split.notes)
+    return replace(res, regimes=(reg,), disturbances=tuple(_classify(setup, d, split, 0, st) for d in res.disturbances),
+                   diagnostics=diagnostics)
+
+
+def _fit_groups(setup: MagSetup, split: RegimeSplit) -> tuple[list[MagCalibration | None], list[str]]:
+    """Step 4: every hypothesis' samples calibrated on their own; (results or None, reasons)."""
+    fits: list[MagCalibration | None] = []
+    reasons: list[str] = []
+    for j in range(len(split.hypotheses)):
+        try:
+            fits.append(fit_samples(setup, split.labels == j))
+            reasons.append("")
+        except NotCalibratable as exc:
+            fits.append(None)
+            reasons.append(str(exc).split(":")[0])
+    return fits, reasons
+
+
+UNION_SPREAD_RATIO = 1.2  # one calibration of two stretches explains them when its |B| spread is ≤ this × theirs
+
+
+def _spread(res: MagCalibration, m: np.ndarray) -> float:
+    """Standard deviation (µT) of the calibrated field magnitude over the samples ``m``."""
+    return float(np.std(np.linalg.norm(res.compensate(m), axis=1)))
+
+
+def _one_calibration_explains(setup: MagSetup, split: RegimeSplit, i: int, j: int,
+                              fits: list[MagCalibration | None]) -> bool:
+    """Does one calibration (hard and soft iron) of hypotheses i and j together, every sample kept,
+    leave on each of them no more |B| spread than its own calibration (``UNION_SPREAD_RATIO``)?
+    Then their offsets differed by how the board turned under a strong soft iron, not by a change."""
+    if fits[i] is None or fits[j] is None:
+        return False
+    m = setup.inp.mag_ut
+    masks = [setup.inp.valid & (split.labels == k) for k in (i, j)]
     try:
-        gravity: GravityReference | None = gravity_reference(rec)
-        diagnostics["notes"] += list(gravity.notes)
-    except RecordingError as exc:
-        if meth.needs_gravity:
-            raise
-        gravity = None
-        warnings.append(f"no gravity reference ({exc}): inclination not estimated")
-
-    unit_from_median(m[inp.valid], mag_unit)
-    cover, weak = direction_coverage(m[inp.valid])
-    d = m[inp.valid] - m[inp.valid].mean(axis=0)
-    ev = np.linalg.eigvalsh(d.T @ d / d.shape[0])
-    coverage = {"value": cover, "minimum": min_coverage, "weakest_direction_body": weak.tolist()}
-    # turned about at least one axis: the samples spread over ≥ 2 µT in two directions (a turn of α
-    # spreads the Earth's ≥ 22 µT by ~F α/2; a static board spreads only by its noise, < 1 µT)
-    if math.sqrt(max(ev[1], 0.0)) < MIN_SPREAD_UT:
-        raise RecordingError(
-            "the board did not rotate (the magnetometer samples lie along a line or at one point): neither hard nor "
-            "soft iron can be separated from the Earth's field; turn the board about at least one axis, better "
-            "about all three")
-    # below the soft-iron coverage the samples are near a plane: the circle's hard iron, with the
-    # component along the weak axis refused unless the field and inclination are given (hardiron.py);
-    # a sphere through them would trade that component against the radius (BROAD 16: F = 56 µT)
-    if cover < min_coverage:
-        return _hard_iron_only_result(method, f"coverage {cover:.3f} < {min_coverage}", rec, inp, inp.valid.copy(),
-                                      blocks, cover, weak, True, field_ut, inclination_deg, gravity, warnings,
-                                      coverage, diagnostics)
-
-    # 3. sphere start; its radius checks the unit; its residual finds the disturbances first
-    state = {"h": None, "f": None, "core": None}
-
-    def refit_sphere(used):
-        h, _, f, _, _ = sphere_hard_iron(m[used], blocks[used])
-        state["h"], state["f"] = h, f
-
-    def sphere_residual():
-        return np.linalg.norm(m - state["h"], axis=1) - state["f"], None
-
-    refit_sphere(inp.valid)
-    check_unit(m[inp.valid], state["f"], mag_unit)
-    rounds = 4 if detect_disturbances else 0
-    used, found, disturbed = _disturbance_loop(sphere_residual, rec, inp, gravity, refit_sphere, inp.valid, rounds,
-                                               position_nav_m)
-
-    # 4. the method, started from the sphere, and detection on its own residual
-    start = (np.eye(3) / state["f"], state["h"])
-    refused_mis = False
-
-    def refit_method(u):
-        prev = state["core"]
-        st = start if prev is None else prev.unpack(prev.theta)[:2]
-        state["core"] = meth.fit(m, blocks, gravity, u, start=st)
-
-    def method_residual():
-        core = state["core"]
-        l, h, _ = core.unpack(core.theta)
-        f_est = abs(np.linalg.det(np.linalg.inv(l))) ** (1 / 3)
-        dev_field = (np.linalg.norm((m - h) @ l.T, axis=1) - 1.0) * f_est
-        incl = _inclination_series(m, l, h, gravity)
-        ok = np.isfinite(incl) & used
-        return dev_field, (incl - np.median(incl[ok])) if ok.sum() > 10 else None
-
-    try:
-        refit_method(used)
-    except MisalignmentUnobservable as exc:
-        if not meth.sees_misalignment:
-            raise
-        warnings.append(f"misalignment refused (misalignment_deg[0..2]): {exc}; hard and soft iron from the "
-                        "ellipsoid fit instead")
-        diagnostics["notes"].append("attitude-aided fit fell back to the ellipsoid fit")
-        refused_mis = True
-        meth = METHODS["ellipsoid"]()
-        refit_method(used)
-    used2, found2, disturbed2 = _disturbance_loop(method_residual, rec, inp, gravity, refit_method, inp.valid, rounds,
-                                                  position_nav_m)
-    if disturbed2.sum() >= disturbed.sum():
-        used, found, disturbed = used2, found2, disturbed2
-    else:  # the method's fit hid part of a disturbance the sphere saw: keep the sphere's verdict
-        refit_method(used)
-    core: CoreFit = state["core"]
-    if found:
-        frac = disturbed.sum() / max(inp.valid.sum(), 1)
-        warnings.append(f"local magnetic disturbance: {len(found)} stretch(es), {int(disturbed.sum())} samples "
-                        f"({100 * frac:.1f} %), up to {max(x.max_field_deviation_ut for x in found):.2f} µT off the "
-                        "field magnitude; excluded from the fit, not absorbed")
-
-    # 5. is the soft iron decided by the data, and a magnetometer's?
-    l, h, _ = core.unpack(core.theta)
-    axes = np.linalg.svd(np.linalg.inv(l), compute_uv=False)
-    reason = None
-    if core.weak_soft_iron:
-        reason = "the data leave part of the soft iron to the prior (posterior σ above half the prior's)"
-    elif axes.max() > MAX_AXIS_RATIO * axes.min():
-        reason = (f"the fitted ellipsoid's axes are {axes.max() / axes.min():.2f} : 1, no magnetometer's (≤ "
-                  f"{MAX_AXIS_RATIO}): the field is not uniform over the session (a disturbance spread over it?)")
-    if reason:
-        return _hard_iron_only_result(method, reason, rec, inp, used, blocks, cover, weak, False, field_ut,
-                                      inclination_deg, gravity, warnings, coverage, diagnostics, found, disturbed)
-
-    # 6. self-consistency
-    status = "ok"
-    consistency: dict = {}
-    noise = math.sqrt(white_noise_variance(m[used]))
-    f_est = abs(np.linalg.det(np.linalg.inv(l))) ** (1 / 3)
-    resid_rms = float(np.sqrt(np.mean(core.residual_field**2))) * f_est
-    structured = resid_rms > STRUCTURE_RATIO * noise
-    if consistency_check:
-        core, consistency = _jackknife_check(core, rec.rate_hz, structured)
-        consistency.update(residual_rms_uT=resid_rms, white_noise_uT=noise)
-        # (with a white residual the model fits and the sandwich is right; the jackknife's leverage bias
-        # — deleting 10 s of a session removes whole poses — reads up to ~20× then, measured)
-        if (
-            structured
-            and consistency.get("max_variance_ratio", 0.0) / consistency.get("inflation", 1.0) > INCONSISTENT_RATIO
-        ):
-            status = "inconsistent"
-            warnings.append(
-                f"inconsistent: a parameter's error over {JACKKNIFE_S:g} s stretches is "
-                f"{math.sqrt(consistency['max_variance_ratio'] / consistency['inflation']):.1f}× its σ; the residual "
-                f"({resid_rms:.2f} µT RMS against {noise:.2f} µT of sensor noise) has structure the model lacks "
-                "(a field that varies with position, a time-varying hard iron): σ is not honest")
-    if found and disturbed.sum() > 0.5 * inp.valid.sum():
-        status = "disturbed"
-        warnings.append(
-            "more than half of the session is magnetically disturbed: the calibration rests on the minority"
-        )
-
-    y, cy = propagate(core, field_ut)
-    sd = np.sqrt(np.clip(np.diag(cy), 0, None))
-    l, h, _ = core.unpack(core.theta)
-    incl, incl_sd = float(y[13]), float(sd[13])
-    notes = diagnostics["notes"]
-    if not meth.sees_misalignment:
-        # post-hoc inclination: mean over the quasi-static samples, σ from 10 s clusters (the unmodelled
-        # misalignment tilts the symmetric frame: an error per pose, not per sample) and the prior of
-        # that misalignment, which the fit cannot see
-        long_blocks = block_index(rec.n, max(1, int(round(10 * rec.rate_hz))), min_blocks=8)
-        incl, incl_sd = _mean_with_std(_inclination_series(m, l, h, gravity)[used], long_blocks[used])
-        incl_sd = math.hypot(incl_sd, MISALIGNMENT_PRIOR_DEG)
-        mis = mis_sd = None
-        notes.append("misalignment to the IMU frame not observable from the field magnitude (use method 'aided'); "
-                     f"the inclination assumes none, its σ includes a {MISALIGNMENT_PRIOR_DEG:g}° misalignment prior")
-    else:
-        mis, mis_sd = y[14:17], sd[14:17]
-    if field_ut:
-        ref = f"given |B| = {field_ut:g} µT (A absolute; the fit's own scale reads {f_est:.3f} µT)"
-        f_val, f_sd = float(field_ut), 0.0
-    else:
-        ref = "det A = 1 (field_uT in the sensor's own average scale)"
-        f_val, f_sd = float(y[12]), float(sd[12])
-    diagnostics.update(
-        residual_field_rms_uT=resid_rms,
-        white_noise_uT=noise,
-        sigma_correlation_ratio=core.correlation_ratio,
-        sphere_radius_uT=state["f"],
-        field_estimated_uT=f_est,
-    )
-    if math.isfinite(core.sigma_inclination):
-        diagnostics["residual_inclination_rms_uT"] = core.sigma_inclination * f_est
-    samples = {
-        "total": rec.n,
-        "saturated": inp.saturated_samples,
-        "used": int(used.sum()),
-        "disturbed": int(disturbed.sum()),
-    }
-    return MagCalibration(
-        method=method, status=status, hard_iron_ut=y[:3], soft_iron=y[3:12].reshape(3, 3), field_ut=f_val,
-        inclination_deg=incl, misalignment_deg=mis, hard_iron_std_ut=sd[:3], soft_iron_std=sd[3:12].reshape(3, 3),
-        field_std_ut=f_sd, inclination_std_deg=incl_sd, misalignment_std_deg=mis_sd, field_reference=ref,
-        warnings=tuple(warnings),
-        refused=tuple(f"misalignment_deg[{i}]" for i in range(3)) if refused_mis else (),
-        disturbances=found, samples=samples, coverage=coverage, consistency=consistency, diagnostics=diagnostics)
+        union = fit_samples(replace(setup, detect_disturbances=False, consistency_check=False), masks[0] | masks[1])
+    except RecordingError:  # too few samples, no turn, or one sphere far from the Earth's field: not one
+        return False
+    return union.status == "ok" and all(_spread(union, m[k]) <= UNION_SPREAD_RATIO * _spread(own, m[k])
+                                        for k, own in zip(masks, (fits[i], fits[j])))
 
 
-def true_magnetometer(rec: Recording) -> dict[str, np.ndarray] | None:
+def _merge_explained(setup: MagSetup, split: RegimeSplit, st: RegimeSettings
+                     ) -> tuple[RegimeSplit, list[MagCalibration | None], list[str]]:
+    """Step 4's guard: neighbouring regimes that one calibration explains become one."""
+    fits, reasons = _fit_groups(setup, split)
+    tried: set[tuple[int, int]] = set()
+    while not split.single:
+        pair = next(((min(c.before, c.after), max(c.before, c.after)) for c in split.changes
+                     if (min(c.before, c.after), max(c.before, c.after)) not in tried), None)
+        if pair is None:
+            break
+        tried.add(pair)
+        if _one_calibration_explains(setup, split, *pair, fits):
+            split = merge_hypotheses(split, setup.rec.t_s, pair[0], pair[1], st)
+            split = replace(split, notes={**split.notes, "merged": split.notes.get("merged", 0) + 1})
+            fits, reasons = _fit_groups(setup, split)
+            tried = set()
+    return split, fits, reasons
+
+
+def _in_scale_of(res: MagCalibration, ref: MagCalibration) -> MagCalibration:
+    """``res`` with A scaled so that its field is the reference's: the Earth's field is the same in
+    every regime, and det A = 1 would otherwise put each regime's |B| in its own scale (a magnet's
+    soft iron changes the sensor's average gain).  The same model m = A B + h, B in one scale."""
+    if not (np.all(np.isfinite(res.soft_iron)) and np.isfinite(res.field_ut) and np.isfinite(ref.field_ut)):
+        return res
+    k = res.field_ut / ref.field_ut
+    return replace(res, soft_iron=res.soft_iron * k, soft_iron_std=res.soft_iron_std * k, field_ut=ref.field_ut,
+                   field_std_ut=ref.field_std_ut,
+                   field_reference=f"the reference regime's field ({ref.field_ut:.3f} µT; A scaled by {k:.4f})")
+
+
+def _spans(setup: MagSetup, split: RegimeSplit) -> list[tuple[int, float, float, dict | None]]:
+    """(hypothesis, start s, end s, the change that starts it) of every regime in time order."""
+    t = setup.rec.t_s[setup.inp.valid]
+    seq = [split.changes[0].before] + [c.after for c in split.changes]
+    bounds = [float(t[0])] + [c.time_s for c in split.changes] + [float(t[-1])]
+    changes: list[dict | None] = [None] + [c.to_dict() for c in split.changes]
+    return [(seq[i], bounds[i], bounds[i + 1], changes[i]) for i in range(len(seq))]
+
+
+def _several_regimes(setup: MagSetup, split: RegimeSplit, st: RegimeSettings) -> MagCalibration:
+    """Step 4 of the module docstring."""
+    rec, inp = setup.rec, setup.inp
+    split, fits, reasons = _merge_explained(setup, split, st)
+    if split.single:
+        return _one_regime(setup, fit_samples(setup), split, st)
+    spans = _spans(setup, split)
+    order = list(dict.fromkeys(h for h, *_ in spans))  # groups numbered by first appearance
+    done = [j for j in order if fits[j] is not None]
+    if not done:
+        raise NotCalibratable(f"the hard iron changed {len(split.changes)} time(s) and no stretch of one hard iron can "
+                              f"be calibrated on its own ({'; '.join(dict.fromkeys(r for r in reasons if r))})")
+    main = max(done, key=lambda j: fits[j].samples.get("used", 0))
+    ref = fits[main]
+    if setup.field_ut is None:
+        fits = [f if f is None or j == main else _in_scale_of(f, ref) for j, f in enumerate(fits)]
+    regimes, attached = [], []
+    for i, (h, t0, t1, change) in enumerate(spans):
+        inside = inp.valid & (rec.t_s >= t0) & (rec.t_s <= t1)
+        samples = {"total": int(inside.sum()), "transition": int((inside & (split.labels < 0)).sum())}
+        kind = "reference" if h == main else "attached"
+        regimes.append(_regime(i, t0, t1, order.index(h), kind, fits[h], reasons[h], samples, change, setup))
+        if h != main:
+            hm, hj = split.hypotheses[main], split.hypotheses[h]
+            d, sd, chi2, dof, p = offset_change_test(hm.offset_ut, hm.cov, hj.offset_ut, hj.cov)
+            ev = {"offset_change_uT": d.tolist(), "offset_change_std_uT": sd.tolist(), "chi2": chi2, "dof": dof,
+                  "p_value": p}
+            attached.append(Disturbance(t0, t1, int(inside.sum()), _field_deviation(ref, inp.mag_ut[inside]),
+                                        float("nan"), None, "attached", i, ev))
+    found = [_classify(setup, d, split, j, st) for j in done for d in fits[j].disturbances]
+    disturbances = tuple(sorted(found + attached, key=lambda d: d.t_start_s))
+    return _assemble(setup, split, ref, regimes, disturbances)
+
+
+def _assemble(setup: MagSetup, split: RegimeSplit, ref: MagCalibration, regimes: list[Regime],
+              disturbances: tuple[Disturbance, ...]) -> MagCalibration:
+    """The top-level result of several regimes: the reference group's calibration, the combined
+    status and short warnings (what changed, what it does to the result, what to do)."""
+    times = ", ".join(f"{c.time_s:.1f}" for c in split.changes)
+    warnings = list(ref.warnings)
+    warnings.append(f"hard iron changed {len(split.changes)} time(s), at t = {times} s (a magnet attached to the "
+                    "board, or taken off): each stretch is calibrated with its own hard iron (see regimes)")
+    bad = [r for r in regimes if r.status != "ok"]
+    for r in bad:
+        where = f"regime t = {r.start_s:.1f}–{r.end_s:.1f} s"
+        if r.status == "not_calibratable":
+            warnings.append(f"{where} not calibrated ({r.reason}): its samples keep the reference calibration; "
+                            "turn the board about two axes or more while it is there")
+        else:
+            warnings.append(f"{where}: {r.status} (its warnings say why)")
+    status = ref.status if ref.status != "ok" or not bad else "partial"
+    diagnostics = {**ref.diagnostics, "regimes": dict(split.notes)}
+    samples = {**ref.samples, "total": setup.rec.n, "transition": int((setup.inp.valid & (split.labels < 0)).sum())}
+    return replace(ref, status=status, warnings=tuple(warnings), disturbances=disturbances, regimes=tuple(regimes),
+                   samples=samples, diagnostics=diagnostics)
+
+
+def true_magnetometer(rec: Recording, at_s: float | None = None) -> dict[str, np.ndarray] | None:
     """The oracle: the device's m = A B + h of a simulated recording (from its stored sensor model),
     or None; for scoring a calibration, never for making one.
-    A = I + Σ (affine parts of the magnetometer effects), h = Σ constants."""
+    A = I + Σ (affine parts of the magnetometer effects), h = Σ constants; at the time ``at_s`` (s)
+    effects that switch (a magnet attached part of the session) add what they are then."""
     model = stored_sensor_model(rec.meta)
     if model is None or not model.magnetometer:
         return None
     a, c = np.eye(3), np.zeros(3)
     for eff in model.magnetometer:
         if eff.stage == "error" and not eff.stochastic:
-            ac = eff.affine()
+            at = getattr(eff, "affine_at", None)
+            ac = at(at_s) if (at is not None and at_s is not None) else eff.affine()
             if ac is not None:
                 a = a + ac[0]
                 c = c + ac[1]

@@ -32,15 +32,18 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from gyrosim.errors import RecordingError
+from gyrosim.lazy import lazy_module
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate, quat_to_matrix
 from gyrosim.strapdown import integrate_gyro
 from gyrosim.units import G0
 
 from calib.mag.lsq import block_index
+
+# imported on first use (gyrosim.lazy), so that start-up and a refused file do not pay for it
+stats = lazy_module("scipy.stats")
 
 __all__ = ["GravityReference", "gravity_reference", "direction_coverage"]
 

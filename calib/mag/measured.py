@@ -64,9 +64,11 @@ def optical_heading_errors(rec: Recording, field_body_ut: np.ndarray, mask: np.n
 
 def _row(name: str, rec: Recording, res: MagCalibration, window: np.ndarray, label: str, notes: str) -> MeasuredRow:
     m = np.asarray(rec.mag_ut, dtype=float)
-    b = res.compensate(m)
+    b = res.compensate(m, rec.t_s)
     dist = np.zeros(rec.n, dtype=bool)
     for d in res.disturbances:
+        if d.kind == "attached":  # calibrated as a regime of its own: judged, not left out
+            continue
         dist |= (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
     judge = window & ~dist
     return MeasuredRow(name, label, res.status, res.samples.get("used", 0), res.samples.get("disturbed", 0),
@@ -82,7 +84,7 @@ def _optical_position(rec: Recording) -> np.ndarray | None:
 def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
     """Calibrate every available measured recording with a magnetometer by ``method`` and judge it (module
     docstring): one row per recording (a refused one included), plus one for the disturbed stretches of a
-    stationary recording and one for the magnet-on stretch of a recording with an attached magnet."""
+    stationary recording and one per attached regime (a magnet on the board)."""
     rows = []
     for name in available_datasets():
         rec = load_dataset(name)
@@ -98,34 +100,31 @@ def measured_rows(method: str = "ellipsoid") -> list[MeasuredRow]:
             continue
         notes = "; ".join(w.split(":")[0] for w in res.warnings)
         rows.append(_row(name, rec, res, everything, "all", notes))
-        if res.disturbances and "stationary" in name:
+        if any(d.kind != "attached" for d in res.disturbances) and "stationary" in name:
             # the disturbed stretches themselves: a field that depends on where the board is cannot be
             # calibrated away (the row's "after" keeps the calibration of the undisturbed samples)
             win = np.zeros(rec.n, dtype=bool)
             for d in res.disturbances:
-                win |= (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
+                if d.kind != "attached":
+                    win |= (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
             rows.append(
                 _row(
                     name,
                     rec,
                     replace(res, disturbances=()),
                     win,
-                    " + ".join(f"{d.t_start_s:.0f}–{d.t_end_s:.0f} s" for d in res.disturbances) + " (disturbed)",
+                    " + ".join(f"{d.t_start_s:.0f}–{d.t_end_s:.0f} s" for d in res.disturbances if d.kind != "attached")
+                    + " (disturbed)",
                     "reported as a local disturbance, not calibrated",
                 )
             )
-        if res.disturbances and "attached" in name:
-            # the attached magnet turns with the board: a hard iron on the stretch it is there
-            d = max(res.disturbances, key=lambda x: x.samples)
-            win = (rec.t_s >= d.t_start_s) & (rec.t_s <= d.t_end_s)
-            try:
-                sub = calibrate_magnetometer(rec, method, time_range_s=(d.t_start_s, d.t_end_s))
-                rows.append(_row(name, rec, sub, win, f"{d.t_start_s:.0f}–{d.t_end_s:.0f} s (magnet on)",
-                                 "the attached magnet calibrated as a hard iron; " +
-                                 "; ".join(w.split(":")[0] for w in sub.warnings)))
-            except GyrosimError as exc:
-                rows.append(MeasuredRow(name, "magnet on", "refused", 0, 0, float("nan"), float("nan"), float("nan"),
-                                        float("nan"), str(exc)[:120]))
+        for r in res.regimes:
+            if r.kind != "attached":
+                continue
+            # the attached magnet turns with the board: a hard iron of its own on its stretch
+            win = (rec.t_s >= r.start_s) & (rec.t_s <= r.end_s)
+            rows.append(_row(name, rec, res, win, f"{r.start_s:.0f}–{r.end_s:.0f} s (attached regime)",
+                             f"calibrated as its own hard iron, status {r.status}"))
     return rows
 
 

@@ -1,4 +1,4 @@
-"""Allan-deviation noise identification (IEEE Std 952 Annex C), using allantools.
+"""Allan-deviation noise identification (IEEE Std 952 Annex C).
 
 The overlapping Allan variance of a rate signal is fitted with the three classic terms
 
@@ -10,21 +10,26 @@ from a record of length T has about M = T/τ independent clusters, so its relati
 ≈ 1/(2(M − 1)) (Lesage & Audoin 1973; overlapping estimates are somewhat better, so this is
 conservative); σ²'s relative standard error is twice σ's.  Axes sharing the same noise can be
 pooled (their curves are independent).
+
+The overlapping Allan deviation is our own (:func:`overlapping_allan_deviation`, NIST SP 1065 eq. 11 on the
+integrated rate), written to give the same numbers as allantools' ``oadev(..., data_type="freq")`` (the test
+suite compares them), so that the runtime install does not carry allantools' run-time requirements
+(numpydoc and pytest, and with them Sphinx).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-import allantools
 import numpy as np
 
 __all__ = [
     "AllanCurve",
     "NoiseTerms",
     "allan_deviation",
+    "overlapping_allan_deviation",
     "paired_allan_deviation",
     "fit_noise_terms",
     "fit_allan_variance",
@@ -58,6 +63,15 @@ class NoiseTerms:
     arw_std: float
     bias_instability_std: float
     rate_random_walk_std: float
+    # 2σ upper bound of each term (SI, N, B, K) from its fitted variance coefficient: what a term the record does
+    # not determine (fitted to 0, where its own σ is unbounded) can still be said to be below; NaN when not computed
+    upper_2sigma: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+
+    def determined(self, term: str) -> bool:
+        """Whether the record determines ``term`` (one of :data:`TERMS`): fitted above 2σ of its own (a term fitted
+        to 0 has an unbounded σ; one within 2σ of 0 is not told apart from none)."""
+        value, std = getattr(self, term), getattr(self, f"{term}_std")
+        return value > 0 and math.isfinite(std) and value > 2 * std
 
     def model(self, tau_s: np.ndarray) -> np.ndarray:
         return np.sqrt(
@@ -72,8 +86,36 @@ def allan_deviation(x: np.ndarray, rate_hz: float, taus_per_decade: int = 8) -> 
     taus = np.logspace(
         math.log10(2.0 / rate_hz), math.log10(T / 5.0), int(taus_per_decade * math.log10(T * rate_hz / 10))
     )
-    t2, ad, _, _ = allantools.oadev(x, rate=rate_hz, data_type="freq", taus=taus)
-    return AllanCurve(np.asarray(t2), np.asarray(ad), T / np.asarray(t2))
+    t2, ad, _ = overlapping_allan_deviation(x, rate_hz, taus)
+    return AllanCurve(t2, ad, T / t2)
+
+
+def overlapping_allan_deviation(x: np.ndarray, rate_hz: float,
+                                taus_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Overlapping Allan deviation of a rate signal ``x`` (N,) sampled at ``rate_hz`` (Hz), in x's units, at the
+    cluster times ``taus_s`` (s) rounded to whole samples m = round(τ·f_s), duplicates merged, sorted; clusters
+    longer than the record dropped.  Returns (τ used (s), σ(τ), number of second differences n per τ).
+
+    NIST SP 1065 eq. 11 on the phase (the rate integrated, its mean removed first so that a large constant rate
+    costs no precision, and a leading 0): σ²(mτ₀) = Σ (x_{i+2m} − 2x_{i+m} + x_i)² / (2 n (mτ₀)²) over the
+    n = N + 1 − 2m overlapping second differences; τ with n < 2 are dropped.  Leading and trailing NaNs are cut.
+    The same operations in the same order as allantools' ``oadev(x, rate, data_type="freq", taus=taus_s)``."""
+    x = np.asarray(x, dtype=float)
+    finite = np.flatnonzero(~np.isnan(x))
+    x = x[finite[0]: finite[-1] + 1] if finite.size else x[:0]
+    rate = float(rate_hz)
+    phase = np.insert(np.cumsum(x - np.nanmean(x)) * (1.0 / rate), 0, 0)
+    m = np.round(np.asarray(taus_s, dtype=float) * rate)
+    m = np.unique(m[(m > 0) & (m < phase.size)]).astype(int)
+    n = np.maximum(phase.size - 2 * m, 1)  # an empty difference counts as one, then dropped below with n < 2
+    adev = np.zeros(m.size)
+    for k, (mj, nk) in enumerate(zip(m, n)):
+        if phase.size - 2 * mj <= 0:
+            continue
+        d = phase[2 * mj: 2 * mj + nk] - 2 * phase[mj: mj + nk] + phase[:nk]
+        adev[k] = np.sqrt(np.sum(d * d) / (2.0 * nk)) / mj * rate
+    keep = n > 1
+    return m[keep] / rate, adev[keep], n[keep]
 
 
 def paired_allan_deviation(x: np.ndarray, rate_hz: float) -> AllanCurve:
@@ -113,7 +155,9 @@ def fit_noise_terms(curves: list[AllanCurve], iterations: int = 5, terms: tuple[
     with standard error 0 (e.g. leave out a random walk the τ range cannot show).
     """
     full, cov = fit_allan_variance(curves, iterations, terms)
-    return _terms_from_coefficients(full, np.sqrt(np.diag(cov)))
+    std = np.sqrt(np.diag(cov))
+    upper = np.sqrt(full + 2 * std) / np.array([1.0, FLICKER, 1.0])
+    return replace(_terms_from_coefficients(full, std), upper_2sigma=tuple(float(u) for u in upper))
 
 
 def fit_allan_variance(curves: list[AllanCurve], iterations: int = 5,

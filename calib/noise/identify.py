@@ -14,10 +14,14 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+
+from gyrosim.lazy import lazy_module
 
 from calib.noise.gmwm import AxisSelection, identify_axis
 from calib.noise.units import CONVENTION, representations, si_unit
+
+# imported on first use (gyrosim.lazy), so that start-up and a refused file do not pay for it
+stats = lazy_module("scipy.stats")
 
 __all__ = ["NoiseParameter", "AxisNoise", "NoiseIdentification", "identify_noise", "minimum_samples", "TRIADS"]
 

@@ -38,7 +38,9 @@ correlation time of u (the sandwich / long-run-variance argument of Newey & West
 P is multiplied by κ = 2π S_u(0), the long-run variance of u.  κ is estimated by batch means
 (sums of u over blocks of ``INFLATION_BLOCK_S`` seconds, both levelling rows pooled): under the model
 κ̂ ~ χ²(d)/d; it is applied when above its 95 % quantile (:func:`innovation_inflation`), with a warning
-saying by how much the filter's own σ was understated.
+saying by how much the filter's own σ was understated.  Beyond ×1.5 the inflated σ is no longer trusted
+(:func:`apply_inflation`): ``inconsistent`` when κ̂ exceeds 1.5² by more than its own sampling range, κ̂'s 95 %
+quantile at κ = 1.5² (:func:`inconsistent_sigma_limit`).
 
 **Parameters the filter holds fixed.**  The paper's 9-state filter compensates the gyro with the
 static bias b̂ of the first rest (§3.2) and treats it as exact; its error δb (σ_b = ARW/√T_rest; with the
@@ -64,6 +66,8 @@ from typing import Callable
 
 import numpy as np
 from scipy import stats
+
+from calib.session.defaults import HAND_AWARE_METHODS
 
 __all__ = ["Consistency", "check_innovations", "check_estimate", "verdict", "RestGravity", "rest_gravity",
            "Inflation", "innovation_inflation", "apply_inflation", "INFLATION_BLOCK_S", "FixedParameterEffect",
@@ -181,6 +185,13 @@ class Inflation:
     def sigma_factor(self) -> float:
         return float(np.sqrt(self.factor))
 
+    @property
+    def limit_sigma(self) -> float:
+        """The σ factor above which the inflation makes a result ``inconsistent`` (:func:`apply_inflation`):
+        ×``INFLATION_INCONSISTENT_SIGMA`` widened by κ̂'s own sampling range at this many degrees of freedom, the
+        ``INFLATION_QUANTILE`` quantile of κ_max χ²(d)/d."""
+        return inconsistent_sigma_limit(self.dof)
+
     def to_dict(self) -> dict:
         return {
             "long_run_variance": self.kappa,
@@ -191,11 +202,13 @@ class Inflation:
             "block_s": INFLATION_BLOCK_S,
             "fixed_parameters_accounted": self.nuisance,
             "long_run_variance_ignoring_fixed": self.kappa_ignoring_fixed,
+            "inconsistent_above_sigma_factor": self.limit_sigma,
         }
 
-    def warning(self, hand_aware: bool = False) -> str | None:
+    def warning(self, hand_aware: bool = False, accelerometer: str = "calibrated") -> str | None:
         """The inflation's warning; ``hand_aware``: for a filter that already models the hand (``kf_hand``),
-        whose excess low-frequency power is what its lever-arm + Gauss–Markov model does not describe."""
+        whose excess low-frequency power is what its lever-arm + Gauss–Markov model does not describe;
+        ``accelerometer``: the mode that ran ("estimate" or "calibrated"), so the advice does not name it."""
         if self.factor <= 1.0:
             return None
         if hand_aware:
@@ -203,53 +216,84 @@ class Inflation:
                 f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
                 "low-frequency power kf_hand's model (a fixed lever arm and a stationary slow external acceleration "
                 f"fitted to this session) expects, so its own σ understated the error ~{self.sigma_factor:.1f}×: "
-                f"{HAND_AWARE_CAUSES}"
+                f"{hand_aware_causes(accelerometer)}"
             )
         return (f"σ inflated ×{self.sigma_factor:.1f} from the innovations: they carry {self.kappa:.1f}× the "
                 "low-frequency power the filter's white-noise model expects (a hand's slow external acceleration or "
                 f"an unmodelled lever arm), so the filter's own σ understated the error ~{self.sigma_factor:.1f}×; "
-                "a steadier hand or the hand-aware method (kf_hand) gets a smaller honest σ")
+                f"a steadier hand or the hand-aware method ({hand_aware_name(accelerometer)}) gets a smaller honest σ")
 
 
 # What a hand-aware filter's (kf_hand's) failed innovation test means and what the user can do: it already models
 # the lever arm and the hand's slow acceleration, so a larger --external-acc or a hand-blind method
 # (iterated_session) is no remedy; what is left is motion outside its model or a sensor effect it lacks.
-HAND_AWARE_CAUSES = (
-    "the hand did something its model lacks — bursts or jerks (its slow-acceleration model is "
-    "stationary over the session), taps, or a pivot that moved (the lever arm is one constant) — or "
-    "the sensor has an effect the model lacks (a raw accelerometer, a gyro–accelerometer time offset, "
-    "g-sensitivity, a gyro bias that moves with temperature). Record again turning the device smoothly at the wrist "
-    "without moving the arm; "
-    "with a raw accelerometer use calib run --method hand (it estimates the accelerometer too); "
-    "calib closeloop traces a sensor effect"
-)
+def hand_aware_causes(accelerometer: str = "calibrated") -> str:
+    """What a hand-aware filter's failed innovation test means and what to do (the comment above); the raw
+    accelerometer's remedy — the joint filter, which estimates it — only when the accelerometer was taken as
+    calibrated (``accelerometer``: the mode that ran), never the method that ran."""
+    raw = ("a raw accelerometer, " if accelerometer == "calibrated" else "an accelerometer error its model lacks "
+           "(nonlinearity, a bias moving without a temperature channel), ")
+    remedy = ("with a raw accelerometer use calib run --method kf_hand_joint (it estimates the accelerometer too); "
+              if accelerometer == "calibrated" else "")
+    return ("the hand did something its model lacks — bursts or jerks (its slow-acceleration model is "
+            "stationary over the session), taps, or a pivot that moved (the lever arm is one constant) — or "
+            f"the sensor has an effect the model lacks ({raw}a gyro–accelerometer time offset, "
+            "g-sensitivity, a gyro bias that moves with temperature). Record again turning the device smoothly at the "
+            f"wrist without moving the arm; {remedy}calib closeloop traces a sensor effect")
+
+
+HAND_AWARE_CAUSES = hand_aware_causes("calibrated")   # the text with the accelerometer taken as calibrated
 
 
 INFLATION_INCONSISTENT_SIGMA = 1.5
 
 
+def inconsistent_sigma_limit(dof: int, quantile: float = INFLATION_QUANTILE) -> float:
+    """The σ factor √κ̂ above which :func:`apply_inflation` calls a result ``inconsistent`` with ``dof`` degrees of
+    freedom: √(κ_max · χ²_q(d)/d), κ_max = ``INFLATION_INCONSISTENT_SIGMA``².  κ̂ is an estimate, κ χ²(d)/d for a true
+    long-run variance κ (the block sums are independent Gaussians of variance κ n_block), so comparing κ̂ itself with
+    κ_max would call half the sessions at κ = κ_max inconsistent and many just below it (measured on gyrosim's
+    typical hand, kf_hand_joint, d = 80: κ̂ 2.5 — σ ×1.58 — with every error within 1.8 of the inflated σ); the
+    limit is the ``quantile`` (95 %, the level at which the inflation itself is applied) of κ̂ at κ = κ_max, so a
+    session at the limit is called inconsistent in 5 % of draws and one whose σ had to grow ×2 (κ = 4) in
+    97 % at d = 80 (83 % at 40).  No degrees of freedom: the bare ×1.5."""
+    if dof <= 0:
+        return INFLATION_INCONSISTENT_SIGMA
+    return float(INFLATION_INCONSISTENT_SIGMA * np.sqrt(stats.chi2.ppf(quantile, dof) / dof))
+
+
 def apply_inflation(status: str, notes: list[str], infl: Inflation, can_fail: bool = True,
-                    hand_aware: bool = False) -> str:
+                    hand_aware: bool = False, accelerometer: str = "calibrated") -> str:
     """Add the inflation's warning to ``notes``; an ``ok`` whose σ had to grow by more than
-    ``INFLATION_INCONSISTENT_SIGMA`` becomes ``inconsistent``: the residuals show only the part of an
-    unmodelled disturbance the fit did not absorb — what it aliased into the parameters (a lever arm
-    correlated with the rotation) stays invisible there, so the inflated σ is a lower bound, not a
-    calibration to trust (measured: the paper's filter with a typical hand, σ ×2.4 from the innovations,
-    error still 5–8 σ).  ``can_fail`` False: the noise levels sit at their floors (noise-free input), where
-    the residual is the integration's own deterministic error — correlated, but no disturbance.
-    ``hand_aware``: the advice for a filter that models the hand (:meth:`Inflation.warning`)."""
-    w = infl.warning(hand_aware)
+    ``INFLATION_INCONSISTENT_SIGMA`` — beyond κ̂'s own sampling range (:func:`inconsistent_sigma_limit`) — becomes
+    ``inconsistent``: the residuals show only the part of an unmodelled disturbance the fit did not absorb — what it
+    aliased into the parameters (a lever arm correlated with the rotation) stays invisible there, so the inflated σ
+    is a lower bound, not a calibration to trust (measured: the paper's filter with a typical hand, σ ×2.4 from the
+    innovations, error still 5–8 σ).  ``can_fail`` False: the noise levels sit at their floors (noise-free input),
+    where the residual is the integration's own deterministic error — correlated, but no disturbance.
+    ``hand_aware``: the advice for a filter that models the hand (:meth:`Inflation.warning`); ``accelerometer``: the
+    mode that ran, so the advice names the hand-aware method of that mode and not what already ran."""
+    w = infl.warning(hand_aware, accelerometer)
     if w is None:
         return status
     notes.append(w)
-    if can_fail and status == "ok" and infl.sigma_factor > INFLATION_INCONSISTENT_SIGMA:
+    limit = infl.limit_sigma
+    if can_fail and status == "ok" and infl.sigma_factor > limit:
         notes.append(f"inconsistent: σ had to grow ×{infl.sigma_factor:.1f} from the innovations, more than "
-                     f"×{INFLATION_INCONSISTENT_SIGMA}: the model misses a disturbance of this session, and what it "
-                     "aliased into the parameters does not show in the residuals — the error can exceed even the "
-                     "inflated σ. " + ("Its cause is in the line above" if hand_aware
-                                       else "Use the hand-aware method (kf_hand) or a steadier hand"))
+                     f"×{INFLATION_INCONSISTENT_SIGMA} by more than that estimate's own 95 % sampling range (limit ×"
+                     f"{limit:.2f} at {infl.dof} degrees of freedom): the model misses a disturbance of this "
+                     "session, and what it aliased into the parameters does not show in the residuals — the error can "
+                     "exceed even the inflated σ. " + ("Its cause is in the line above" if hand_aware
+                                       else f"Use the hand-aware method ({hand_aware_name(accelerometer)}) or a "
+                                       "steadier hand"))
         return "inconsistent"
     return status
+
+
+def hand_aware_name(accelerometer: str) -> str:
+    """The hand-aware method's registered name with the accelerometer ``accelerometer`` ("estimate" or
+    "calibrated")."""
+    return {mode: name for name, mode in HAND_AWARE_METHODS.items()}.get(accelerometer, "kf_hand")
 
 
 def innovation_inflation(whitened: np.ndarray, t_s: np.ndarray, block_s: float = INFLATION_BLOCK_S,
@@ -351,18 +395,26 @@ def check_estimate(values: dict[str, np.ndarray], covariance: np.ndarray, gravit
     return why
 
 
+def _iterated_advice(accelerometer: str, method: str | None) -> str:
+    """``--method`` of the three-pass hand-blind filter in this accelerometer mode, or "" when it is what ran."""
+    name = "iterated_joint" if accelerometer == "estimate" else "iterated_session_r"
+    return "" if method in (name, "iterated_session", "iterated") else f"--method {name}"
+
+
 def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
             accelerometer: str = "estimate", hand_aware: bool = False,
-            noise_free: bool = False) -> tuple[str, list[str]]:
+            noise_free: bool = False, method: str | None = None) -> tuple[str, list[str]]:
     """``status`` and the warnings that explain it (each says what to try).  ``hand_aware``: the filter models
     the hand (``kf_hand``): its innovation warnings name what is left outside that model
-    (``HAND_AWARE_CAUSES``) instead of the hand-blind filters' remedies (--external-acc, iterated_session).
+    (:func:`hand_aware_causes`) instead of the hand-blind filters' remedies (--external-acc, iterated_joint).
     ``noise_free``: the noise levels sit at their numerical floors, so the innovations' scale is that floor's and
     their excess measures the motion's discretisation error, not a lost gravity reference: an excess the
-    divergence test would name is "inconsistent" (the estimate's own sanity checks still say "diverged")."""
+    divergence test would name is "inconsistent" (the estimate's own sanity checks still say "diverged").
+    ``accelerometer`` and ``method`` (registered name): what ran — advice never names it."""
+    iterated = _iterated_advice(accelerometer, method)
     if sanity:
-        return "diverged", [f"diverged: {'; '.join(sanity)}. Check the units (--gyro-unit, --acc-unit), that the "
-                            "recording starts at rest, and try --method iterated_session"]
+        return "diverged", [f"diverged: {'; '.join(sanity)}. Check the units (--gyro-unit, --acc-unit) and that the "
+                            "recording starts at rest" + (f", and try {iterated}" if iterated else "")]
     mean = c.nis_mean if c.nis_mean is not None else float("nan")
     beyond_divergence = c.windows and (c.fraction_above > DIVERGED_FRACTION or mean > DIVERGED_MEAN_FACTOR * c.rows)
     if beyond_divergence and noise_free:
@@ -374,17 +426,20 @@ def verdict(c: Consistency, sanity: list[str], rest: RestGravity | None = None,
         return "diverged", [
             f"diverged: the innovations exceed their 99.9 % χ² bound in {100 * c.fraction_above:.0f} % of 1 s windows "
             f"(mean NIS {mean:.1f}, expected {c.rows}): the filter lost the gravity reference. " + (
-                f"The hand-aware model does not describe this session: {HAND_AWARE_CAUSES}; or rotate slower"
-                if hand_aware else "Try --accelerometer estimate if the accelerometer is raw, a larger --external-acc "
-                "if the hand moved briskly, or slower rotations")]
+                f"The hand-aware model does not describe this session: {hand_aware_causes(accelerometer)}; or rotate "
+                "slower" if hand_aware else "Try " + ("--accelerometer estimate if the accelerometer is raw, "
+                                                       if accelerometer == "calibrated" else "")
+                + "a larger --external-acc if the hand moved briskly, or slower rotations")]
     if c.windows and c.fraction_above > INCONSISTENT_FRACTION:
         return "inconsistent", [
             f"inconsistent: the innovations exceed their 99.9 % χ² bound in {100 * c.fraction_above:.0f} % of 1 s "
             f"windows (mean NIS {mean:.2f}, expected {c.rows}): the noise model does not fit this motion, so σ is "
             "understated. " + (f"kf_hand's hand model (lever arm, slow acceleration fitted to this session, tremor "
-                               f"removed) does not fit it: {HAND_AWARE_CAUSES}" if hand_aware else
-                               "Try a larger --external-acc (the hand's acceleration), --method iterated_session, or a "
-                               "steadier hand; an unmodelled sensor error shows here too (calib closeloop traces it)")]
+                               f"removed) does not fit it: {hand_aware_causes(accelerometer)}" if hand_aware else
+                               "Try a larger --external-acc (the hand's acceleration), "
+                               + (f"{iterated}, " if iterated else "") + f"the hand-aware method (--method "
+                               f"{hand_aware_name(accelerometer)}) or a steadier hand; an unmodelled sensor error "
+                               "shows here too (calib closeloop traces it)")]
     if rest is not None and rest.dof > 0 and rest.p_value < TAIL:
         worst = int(np.argmax(np.abs(rest.residual_m_s2 / rest.std_m_s2)))
         what = ("the accelerometer is not calibrated: use --accelerometer estimate" if accelerometer == "calibrated"

@@ -88,7 +88,7 @@ def hand_cross_check(rec: Recording, gyro_params: np.ndarray, cov_sg: np.ndarray
         + (f": σ is understated at least ×{under:.1f}" if under > 1.0 else "")
         + ". The hand "
         f"turned the device about a point {np.array2string(r_cm, precision=1)} cm away (lever arm, body frame), "
-        f"whose acceleration this model reads as gravity; use {h.method} (calib run --method hand)"
+        f"whose acceleration this model reads as gravity; use {h.method} (calib run --method {h.method})"
     ], diag
 
 

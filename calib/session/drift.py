@@ -19,6 +19,7 @@ from scipy import stats
 from gyrosim.recording import Recording
 
 from calib.session.consistency import Inflation
+from calib.session.defaults import HAND_AWARE_METHODS
 from calib.session.prepare import Prepared
 
 __all__ = ["DRIFT_QUANTILE", "BiasDrift", "bias_drift", "bias_drift_note", "drift_ambiguity"]
@@ -139,6 +140,7 @@ def bias_drift_note(rec: Recording, prep: Prepared) -> str | None:
     first rest's average (Zhou 2020 §3.2), so a drifting bias tilts its attitude like an unmodelled
     disturbance — the inflation is then right to fire, and this says why."""
     d = bias_drift(rec.gyro_rad_s, rec.t_s, prep.rest.index_ranges, prep.config.arw_rad_s_sqrt_hz)
+    hand_aware = {mode: name for name, mode in HAND_AWARE_METHODS.items()}
     if d.q_rad2_s3 <= 0 or len(d.rest_bias_rad_s) < 2:
         return None
     b = np.asarray(d.rest_bias_rad_s)
@@ -146,6 +148,6 @@ def bias_drift_note(rec: Recording, prep: Prepared) -> str | None:
     return (f"the gyro bias drifts: the rests' mean gyro readings differ by up to {change:.2e} rad/s (χ² {d.chi2:.0f} "
             f"against its 95 % quantile {d.threshold:.1f}, {d.dof} dof; rate random walk ≈ {d.rrw_rad_s_sqrt_s:.1e} "
             "rad/s/√s): this method holds the bias at the first rest's average, so the drift tilts its attitude like "
-            "an unmodelled disturbance and its σ cannot be trusted; the hand-aware method (kf_hand) models the "
-            "bias as a random walk fitted to the rests")
+            "an unmodelled disturbance and its σ cannot be trusted; the hand-aware method "
+            f"({hand_aware.get(prep.accelerometer, 'kf_hand')}) models the bias as a random walk fitted to the rests")
 

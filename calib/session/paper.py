@@ -75,8 +75,10 @@ from calib.session.consistency import (
     verdict,
 )
 from calib.session.crosscheck import hand_checked
+from calib.session.defaults import HAND_AWARE_METHODS, default_method
 from calib.session.drift import bias_drift_note
 from calib.session.gravityfit import compensate_acc
+from calib.session.hand.filter import kf_hand
 from calib.session.kernel import FilterRun, regressor_half_window, run_filter
 from calib.session.model import (
     BLOCK_LABELS,
@@ -170,8 +172,14 @@ def calibrate(
 ) -> Calibration:
     """Calibrate ``rec`` (module docstring); ``rec`` is not modified.
 
-    ``method``: a registered name (module docstring, "Names"; default ``kf_joint``, or ``kf_session_r`` with
-    ``accelerometer="calibrated"``).  ``prepared``: steps 1–5 already run by :func:`prepare` with the same options
+    ``method``: a registered name (module docstring, "Names").  Default: the one default of ``calib run`` and ``calib
+    demo`` (:func:`calib.session.defaults.default_method`): the hand-aware ``kf_hand_joint`` (``kf_hand`` with
+    ``accelerometer="calibrated"``; :func:`calib.session.hand.filter.kf_hand` with ``gravity_m_s2``,
+    ``keep_history`` and ``prepared``), or ``kf_joint`` / ``kf_session_r`` when ``external_acc_allowance_m_s2`` is
+    given.  The default was ``kf_joint`` before: ``calibrate(rec, "kf_joint")`` is that call; a call without a
+    method that sets an option of this family's filter alone (``arw_rad_s_sqrt_hz``, ``vrw_m_s2_sqrt_hz``,
+    ``min_rest_s``, ``iterations``, ``engine``, ``hand_check``) still runs ``kf_joint`` / ``kf_session_r``, with a
+    DeprecationWarning saying to name it.  ``prepared``: steps 1–5 already run by :func:`prepare` with the same options
     (a caller that needs them too, e.g. :func:`calib.session.run.run_session` for the coaching, prepares once).
 
     Raises :class:`~gyrosim.errors.RecordingError` for input the method cannot use (no rest, gaps,
@@ -184,6 +192,26 @@ def calibrate(
     differ beyond both σ (:func:`calib.session.crosscheck.hand_cross_check`: a lever arm's error hides from the
     innovations).
     """
+    family_options = {"arw_rad_s_sqrt_hz": arw_rad_s_sqrt_hz is not None,
+                      "vrw_m_s2_sqrt_hz": vrw_m_s2_sqrt_hz is not None, "min_rest_s": min_rest_s != 2.0,
+                      "iterations": iterations != 3, "engine": engine != "compiled", "hand_check": not hand_check}
+    method = _default_or_named(method, accelerometer, external_acc_allowance_m_s2,
+                               [k for k, given in family_options.items() if given])
+    if method in HAND_AWARE_METHODS:
+        mode = HAND_AWARE_METHODS[method]
+        if accelerometer not in (None, *ACCELEROMETER_MODES):
+            raise ValueError(f"accelerometer {accelerometer!r}: use one of {', '.join(ACCELEROMETER_MODES)}")
+        if accelerometer not in (None, mode):
+            other = {m: n for n, m in HAND_AWARE_METHODS.items()}[accelerometer]
+            raise ValueError(f"method {method!r} is the filter with the accelerometer {mode}, not {accelerometer!r}; "
+                             f"use {other!r}")
+        if external_acc_allowance_m_s2 is not None or any(family_options.values()):
+            given = ["external_acc_allowance_m_s2"] * (external_acc_allowance_m_s2 is not None) + [
+                k for k, v in family_options.items() if v]
+            raise ValueError(f"{', '.join(given)}: option(s) of the hand-blind filter (kf_joint, kf_session_r); "
+                             f"{method} estimates the hand's acceleration and the noise from the data")
+        return kf_hand(rec, accelerometer=mode, gravity_m_s2=gravity_m_s2, keep_history=keep_history,
+                       prepared=prepared)
     method, accelerometer = resolve_method(method, accelerometer)
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; use one of {', '.join(ENGINES)}")
@@ -197,6 +225,24 @@ def calibrate(
     if not hand_check:
         return cal
     return hand_checked(cal, rec, noise_free=prep.noise.noise_free, accelerometer=prep.accelerometer)
+
+
+def _default_or_named(method: str | None, accelerometer: str | None, external_acc_allowance_m_s2: float | None,
+                      family_options: list[str]) -> str | None:
+    """``method``, or the default (:func:`calib.session.defaults.default_method`) when None — except that a call
+    setting an option only this family's filter has keeps the former default (``kf_joint`` / ``kf_session_r``) and
+    warns that the default changed."""
+    if method is not None:
+        return method
+    name = default_method(accelerometer, external_acc_allowance_m_s2)
+    if name in HAND_AWARE_METHODS and family_options:
+        former = default_method(accelerometer, 0.0)   # the hand-blind filter of this accelerometer mode
+        warn(f"calibrate() without a method now runs {name}; {', '.join(family_options)} "
+             f"{'is an option' if len(family_options) == 1 else 'are options'} of the hand-blind filter, so this call "
+             f"runs {former} as before: name it (method={former!r}) to keep it without this warning",
+             DeprecationWarning, stacklevel=3)
+        return former
+    return name
 
 
 def _calibrate_session(prep: Prepared, rec: Recording, method: str, iterations: int, keep_history: bool,
@@ -327,9 +373,10 @@ def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservabil
     f_hat = compensate_acc(rec.acc_m_s2, acc_theta(th)) if estimate else rec.acc_m_s2
     rest_g = rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg.gravity_m_s2, math.sqrt(cfg.r_var(rec.rate_hz)),
                           fitted_g=not estimate)
-    status, notes = verdict(cons, sanity, rest_g, "estimate" if estimate else "calibrated")
+    mode = "estimate" if estimate else "calibrated"
+    status, notes = verdict(cons, sanity, rest_g, mode, method=method)
     if infl is not None:
-        status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
+        status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free, accelerometer=mode)
         if infl.factor > 1 and not lay.has("gyro_bias") and (note := bias_drift_note(rec, prep)) is not None:
             notes.append(note)
     diagnostics = {
@@ -462,7 +509,8 @@ def _paper_filter(rec: Recording, params: PaperParams, name: str, prep: Prepared
     cov[:3, 3:] = cov[3:, :3].T
     values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
               "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
-    status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2))
+    status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2),
+                            accelerometer="calibrated", method=name)
     status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
     if infl.factor > 1 and (note := bias_drift_note(rec, prep)) is not None:
         notes.append(note)

@@ -1,10 +1,12 @@
 """Our estimators behind the :mod:`gyrosim.estimator` interface, for campaigns.
 
-Each returns a :class:`gyrosim.calibration.Calibration` (effects, covariance, status, warnings). ``kf_joint`` is ``calib
-run``'s default: the gyro and the accelerometer from one session (:func:`calib.session.paper.calibrate`, 21 states,
-session allowance); ``iterated_joint`` its re-linearised form.  ``kf_session_r`` and ``iterated_session_r`` are what
-``calib run --accelerometer calibrated`` runs (the same filter and verdict as :func:`calib.session.paper.calibrate`; a
-test holds them equal), so a name means one algorithm wherever it is used.  The others run Zhou 2020's 9-state filter
+Each returns a :class:`gyrosim.calibration.Calibration` (effects, covariance, status, warnings). ``kf_hand_joint`` is
+``calib run``'s, ``calib demo``'s and ``calibrate()``'s default (:mod:`calib.session.defaults`); ``kf_joint`` the
+hand-blind filter of the gyro and the accelerometer from one session (:func:`calib.session.paper.calibrate`, 21 states,
+session allowance; ``calib run --external-acc``'s); ``iterated_joint`` its re-linearised form.  ``kf_session_r`` and
+``iterated_session_r`` are the same filters with the accelerometer calibrated (the same filter and verdict as
+:func:`calib.session.paper.calibrate`; a test holds them equal), so a name means one algorithm wherever it is used.
+The others run Zhou 2020's 9-state filter
 (:func:`calib.session.paper.paper_filter`, its variant a :class:`calib.session.paper.PaperParams`) after the static
 bias (§3.2), assuming a calibrated accelerometer; they differ only in how the accelerometer's gravity measurement is
 trusted when the hand adds external acceleration a_e:
@@ -27,7 +29,8 @@ whenever a_e is horizontal, while a_e itself does not.
 ``kf_hand`` (:mod:`calib.session.hand.filter`) puts the hand in the model instead: the lever arm and a coloured
 external acceleration as filter states after a tremor low-pass (docs/hand.md).  Every method
 here reports an honest σ or says it cannot: P is inflated from the innovations' long-run variance, a
-result whose σ had to grow more than ×1.5 is ``inconsistent``, and an ``ok`` result that disagrees with
+result whose σ had to grow more than ×1.5 beyond that estimate's own sampling range is ``inconsistent``
+(:func:`calib.session.consistency.inconsistent_sigma_limit`), and an ``ok`` result that disagrees with
 ``kf_hand`` beyond both σ becomes ``inconsistent`` with the factor its σ is understated by
 (:func:`calib.session.consistency.innovation_inflation`, :func:`calib.session.crosscheck.hand_cross_check`).
 
@@ -111,7 +114,7 @@ def kf_adaptive_gated(rec: Recording) -> Calibration:
 
 
 def kf_joint(rec: Recording) -> Calibration:
-    """``calib run``'s default: gyro and accelerometer from one session (21 states, session allowance)."""
+    """The hand-blind joint filter: gyro and accelerometer from one session (21 states, session allowance)."""
     return calibrate(rec, "kf_joint", keep_history=False)
 
 

@@ -32,6 +32,7 @@ from gyrosim.errors import GyrosimError
 from gyrosim.recording import Recording
 
 from calib.inputs import KF, Loaded, prepare_recording
+from calib.session.defaults import default_method
 
 __all__ = ["RunOptions", "run_session", "resolve_run_method", "method_warnings", "SESSION_METHODS",
            "FORMER_METHODS"]
@@ -84,7 +85,7 @@ def resolve_run_method(options: RunOptions, *, flag: str | None = None) -> tuple
         raise GyrosimError(f"accelerometer {acc!r}: use one of {', '.join(ACCELEROMETER_MODES)}")
     note = None
     if method is None:
-        name = _NAME["kf_session" if external is not None else "hand", acc or "estimate"]
+        name = default_method(acc, external)   # the one default (calib.session.defaults)
     elif method in SESSION_METHODS:
         algorithm, mode = SESSION_METHODS[method]
         if acc not in (None, mode):

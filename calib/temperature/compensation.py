@@ -151,8 +151,9 @@ def split_cycles(rec: Recording) -> list[Recording]:
     """The recording cut at the chamber cycle starts of ``meta['chamber']`` (gyrosim.chamber)."""
     ch = rec.meta.get("chamber")
     if not ch or len(ch.get("cycle_starts_s", [])) < 2:
-        raise RecordingError("the recording has no chamber cycles in meta['chamber'] to hold out; pass a separate "
-                             "training recording instead")
+        raise RecordingError("the recording has no chamber cycles to hold out (it is not a gyrosim chamber recording "
+                             "of two or more cycles): train on a separate recording of the same IMU instead "
+                             "(calib temperature --train RECORDING)")
     edges = list(ch["cycle_starts_s"]) + [math.inf]
     out = []
     for a, b in zip(edges[:-1], edges[1:]):

@@ -26,7 +26,7 @@ are SI (rad/s, m/s², s, Hz, °C) except the magnetometer triad's, which are in 
 The package, one module a stage: :mod:`~gyrosim.effects.base` (context, interface, registry),
 :mod:`~gyrosim.effects.error_terms` (bias, scale, axes, nonlinearity, g-sensitivity),
 :mod:`~gyrosim.effects.thermal`, :mod:`~gyrosim.effects.environment` (Earth rate, magnetic
-sensitivity), :mod:`~gyrosim.effects.magnetometer` (hard/soft iron, frame rotation),
+sensitivity), :mod:`~gyrosim.effects.magnetometer` (hard/soft iron, frame rotation, attached magnet),
 :mod:`~gyrosim.effects.noise` (random processes, IEEE 952 terms) and
 :mod:`~gyrosim.effects.output` (output stage).  Each effect class declares what the rest of the
 code asks of it (triads and unit quantities, display unit, white noise, closed-loop candidate and
@@ -44,7 +44,7 @@ from .error_terms import (Bias, GSensitivity, Misalignment, NonOrthogonality, Sc
                           nonortho_matrix)
 from .thermal import TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale, ThermalHysteresis
 from .environment import EARTH_RATE_RAD_S, EarthRate, MagneticSensitivity
-from .magnetometer import FrameRotation, HardIron, SoftIron, rotation_matrix
+from .magnetometer import AttachedMagnet, FrameRotation, HardIron, SoftIron, rotation_matrix
 from .noise import (BiasInstability, GaussMarkov, QuantizationNoise, RandomWalk, RateRamp, WhiteNoise, haar_gain2,
                     spectral_noise)
 from .output import Bandwidth, Jitter, Quantization, Saturation, TimeOffset
@@ -55,7 +55,7 @@ __all__ = [
     "rotation_matrix", "nonortho_matrix", "spectral_noise", "haar_gain2", "EARTH_RATE_RAD_S",
     "Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "ScaleNonlinearity", "GSensitivity",
     "TemperatureBias", "TemperatureScale", "ThermalHysteresis", "TemperaturePiecewise", "TemperatureRBF",
-    "EarthRate", "MagneticSensitivity", "HardIron", "SoftIron", "FrameRotation",
+    "EarthRate", "MagneticSensitivity", "HardIron", "SoftIron", "FrameRotation", "AttachedMagnet",
     "WhiteNoise", "BiasInstability", "RandomWalk", "GaussMarkov", "QuantizationNoise", "RateRamp",
     "Bandwidth", "TimeOffset", "Jitter", "Quantization", "Saturation",
 ]

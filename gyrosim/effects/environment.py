@@ -10,11 +10,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .. import _kernels as kern
 from ..errors import GyrosimError
+from ..lazy import lazy_module
 from ..rotations import quat_conjugate, quat_rotate
 from ..units import RAD2DEG, to_si
 from .base import Effect
+
+# heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
+kern = lazy_module("gyrosim._kernels")
 
 __all__ = ["EARTH_RATE_RAD_S", "EarthRate", "MagneticSensitivity"]
 

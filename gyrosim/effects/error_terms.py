@@ -12,10 +12,13 @@ from typing import ClassVar
 
 import numpy as np
 
-from .. import _kernels as kern
 from ..errors import GyrosimError
+from ..lazy import lazy_module
 from ..units import G0, RAD2DEG
 from .base import Effect, VectorEffect, _check_invertible, zeros_field
+
+# heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
+kern = lazy_module("gyrosim._kernels")
 
 __all__ = ["Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "ScaleNonlinearity", "GSensitivity",
            "nonortho_matrix"]

@@ -11,13 +11,16 @@ from functools import lru_cache
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy import fft as sp_fft
-from scipy import signal as sp_signal
 
-from .. import _kernels as kern
 from ..errors import GyrosimError
+from ..lazy import lazy_module
 from ..units import DEG, G0
 from .base import ANY_TRIAD, Effect, _need_rng, _vec
+
+# heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
+sp_fft = lazy_module("scipy.fft")
+sp_signal = lazy_module("scipy.signal")
+kern = lazy_module("gyrosim._kernels")
 
 __all__ = ["WhiteNoise", "BiasInstability", "RandomWalk", "GaussMarkov", "QuantizationNoise", "RateRamp",
            "spectral_noise", "haar_gain2"]

@@ -9,11 +9,13 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
-from .. import _kernels as kern
 from ..errors import GyrosimError
+from ..lazy import lazy_module
 from .base import ANY_TRIAD, Effect, SignalContext, _need_rng, _vec
+
+# heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
+kern = lazy_module("gyrosim._kernels")
 
 __all__ = ["Bandwidth", "TimeOffset", "Jitter", "Quantization", "Saturation"]
 
@@ -115,6 +117,8 @@ class Jitter(Effect):
         rng = _need_rng(rng, self.kind)
         t = ctx.t_s
         eps = rng.standard_normal(t.shape) * self.sigma_s
+        from scipy.interpolate import CubicSpline
+
         return CubicSpline(t, y, axis=0)(np.clip(t + eps, t[0], t[-1]))
 
 

@@ -11,12 +11,15 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
-from scipy import signal as sp_signal
 
-from .. import _kernels as kern
 from ..errors import GyrosimError
+from ..lazy import lazy_module
 from ..units import RAD2DEG
 from .base import Effect, SignalContext, VectorEffect
+
+# heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
+sp_signal = lazy_module("scipy.signal")
+kern = lazy_module("gyrosim._kernels")
 
 __all__ = ["TemperatureBias", "TemperatureScale", "ThermalHysteresis", "TemperaturePiecewise", "TemperatureRBF"]
 

@@ -37,7 +37,7 @@ def test_allan_command_and_library_example(tmp_path, capsys):
                          "--seed", "2", "--out", str(rec), "--quiet"]) == 0
     assert calib_main(["allan", str(rec), "--png", str(tmp_path / "a.png")]) == 0
     out = capsys.readouterr().out
-    # 60 s at 100 Hz: N is resolved (preset 0.6 °/√h, ±1 % at this length), K is not (± inf)
+    # 60 s at 100 Hz: N is resolved (preset 0.6 °/√h, ±1 % at this length), K is not (said so, with a bound)
     n = float(out.split("N = ")[1].split()[0])
     assert abs(n / 0.6 - 1) < 0.1
     assert (tmp_path / "a.png").stat().st_size > 10_000

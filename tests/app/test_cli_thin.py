@@ -250,7 +250,7 @@ def test_bad_input_exits_2_with_one_line(argv, why, static_file):
 
 @pytest.mark.parametrize("argv, target", [
     (["run", "{rec}"], "calib.session.run.run_session"),
-    (["allan", "{static}"], "calib.noise.allan.allan_deviation"),
+    (["allan", "{static}"], "calib.noise.allan_triads.allan_triads"),
     (["mag", "{static}"], "calib.inputs.open_recording"),
     (["northfind", "{static}"], "calib.instruments.northfind.find_north"),
     (["closeloop", "{static}", "--out", "{folder}/cl"], "calib.closeloop.run_closeloop"),

@@ -140,6 +140,72 @@ def test_blueprint_helpers():
     # a board path with no context: the camera still looks at it from above the horizon
     eye = board_eye(np.zeros((5, 3)))
     assert eye.position.as_arrow_array().to_pylist()[0][2] > 0
-    # a long path (a board carried 1 m) keeps the camera close: it follows the board instead
-    far = board_eye(np.c_[np.linspace(0, 1, 50), np.zeros((50, 2))], tracking_entity="world/board")
-    assert np.linalg.norm(np.subtract(far.position.as_arrow_array().to_pylist()[0], [0.5, 0, 0])) <= 0.3 + 1e-6
+    # a long path (a board carried 1 m): the camera frames all of it (every position within a 50° cone around the
+    # view axis), so the board is in view wherever the time cursor is (the viewer's tracking did not move it)
+    path = np.c_[np.linspace(0, 1, 50), np.zeros((50, 2))]
+    far = board_eye(path, tracking_entity="world/board")
+    eye_pos = np.array(far.position.as_arrow_array().to_pylist()[0])
+    target = np.array(far.look_target.as_arrow_array().to_pylist()[0])
+    axis = (target - eye_pos) / np.linalg.norm(target - eye_pos)
+    rays = (path - eye_pos) / np.linalg.norm(path - eye_pos, axis=1)[:, None]
+    assert np.degrees(np.arccos(np.clip(rays @ axis, -1, 1))).max() < 25.0
+
+
+def _round_step(lo: float, hi: float) -> float | None:
+    """The round step (1, 2 or 5 × 10ⁿ) both ends of a range are whole multiples of, with 3–10 steps in it."""
+    for k in range(-12, 8):
+        for m in (1, 2, 5):
+            step = m * 10.0 ** k
+            n = (hi - lo) / step
+            if 3 - 1e-6 <= n <= 10 + 1e-6 and all(abs(v / step - round(v / step)) < 1e-6 for v in (lo, hi)):
+                return step
+    return None
+
+
+def test_plots_open_on_round_ranges_with_the_truth_apart_and_the_legend_off_the_data(calibrated, session_rrd):
+    from gyrosim.viewer import read_series_styles
+
+    from calib.app.rerun import nis_expected
+
+    rec, result, truth = calibrated
+    ts = _by_origin(read_blueprint(session_rrd), "TimeSeries")
+    # every fixed y range is rounded to a step rerun labels (several labelled values on the axis, not one)
+    for v in ts.values():
+        if v.y_range is not None:
+            assert _round_step(*v.y_range) is not None, (v.name, v.y_range)
+    # the estimates and their true values: one colour per axis, the truths in a colour none of them has
+    styles = read_series_styles(session_rrd)
+    for name in ("S", "G"):
+        est = {styles[f"calib/estimate/{name}/{ax}"][1] for ax in "xyz"}
+        tru = {styles[f"calib/estimate/{name}/{ax}_true"][1] for ax in "xyz"}
+        assert len(est) == 3 and not (est & tru), (est, tru)
+    # the legend sits in the corner (a third of the width, 40 % of the height) holding the fewest samples of the
+    # estimates and their flat true lines: at most 5 % of them (the end of the run, where they meet, stays clear)
+    h = result.history.arrays()
+    t = h["t_s"]
+    for key, tkey, view in (("scale", "scale_factor", "calib/estimate/S"), ("nonorthogonality", "nonorthogonality",
+                                                                              "calib/estimate/G")):
+        v = ts[view]
+        lo, hi = v.y_range
+        y = (np.hstack([h[key], np.tile(truth[tkey], (t.size, 1))]) - lo) / (hi - lo)
+        x = np.repeat(((t - t[0]) / (t[-1] - t[0]))[:, None], y.shape[1], axis=1)
+        box = {"LeftTop": (x <= 1 / 3) & (y >= 0.6), "RightTop": (x >= 2 / 3) & (y >= 0.6),
+               "LeftBottom": (x <= 1 / 3) & (y <= 0.4), "RightBottom": (x >= 2 / 3) & (y <= 0.4)}
+        share = {c: float(m.mean()) for c, m in box.items()}
+        assert share[v.legend_corner] == min(share.values()) and share[v.legend_corner] <= 0.05, (view, share)
+    # NIS: the view says what a consistent filter averages, the story a finite mean over the steps that have one
+    assert ts["calib/nis"].name == f"NIS (expected {nis_expected(result):g})"
+    assert "NIS mean nan" not in read_texts(session_rrd)["story"]
+
+
+def test_nice_ranges_and_the_free_corner():
+    from gyrosim.viewer import free_corner, nice_range
+
+    assert nice_range(0.98731, 1.01262) == (0.98, 1.02)
+    assert nice_range(3e-5, 7e-5) == (3e-5, 7e-5)  # no 2.9999999999999997e-05
+    lo, hi = nice_range(-7.3, -2.2)
+    assert lo <= -7.3 and hi >= -2.2 and _round_step(lo, hi) is not None
+    # a curve falling from the top left to the bottom right leaves the other two corners free
+    t = np.linspace(0.0, 10.0, 200)
+    y = np.linspace(1.0, 0.0, 200)
+    assert free_corner(t, y, Span(0.0, 10.0), (0.0, 1.0)) in ("RightTop", "LeftBottom")

@@ -94,6 +94,9 @@ def deterministic_effects():
         ("magnetometer", E.HardIron(value=[40.0, -25.0, 60.0])),
         ("magnetometer", E.SoftIron(matrix=[[1.05, 0.03, -0.02], [0.03, 0.96, 0.01], [-0.02, 0.01, 1.02]])),
         ("magnetometer", E.FrameRotation(angles=[0.01, -0.02, 0.015])),
+        ("magnetometer", E.AttachedMagnet(value=[4.0, -9.0, 14.0], soft_iron=[[0.02, 0.01, 0.0], [0.01, -0.01, 0.0],
+                                                                              [0.0, 0.0, 0.015]],
+                                          t_on_s=40.0, t_off_s=120.0)),
     ]
 
 

@@ -1,6 +1,7 @@
 """The 9-axis virtual IMU (simulation side): MuJoCo's magnetometer on the board, the
 Earth field from the World Magnetic Model or an ENU vector, dipole anomalies, the magnetometer
-effects, and the 6-axis results left as they were."""
+effects (a magnet attached to the board part of the session too), and the 6-axis results left as
+they were."""
 
 from __future__ import annotations
 
@@ -12,13 +13,13 @@ import pytest
 from conftest import session
 
 from gyrosim.cli import main as gyrosim_main
-from gyrosim.effects import FrameRotation, HardIron, SoftIron
+from gyrosim.effects import AttachedMagnet, FrameRotation, HardIron, SoftIron, effect_from_dict
 from gyrosim.errors import GyrosimError
-from gyrosim.magnetic import Dipole, MagneticEnvironment, environment_from_text
+from gyrosim.magnetic import Dipole, MagneticEnvironment, attached_magnet_from_text, environment_from_text
 from gyrosim.recording import load_hdf5
 from gyrosim.rotations import quat_conjugate, quat_rotate
-from gyrosim.sensor_model import SensorModel, load_sensor
-from gyrosim.simulate import EARTH_FIELD_ENU_UT, apply_sensor, signal_context, simulate_truth
+from gyrosim.sensor_model import SensorModel, load_sensor, stored_sensor_model
+from gyrosim.simulate import EARTH_FIELD_ENU_UT, apply_sensor, signal_context, simulate_truth, with_attached_magnet
 
 
 def test_truth_field_is_the_earth_field_in_the_board_frame():
@@ -132,3 +133,59 @@ def test_simulate_cli_with_location_and_anomaly(tmp_path, capsys):
     assert gyrosim_main(["simulate", "--schedule", "static", "--mag-field", "0.2,0.25,-0.4", "--out",
                          str(tmp_path / "g.h5"), "--quiet"]) == 2
     assert "plausible field in µT" in capsys.readouterr().err
+
+
+def test_attached_magnet_is_a_hard_and_soft_iron_that_switches_on_and_off():
+    """Noise-free: before t_on and from t_off on, m = A B + h (the device alone); in between the
+    magnet adds h_m + S_m B (it turns with the board: a body-frame term).  It serialises, undoes
+    itself, and appended to a 9-axis preset leaves the device's other draws and noise as they were."""
+    ctx = signal_context(session("typical"))
+    magnet = AttachedMagnet(value=[8.0, -5.0, 12.0], soft_iron=np.diag([0.02, -0.01, 0.015]), t_on_s=40.0,
+                            t_off_s=90.0)
+    model = SensorModel("mag", magnetometer=(HardIron(value=[30.0, -12.0, 55.0]), magnet))
+    m = model.apply_magnetometer(ctx, np.random.default_rng(0))
+    on = (ctx.t_s >= 40.0) & (ctx.t_s < 90.0)
+    b = ctx.mag_body_ut
+    np.testing.assert_allclose(m[~on], b[~on] + [30.0, -12.0, 55.0], atol=1e-10)
+    np.testing.assert_allclose(m[on], b[on] @ (np.eye(3) + magnet.soft_iron).T + [38.0, -17.0, 67.0], atol=1e-10)
+    np.testing.assert_allclose(model.compensate_triad("magnetometer", m, ctx), b, atol=1e-10)
+    assert effect_from_dict(magnet.to_dict()).to_dict() == magnet.to_dict()
+    a, c = magnet.affine_at(50.0)
+    np.testing.assert_array_equal(c, [8.0, -5.0, 12.0])
+    np.testing.assert_array_equal(a, magnet.soft_iron)
+    assert not np.any(magnet.affine_at(95.0)[1]) and magnet.affine() is None  # it changes with time
+    truth = session("typical")
+    plain = apply_sensor(truth, "mpu9250_9axis", np.random.default_rng(3))
+    with_magnet = apply_sensor(truth, with_attached_magnet(load_sensor("mpu9250_9axis"), magnet),
+                               np.random.default_rng(3))
+    np.testing.assert_array_equal(plain.gyro_rad_s, with_magnet.gyro_rad_s)
+    off = (truth.t_s < 40.0) | (truth.t_s >= 90.0)
+    np.testing.assert_array_equal(plain.mag_ut[off], with_magnet.mag_ut[off])  # same device, same noise
+    assert any(e.kind == "attached_magnet" for e in stored_sensor_model(with_magnet.meta).magnetometer)
+
+
+def test_attached_magnet_text_and_bad_values():
+    m = attached_magnet_from_text("12.5,1,2,3")
+    assert m.t_on_s == 12.5 and m.t_off_s is None and m.value.tolist() == [1.0, 2.0, 3.0]
+    assert attached_magnet_from_text("1,0,0,5,20").t_off_s == 20.0
+    with pytest.raises(GyrosimError, match="T_ON,HX,HY,HZ"):
+        attached_magnet_from_text("1,a,2,3")
+    with pytest.raises(GyrosimError, match="expected 4 or 5"):
+        attached_magnet_from_text("1,2,3")
+    with pytest.raises(GyrosimError, match="after t_on_s"):
+        AttachedMagnet(value=[1.0, 0, 0], t_on_s=10.0, t_off_s=5.0)
+    with pytest.raises(GyrosimError, match="no magnetometer"):
+        with_attached_magnet(load_sensor("mpu9250"), m)
+
+
+def test_simulate_cli_attaches_a_magnet(tmp_path, capsys):
+    out = tmp_path / "magnet.h5"
+    assert gyrosim_main(["simulate", "--schedule", "static", "--hand", "ideal", "--rate", "20", "--sensor",
+                         "mpu9250_9axis", "--attach-magnet", "30,0,0,40", "--seed", "2", "--out", str(out),
+                         "--quiet"]) == 0
+    rec = load_hdf5(out)
+    step = rec.mag_ut[rec.t_s >= 31.0].mean(axis=0) - rec.mag_ut[rec.t_s < 29.0].mean(axis=0)
+    np.testing.assert_allclose(step, [0.0, 0.0, 40.0], atol=0.5)  # at rest: the magnet's field, ± noise/√N
+    assert gyrosim_main(["simulate", "--schedule", "static", "--attach-magnet", "30,0,0,40", "--out",
+                         str(tmp_path / "x.h5"), "--quiet"]) == 2
+    assert "needs a sensor with a magnetometer" in capsys.readouterr().err

@@ -56,7 +56,7 @@ def test_noise_free_independent_data_is_exact(steps, tmp_path):
     else:
         d = ig.generate_arrays(**kwargs)
         rec = _rec(d)
-    res = calibrate(rec)
+    res = calibrate(rec, "kf_joint")
     err = res.parameters() - _truth_vector(d)
     assert np.abs(err[3:9]).max() < 1e-5, err[3:9]        # gyro S, G
     assert np.abs(err[12:18]).max() < 1e-5, err[12:18]    # accelerometer S, G
@@ -80,7 +80,7 @@ def _run_seeds(steps, seeds: int, first: int = 100, max_flags: int = 1):
     errs, zs, nees, ref, flags = [], [], [], [], []
     for s in range(first, first + seeds):
         d = ig.generate_arrays(seed=s, kin=kin, **DATASHEET, **RAW)
-        c = calibrate(_rec(d), keep_history=False)
+        c = calibrate(_rec(d), "kf_joint", keep_history=False)
         if c.status != "ok":
             assert c.status == "inconsistent" and any(w.startswith(CROSS_CHECK_FLAG) for w in c.warnings), c.warnings
             flags.append(s)
@@ -91,7 +91,7 @@ def _run_seeds(steps, seeds: int, first: int = 100, max_flags: int = 1):
         clean = ig.generate_arrays(seed=s, kin=kin, **DATASHEET)  # the same device and noise, accelerometer calibrated
         # the reference needs no hand cross-check (the first call above keeps it: its false alarms are part of
         # this test, CROSS_CHECK_FLAG)
-        cp = calibrate(_rec(clean), accelerometer="calibrated", keep_history=False, hand_check=False)
+        cp = calibrate(_rec(clean), "kf_session_r", accelerometer="calibrated", keep_history=False, hand_check=False)
         ref.append(np.r_[cp.scale_factor - clean["scale_factor"], cp.nonorthogonality - clean["nonorthogonality"]])
     assert len(flags) <= max_flags, flags
     return np.array(errs), np.array(zs), np.array(nees), np.array(ref)
@@ -144,7 +144,7 @@ def test_windowed_nis_stays_quiet_on_clean_data():
     kin = ig.kinematics(100.0, ig.STEPS)
     for s in range(5):
         d = ig.generate_arrays(seed=s, kin=kin, gyro_noise_deg_s=0.0833, acc_noise_g=15e-6 * 10)
-        c = calibrate(_rec(d), accelerometer="calibrated", keep_history=False)
+        c = calibrate(_rec(d), "kf_session_r", accelerometer="calibrated", keep_history=False)
         cons = c.diagnostics["consistency"]
         assert cons["fraction_above"] * cons["windows"] <= 1, cons
         assert c.status == "ok", c.warnings
@@ -158,7 +158,7 @@ def test_a_session_that_cannot_separate_the_accelerometer_is_refused_with_poses(
              ("rest", None, 0.0, 8.0)]
     d = ig.generate_arrays(steps=steps, **DATASHEET, **RAW)
     with pytest.raises(RecordingError) as err:
-        calibrate(_rec(d))
+        calibrate(_rec(d), "kf_joint")
     msg = str(err.value)
     for name in ("accelerometer b_x", "accelerometer S_x", "accelerometer G_z"):
         assert name in msg
@@ -166,7 +166,7 @@ def test_a_session_that_cannot_separate_the_accelerometer_is_refused_with_poses(
         assert pose in msg
     assert "--accelerometer calibrated" in msg
     # the paper's filter on the same data: a calibrated-accelerometer assumption is the user's to make
-    res = calibrate(_rec(d), accelerometer="calibrated")
+    res = calibrate(_rec(d), "kf_session_r", accelerometer="calibrated")
     assert any(w.startswith("unobservable") for w in res.warnings)
 
 
@@ -201,14 +201,14 @@ def test_the_estimator_does_not_read_the_simulators_noise_model():
 
     rec = simulate("zhou2020", "steady", "mpu9250_linear", 100.0, seed=3)
     bare = rec.with_signals(meta={"rate_hz": rec.rate_hz})
-    a, b = calibrate(rec, keep_history=False), calibrate(bare, keep_history=False)
+    a, b = calibrate(rec, "kf_joint", keep_history=False), calibrate(bare, "kf_joint", keep_history=False)
     np.testing.assert_array_equal(a.parameters(), b.parameters())
     np.testing.assert_array_equal(a.covariance, b.covariance)
 
 
 def test_calibration_json_round_trip_and_versions(tmp_path):
     d = ig.generate_arrays(steps=ig.STEPS, **DATASHEET, **RAW)
-    cal = calibrate(_rec(d))
+    cal = calibrate(_rec(d), "kf_joint")
     back = Calibration.from_json(cal.to_json())
     np.testing.assert_array_equal(back.parameters(), cal.parameters())
     np.testing.assert_array_equal(back.covariance, cal.covariance)
@@ -244,7 +244,7 @@ def test_apply_round_trip_gives_zero_errors(tmp_path, capsys):
     for suffix in (".h5", ".csv"):
         out = tmp_path / f"compensated{suffix}"
         assert calib_main(["apply", str(cal_path), str(rec_path), "--out", str(out)]) == 0
-        second = calibrate(load_recording(out))
+        second = calibrate(load_recording(out), "kf_joint")
         for triad, kind in (("gyro", "scale_factor"), ("gyro", "nonorthogonality"), ("accelerometer", "bias"),
                             ("accelerometer", "scale_factor"), ("accelerometer", "nonorthogonality")):
             tol = 4 * (first.std(triad, kind) + second.std(triad, kind))
@@ -268,7 +268,7 @@ def test_kalibr_export_and_import_as_a_sensor(tmp_path):
     from gyrosim.cli import main as gyrosim_main
 
     d = ig.generate_arrays(steps=ig.STEPS, **DATASHEET, **RAW)
-    cal = calibrate(_rec(d))
+    cal = calibrate(_rec(d), "kf_joint")
     cal_path = cal.save(tmp_path / "cal.json")
     yaml_path = tmp_path / "imu.yaml"
     assert calib_main(["export", str(cal_path), "--format", "kalibr", "--out", str(yaml_path)]) == 2  # no random walk
@@ -300,7 +300,7 @@ def test_imucal_export_gives_the_same_compensation(tmp_path):
 
     d = ig.generate_arrays(steps=ig.STEPS, **DATASHEET, **RAW)
     rec = _rec(d)
-    cal = calibrate(rec)
+    cal = calibrate(rec, "kf_joint")
     path = tmp_path / "imucal.json"
     assert calib_main(["export", str(cal.save(tmp_path / "c.json")), "--format", "imucal", "--out", str(path)]) == 0
     info = load_calibration_info(path)
@@ -334,7 +334,7 @@ def test_mpu9250_with_its_raw_accelerometer_calibrates(tmp_path):
     raw = load_sensor("mpu9250")
     calibrated = replace(raw, accelerometer=tuple(e for e in raw.accelerometer if e.kind == "white_noise"))
     rec_c = simulate("zhou2020", "typical", calibrated, 100.0, seed=0)
-    ref = calibrate(rec_c, accelerometer="calibrated")
+    ref = calibrate(rec_c, "kf_session_r", accelerometer="calibrated")
     t_c = truth_calibration(rec_c)
     err_ref = np.r_[ref.scale_factor - t_c.scale_factor, ref.nonorthogonality - t_c.nonorthogonality]
     assert np.abs(err).max() < 2 * np.abs(err_ref).max(), (err, err_ref)

@@ -52,7 +52,7 @@ def test_noise_free_ideal_hand_recovers_every_parameter():
                          accelerometer=(Bias(value=[0.5, -0.4, 0.6]), ScaleFactor(value=[0.02, -0.025, 0.03]),
                                         NonOrthogonality(value=[0.01, -0.012, 0.015])))
     rec = simulate("zhou2020", "ideal", sensor, 100.0, seed=1)
-    res = calibrate(rec)
+    res = calibrate(rec, "kf_joint")
     truth = truth_calibration(rec)
     err = res.parameters() - truth.parameters()
     assert np.abs(err[3:9]).max() < 1e-5 and np.abs(err[12:18]).max() < 1e-5  # gyro and accelerometer S, G
@@ -98,7 +98,7 @@ def test_rest_detection_finds_the_initial_static_period():
 
 def test_schedule_without_horizontal_rotations_warns_by_name():
     rec = simulate("vertical_only", "ideal", "zhou2020_sim_consumer", 100.0, seed=1)
-    res = calibrate(rec, accelerometer="calibrated")
+    res = calibrate(rec, "kf_session_r", accelerometer="calibrated")
     (w,) = [w for w in res.warnings if w.startswith("unobservable")]
     # Zhou 2020 §4.2.1: rotation about the vertical z observes Gx, Gy only
     for name in ("S_x", "S_y", "S_z", "G_z"):
@@ -137,7 +137,7 @@ def test_filter_divergence_is_named():
     hand = Hand(name="pivot_only", pivot_offset_m=load_hand("typical").pivot_offset_m)
     rec = simulate("zhou2020", hand, "zhou2020_sim_consumer", 100.0, seed=4)
     for mode in ("calibrated", "estimate"):
-        res = calibrate(rec, accelerometer=mode)
+        res = calibrate(rec, ("kf_joint" if mode == "estimate" else "kf_session_r"), accelerometer=mode)
         assert res.status in ("inconsistent", "diverged"), mode
         assert any(w.startswith(res.status) for w in res.warnings), mode
 
@@ -181,7 +181,7 @@ def test_short_rest_is_refused_with_what_it_would_give(independent_csv, tmp_path
     body = [[f"{float(r[0]) - t0:.6f}"] + r[1:] for r in rows[650:10000]]
     rec = load_recording(_write(tmp_path / "s.csv", header, body), "deg/s", "g")
     with pytest.raises(RecordingError, match=r"shorter than the 2 s needed; its bias would be uncertain"):
-        calibrate(rec)
+        calibrate(rec, "kf_joint")
 
 
 def test_saturated_samples_are_excluded_and_reported(independent_csv, tmp_path):
@@ -189,7 +189,7 @@ def test_saturated_samples_are_excluded_and_reported(independent_csv, tmp_path):
     header, rows = _rows(path)
     clip = 60.0  # °/s: the raised-cosine ±2π-in-8 s rotations peak at 2A/T = 90 °/s
     body = [[r[0]] + [f"{min(max(float(v), -clip), clip):.9g}" for v in r[1:4]] + r[4:] for r in rows]
-    res = calibrate(load_recording(_write(tmp_path / "sat.csv", header, body), "deg/s", "g"))
+    res = calibrate(load_recording(_write(tmp_path / "sat.csv", header, body), "deg/s", "g"), "kf_joint")
     assert any(w.startswith("saturated") for w in res.warnings)
 
 
@@ -203,6 +203,6 @@ def test_attitude_validation_compensation_beats_bias_only():
     from calib.session.validation import validate_attitude
 
     rec = simulate("zhou2020", "ideal", "zhou2020_sim_consumer", 100.0, seed=6)
-    v = validate_attitude(rec, calibrate(rec), hand="ideal", seed=7)
+    v = validate_attitude(rec, calibrate(rec, "kf_joint"), hand="ideal", seed=7)
     assert np.all(v.without_rms_deg > 1.0)
     assert np.all(v.with_rms_deg < v.without_rms_deg / 10)

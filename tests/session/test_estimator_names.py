@@ -51,7 +51,7 @@ def test_every_registered_estimator_ignores_truth_and_metadata(device_session):
     for name in names:
         est = load_estimator(name)
         _same(est(device_session), est(user))
-    _same(calibrate(device_session, hand_check=False), calibrate(user, hand_check=False))
+    _same(calibrate(device_session, "kf_joint", hand_check=False), calibrate(user, "kf_joint", hand_check=False))
 
 
 def test_smoother_is_a_warning_alias_of_iterated(device_session):
@@ -64,7 +64,7 @@ def test_smoother_is_a_warning_alias_of_iterated(device_session):
 
 
 def test_calib_run_filter_is_registered_under_the_name_it_reports(device_session):
-    """calibrate() = kf_session_r with the accelerometer calibrated (same numbers, same label); the
+    """calibrate(rec, "kf_session") = kf_session_r with the accelerometer calibrated (same numbers, same label); the
     former spelling "kf" still runs it, with a DeprecationWarning naming the new one."""
     user = as_user_file(device_session)
     new = calibrate(user, "kf_session", accelerometer="calibrated", keep_history=False)
@@ -74,10 +74,9 @@ def test_calib_run_filter_is_registered_under_the_name_it_reports(device_session
         old = calibrate(user, "kf", accelerometer="calibrated", keep_history=False)
     _same(old, new)
     with warnings.catch_warnings():
-        warnings.simplefilter("error")  # the default spelling does not warn
-        assert (
-            calibrate(user, accelerometer="calibrated", keep_history=False, hand_check=False).method == "kf_session_r"
-        )
+        warnings.simplefilter("error")  # the registered spelling does not warn
+        named = calibrate(user, "kf_session_r", accelerometer="calibrated", keep_history=False, hand_check=False)
+        assert named.method == "kf_session_r"
 
 
 @pytest.fixture(scope="module")

@@ -8,11 +8,13 @@ advice must say so.  The other methods' messages stay as they were.
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import pytest
 
 from calib.session.consistency import INCONSISTENT_FRACTION, Consistency, Inflation, apply_inflation, verdict
+from calib.session.run import FORMER_METHODS, RunOptions, resolve_run_method
 
 HAND_BLIND_ADVICE = ("--external-acc", "iterated_session", "hand-aware method (kf_hand)")
 
@@ -28,7 +30,7 @@ def test_hand_aware_innovation_failure_names_what_its_model_lacks(fraction):
     assert status in ("inconsistent", "diverged")
     (w,) = notes
     assert not any(a in w for a in HAND_BLIND_ADVICE), w
-    assert "calib run --method hand" in w and "calib closeloop" in w and "pivot" in w
+    assert "calib run --method kf_hand_joint" in w and "calib closeloop" in w and "pivot" in w
     # the hand-blind filters keep their own remedies
     _, blind = verdict(_consistency(fraction), [], None, "calibrated")
     assert "--external-acc" in blind[0]
@@ -64,3 +66,39 @@ def test_kf_hand_on_a_raw_accelerometer_gets_hand_aware_advice():
     assert inn and cal.status != "ok"
     assert not any(a in w for w in inn for a in HAND_BLIND_ADVICE), inn
     assert any("raw accelerometer" in w for w in inn)
+
+
+RAN = [("kf_hand_joint", "estimate", True), ("kf_hand", "calibrated", True), ("kf_joint", "estimate", False),
+       ("kf_session_r", "calibrated", False), ("iterated_joint", "estimate", False),
+       ("iterated_session_r", "calibrated", False)]
+
+
+def _advice_names_what_ran(notes: list[str], method: str, accelerometer: str) -> list[str]:
+    """The advice in ``notes`` that names the method (by its registered name or a former spelling, read in the
+    accelerometer mode that ran) or the accelerometer mode that ran."""
+    bad = []
+    for w in notes:
+        named = {resolve_run_method(RunOptions(method=m, accelerometer=accelerometer if m in FORMER_METHODS
+                                               else None))[0] for m in re.findall(r"--method (\w+)", w)}
+        if method in named or f"--accelerometer {accelerometer}" in w:
+            bad.append(w)
+    return bad
+
+
+@pytest.mark.parametrize("method, accelerometer, hand_aware", RAN)
+def test_advice_never_names_what_ran(method, accelerometer, hand_aware):
+    """Every verdict's and the inflation's advice, for each method and accelerometer mode calib run takes: a
+    suggested --method / --accelerometer differs from what ran (the README's session was told to use the method
+    it had just used)."""
+    notes: list[str] = []
+    for fraction in (0.0, 2 * INCONSISTENT_FRACTION, 0.9):
+        _, n = verdict(_consistency(fraction), [], None, accelerometer, hand_aware=hand_aware, method=method)
+        notes += n
+    _, n = verdict(_consistency(0.0), ["gyro scale factor is not finite"], None, accelerometer,
+                   hand_aware=hand_aware, method=method)
+    notes += n
+    infl = Inflation(kappa=9.0, dof=80, threshold=1.3, factor=9.0)
+    apply_inflation("ok", notes, infl, hand_aware=hand_aware, accelerometer=accelerometer)
+    assert len(notes) >= 5
+    assert not _advice_names_what_ran(notes, method, accelerometer), _advice_names_what_ran(notes, method,
+                                                                                              accelerometer)

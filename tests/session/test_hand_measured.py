@@ -142,7 +142,7 @@ def test_ferraris_with_calibrated_accelerometer_agrees_with_imucal():
     rec = _load("imucal_ferraris")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        joint = calibrate(rec)
+        joint = calibrate(rec, "kf_joint")
     th = np.concatenate([joint.value("accelerometer", k) for k in ("bias", "scale_factor", "nonorthogonality")])
     cal = _hand(rec.with_signals(acc_m_s2=compensate_acc(rec.acc_m_s2, th)))
     sg = np.concatenate([cal.scale_factor, cal.nonorthogonality])

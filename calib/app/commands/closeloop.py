@@ -16,15 +16,17 @@ __all__ = ["add_parsers", "cmd_closeloop"]
 
 def cmd_closeloop(args: argparse.Namespace) -> int:
     """Fit the declared model, find what the residual lacks, add it, report before/after."""
-    from tqdm import tqdm
-
-    from calib.closeloop import run_closeloop
-    from calib.closeloop.report import write_closeloop_report
     from calib.inputs import CLOSELOOP
 
     check_output_paths({"--out": args.out}, input_files(args.recording), folders=["--out"],
                        folder_files={"--out": ("report.json", "report.md", "closeloop.rrd", "residual_time.png")})
     loaded = open_input(args, CLOSELOOP.with_(min_duration_s=2 * args.holdout))
+    # a bad file is refused above, before the loop's libraries (MuJoCo, scipy) are imported
+    from tqdm import tqdm
+
+    from calib.closeloop import run_closeloop
+    from calib.closeloop.report import write_closeloop_report
+
     rec = loaded.recording
     declared = tuple(k.strip() for k in args.declared.split(",") if k.strip())
     with tqdm(desc="closeloop", unit="test", leave=False) as bar:

@@ -25,30 +25,58 @@ __all__ = ["add_parsers", "cmd_allan", "cmd_noise", "cmd_plan"]
 
 
 def cmd_allan(args: argparse.Namespace) -> int:
-    """Allan deviation of a static recording's gyro: fitted N, B, K per IEEE 952, and a plot."""
+    """Allan deviation of a static recording, both triads: fitted N, B, K per IEEE 952 in SI and the usual display
+    units, the terms the record does not determine said so, a temperature drift flagged (a JSON and a plot)."""
     from calib.inputs import ALLAN
-    from calib.noise.allan import allan_deviation, fit_noise_terms, plot_allan
 
-    check_output_paths({"--png": args.png}, input_files(args.recording))
+    check_output_paths({"--png": args.png, "--json": args.json}, input_files(args.recording))
     loaded = open_input(args, ALLAN)
+    from calib.noise.allan import plot_allan
+    from calib.noise.allan_triads import allan_triads
+
     rec = loaded.recording
-    curves = [allan_deviation(rec.gyro_rad_s[:, i], rec.rate_hz) for i in range(3)]
-    fit = fit_noise_terms(curves)
-    deg = 180 / math.pi
-    print(f"{args.recording}: {rec.duration_s:.0f} s at {rec.rate_hz:g} Hz, three gyro axes pooled")
+    res = allan_triads(rec)
+    print(f"{args.recording}: {rec.duration_s:.0f} s at {rec.rate_hz:g} Hz, the three axes of each triad pooled")
     print_input_warnings(loaded.report)
-    print(f"  angle random walk   N = {fit.arw * deg * 60:.4f} ± {fit.arw_std * deg * 60:.4f} °/√h")
-    print(f"  bias instability    B = {fit.bias_instability * deg * 3600:.3f} ± "
-          f"{fit.bias_instability_std * deg * 3600:.3f} °/h")
-    print(f"  rate random walk    K = {fit.rate_random_walk * deg * 3600 * 60:.3f} ± "
-          f"{fit.rate_random_walk_std * deg * 3600 * 60:.3f} °/h/√h")
-    print("  (± is the fit's 1σ from the Allan confidence; the recording must be static)")
+    for triad, tr in res.triads.items():
+        print(f"{triad}:" + (f" {tr.note}" if tr.note else ""))
+        for term in ("arw", "bias_instability", "rate_random_walk") if tr.terms is not None else ():
+            print("  " + _allan_line(tr, term, res.rate_hz))
+    print("  (± is the fit's 1σ from the Allan confidence; SI in brackets, Kalibr's units for N and K; the recording "
+          "must be static)")
+    for w in res.warnings:
+        print(f"warning: {w}")
+    if args.json:
+        write_json_atomic(args.json, res.to_dict())
+        print(f"wrote {args.json} (calib export --format kalibr --noise {args.json} takes N and K from it)")
     if args.png:
+        gyro = res.triads["gyro"]
         with atomic_path(args.png) as tmp:
-            plot_allan(curves, fit, tmp, unit_scale=deg * 3600, unit="°/h",
-                       title=f"Allan deviation: {Path(str(args.recording)).name}")
+            plot_allan(list(gyro.curves), gyro.terms, tmp, unit_scale=180 / math.pi * 3600, unit="°/h",
+                       title=f"Allan deviation of the gyro: {Path(str(args.recording)).name}")
         print(f"wrote {args.png}")
     return 0
+
+
+# what calib allan calls each term, per triad
+_TERM_NAMES = {"gyro": {"arw": "angle random walk    N", "bias_instability": "bias instability     B",
+                        "rate_random_walk": "rate random walk     K"},
+               "accelerometer": {"arw": "velocity random walk N", "bias_instability": "bias instability     B",
+                                 "rate_random_walk": "accel. random walk   K"}}
+
+
+def _allan_line(tr, term: str, rate_hz: float) -> str:
+    """One term of one triad: value ± 1σ in the display unit with SI in brackets, or undetermined with its bound."""
+    from calib.noise.allan_triads import display
+
+    d = tr.term_dict(term, rate_hz)
+    unit, scale = display(term, tr.triad, rate_hz)
+    label = _TERM_NAMES[tr.triad][term]
+    if d["determined"]:
+        return (f"{label} = {d['value'] * scale:.4g} ± {d['std'] * scale:.2g} {unit}   "
+                f"[{d['value']:.4e} ± {d['std']:.2e} {d['unit']}]")
+    bound = d["upper_2sigma"]
+    return f"{label}: not determined by this record (below {bound * scale:.3g} {unit}, 2σ) [< {bound:.3e} {d['unit']}]"
 
 
 def _noise_recording(args: argparse.Namespace):
@@ -220,10 +248,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
 def add_parsers(sub) -> None:
     """``allan``, ``noise``, ``plan`` on the command line's subparsers ``sub``."""
     al = sub.add_parser("allan", help="Allan deviation of a static recording",
-                        description="Allan deviation of a static recording: angle random walk, bias instability, "
-                                    "rate random walk (IEEE 952), and a plot.")
+                        description="Allan deviation of a static recording, gyro and accelerometer: white noise "
+                                    "density N, bias instability B and random walk K (IEEE 952) in SI and datasheet "
+                                    "units, a JSON Kalibr's export reads, and a plot.")
     al.add_argument("recording", help=RECORDING_HELP + "; static (a moving record is refused)")
-    al.add_argument("--png", help="write the Allan plot (PNG; never an input file)")
+    al.add_argument("--png", help="write the gyro's Allan plot (PNG; never an input file)")
+    al.add_argument("--json", help="write both triads' terms (SI, with 1σ or the bound of an undetermined term) and "
+                                   "Kalibr's four noise numbers as JSON (calib export --noise reads it)")
     input_options(al)
     al.set_defaults(func=cmd_allan)
     no = sub.add_parser(

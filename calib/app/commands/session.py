@@ -36,9 +36,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from gyrosim.simulate import simulation_grid
 
     from calib.app.demo import DEMO_FILES, run_demo
+    from calib.session.run import RunOptions, resolve_run_method
 
     check_output_paths({"--out": args.out}, [args.schedule, args.hand, args.sensor], folders=["--out"],
                        folder_files={"--out": DEMO_FILES})
+    # the method as calib run takes it (one default: calib.session.defaults), resolved before the simulation
+    name, mode, note = resolve_run_method(RunOptions(method=args.method, accelerometer=args.accelerometer),
+                                          flag="--method")
+    if note:
+        print(f"warning: {note}", file=sys.stderr)
     grid = simulation_grid(load_schedule(args.schedule).duration_s, args.rate)
     with tqdm(total=grid.t_physics_s.size + 1, unit="step", desc="simulating session", leave=False) as bar:
         def log(msg: str) -> None:
@@ -46,7 +52,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             print(msg, flush=True)
 
         res = run_demo(args.out, schedule=args.schedule, hand=args.hand, sensor=args.sensor, rate_hz=args.rate,
-                       seed=args.seed, accelerometer=args.accelerometer, progress=bar.update, log=log)
+                       seed=args.seed, accelerometer=mode, method=name, progress=bar.update, log=log)
     print(f"wrote {res.recording}, {res.report}, {res.report_json} and {res.rrd}")
     print(f"open the recording with:  rerun {res.rrd}")
     return 0
@@ -175,14 +181,17 @@ def cmd_export(args: argparse.Namespace) -> int:
     from gyrosim.calibration import Calibration
     from gyrosim.exchange import imucal_json, kalibr_imu_yaml
 
-    check_output_paths({"--out": args.out}, [args.calibration])
+    check_output_paths({"--out": args.out}, [args.calibration, args.noise])
     cal = Calibration.load(args.calibration)
     if args.format == "kalibr":
+        from calib.noise.allan_triads import read_kalibr_noise
+
         rate = args.rate or cal.diagnostics.get("filter", {}).get("rate_hz")
         if not rate:
             raise GyrosimError("Kalibr's imu.yaml needs the IMU rate: pass --rate HZ")
         text = kalibr_imu_yaml(cal, float(rate), rostopic=args.rostopic, gyro_random_walk=args.gyro_random_walk,
-                               acc_random_walk=args.acc_random_walk)
+                               acc_random_walk=args.acc_random_walk,
+                               noise=read_kalibr_noise(args.noise) if args.noise else None)
     else:
         text = imucal_json(cal)
     out = Path(args.out)
@@ -294,6 +303,8 @@ def _add_apply_export_inspect(sub) -> None:
                          "calib allan on a long static recording, or the datasheet)")
     ex.add_argument("--acc-random-walk", type=number(0, None, unit="m/s³/√Hz"), default=None,
                     help="accelerometer bias random walk, m/s³/√Hz, ≥ 0")
+    ex.add_argument("--noise", help="the noise calib allan --json measured on a long static recording of this IMU: "
+                                    "both triads' white noise and random walk (the two options above win over it)")
     ex.set_defaults(func=cmd_export)
     i = sub.add_parser("inspect", help="what a recording holds, what a method would refuse",
                        description="Summarise a recording: format, length, rate, channels, truth, what the input "
@@ -315,8 +326,11 @@ def _add_demo(sub) -> None:
                    help="sample rate, Hz, in [20, 1000] (what the filter supports; default 100)")
     d.add_argument("--seed", type=integer(0, 2**32 - 1001), default=1,
                    help="seed, 0 … 2³²−1001 (the validation session uses seed + 1000; default 1)")
-    d.add_argument("--accelerometer", default="estimate", choices=("estimate", "calibrated"),
+    d.add_argument("--accelerometer", default=None, choices=("estimate", "calibrated"),
                    help="estimate the accelerometer with the gyro (default) or assume it calibrated (Zhou §3.3.2)")
+    d.add_argument("--method", default=None, type=_method_name, metavar="NAME",
+                   help="the method, as calib run --method (default calib run's, kf_hand_joint; kf_joint is the "
+                   "demo's former hand-blind filter)")
     d.set_defaults(func=cmd_demo)
 
 

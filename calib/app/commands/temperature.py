@@ -12,7 +12,7 @@ from gyrosim.errors import GyrosimError
 from calib.app.commands.common import input_files, input_options, open_input, print_input_warnings
 from calib.app.outputs import atomic_path, check_output_paths, write_json_atomic
 
-__all__ = ["add_parsers", "cmd_temperature", "cmd_ratetable"]
+__all__ = ["add_parsers", "cmd_temperature", "cmd_ratetable", "same_data"]
 
 
 def cmd_temperature(args: argparse.Namespace) -> int:
@@ -20,6 +20,12 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     from gyrosim.recording import save_hdf5
 
     from calib.inputs import RATETABLE, TEMPERATURE
+
+    if args.compensate and not args.out:
+        raise GyrosimError("--compensate needs --out PATH for the compensated recording")
+    check_output_paths({"--json": args.json, "--out": args.out, "--rrd": args.rrd},
+                       input_files(args.recording, args.train, args.ratetable))
+    loaded = open_input(args, TEMPERATURE)  # a bad file is refused before the models (scipy) are imported
     from calib.temperature.compensation import (
         METHODS,
         ThermalCompensation,
@@ -29,15 +35,12 @@ def cmd_temperature(args: argparse.Namespace) -> int:
         split_cycles,
     )
 
-    if args.compensate and not args.out:
-        raise GyrosimError("--compensate needs --out PATH for the compensated recording")
-    check_output_paths({"--json": args.json, "--out": args.out, "--rrd": args.rrd},
-                       input_files(args.recording, args.train, args.ratetable))
-    loaded = open_input(args, TEMPERATURE)
     rec = loaded.recording
     print_input_warnings(loaded.report)
+    in_sample = False
     if args.train:
         train, test = [open_input(args, TEMPERATURE, args.train).recording], [rec]
+        in_sample = same_data(train[0], rec)
     else:
         cycles = split_cycles(rec)
         if len(cycles) <= args.train_cycles:
@@ -55,20 +58,26 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     fitted = fit_methods(train, methods, extra)
     rows = compare_methods(train, test, methods, fitted=fitted)
     base = rows[0]
-    print(f"held out: {len(test)} record(s)/cycle(s); trained on {len(train)}")
+    if in_sample:
+        print(f"IN-SAMPLE: --train {args.train} holds the same data as {args.recording}: the table is each model's "
+              "fit to its own training data, not a held-out score; train on another recording of the IMU to score it")
+    else:
+        print(f"held out: {len(test)} record(s)/cycle(s); trained on {len(train)}")
     print(f"{'method':<38} {'RMS °/s':>9} {'BS °/h':>9} {'ADEV min °/h':>13} {'ADEV 1000 s °/h':>16} "
           f"{'× better (BS)':>14}")
     for r in rows:
         print(f"{r.method:<38} {r.held_out_rms_deg_s:9.4f} {r.bias_stability_deg_h:9.2f} {r.adev_min_deg_h:13.2f} "
               f"{r.adev_1000s_deg_h:16.2f} {base.bias_stability_deg_h / r.bias_stability_deg_h:14.1f}")
     if args.json:
-        write_json_atomic(args.json, [r.__dict__ for r in rows])
+        evaluation = "in_sample" if in_sample else "held_out"
+        write_json_atomic(args.json, [{**r.__dict__, "evaluation": evaluation} for r in rows])
     if args.rrd:
         from calib.app.rerun_temperature import save_temperature_rrd
 
         held = [(float(c.t_s[0]), float(c.t_s[-1])) for c in test] if not args.train else \
             [(float(rec.t_s[0]), float(rec.t_s[-1]))]
-        desc = f"{args.train}" if args.train else f"the first {args.train_cycles} chamber cycle(s)"
+        desc = (f"{args.train}" + (" (the same data: in-sample)" if in_sample else "")) if args.train else \
+            f"the first {args.train_cycles} chamber cycle(s)"
         with atomic_path(args.rrd) as tmp:
             save_temperature_rrd(tmp, rec, fitted, rows, held, desc)
         print(f"wrote {args.rrd}; open it with:  rerun {args.rrd}")
@@ -79,13 +88,24 @@ def cmd_temperature(args: argparse.Namespace) -> int:
     return 0
 
 
+def same_data(a, b) -> bool:
+    """Whether two recordings hold the same samples (the same file, or a copy of it, given twice)."""
+    import numpy as np
+
+    return a.n == b.n and all(
+        (x is None and y is None) or (x is not None and y is not None and np.array_equal(x, y, equal_nan=True))
+        for x, y in ((a.t_s, b.t_s), (a.gyro_rad_s, b.gyro_rad_s), (a.temp_c, b.temp_c)))
+
+
 def cmd_ratetable(args: argparse.Namespace) -> int:
     """Bias and scale per axis at every calibration temperature of a rate-table recording ("Measurement Error and
     Calibration of FOG IMU")."""
     from calib.inputs import RATETABLE
+
+    rec = open_input(args, RATETABLE).recording  # a bad file is refused before the analysis (scipy) is imported
     from calib.temperature.ratetable import calibrate_rate_table
 
-    points = calibrate_rate_table(open_input(args, RATETABLE).recording)
+    points = calibrate_rate_table(rec)
     print(f"{'T °C':>7} {'axis':>4} {'bias °/s':>10} {'±1σ':>8} {'scale ppm':>10} {'±1σ':>7}")
     for p in points:
         for i, a in enumerate("xyz"):
@@ -103,7 +123,8 @@ def add_parsers(sub) -> None:
     tp.add_argument("recording", help="static recording with /temp (gyrosim chamber) or CSV with a temp column")
     tp.add_argument("--train-cycles", type=integer(1, 10_000), default=2,
                     help="chamber cycles to train on, ≥ 1; the rest are held out (default 2)")
-    tp.add_argument("--train", help="a separate training recording instead of cycles")
+    tp.add_argument("--train", help="a separate training recording of the same IMU instead of cycles (the same data as "
+                                    "the scored recording is reported as in-sample, not held out)")
     tp.add_argument("--methods", help="comma-separated subset of: none, polynomial, piecewise_linear, rbf, "
                                       "polynomial+dT/dt")
     tp.add_argument("--ratetable", help="also evaluate the piecewise-linear model between calibration points from this "

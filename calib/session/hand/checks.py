@@ -213,10 +213,11 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                 "swung at arm's length about a moving pivot) or it is a sensor effect the model lacks — an "
                 "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "
                 "accelerometer bias; kf_hand fitted it as the hand's acceleration and weighted S, G by it, so "
-                "S, G and σ are not trustworthy. Check the accelerometer calibration (calib run's default "
-                "--accelerometer estimate, or calib run --method hand), the gyro–accelerometer time alignment, "
-                "trace the residual with calib closeloop, and record again turning the device at the wrist "
-                "without moving the arm"
+                "S, G and σ are not trustworthy. "
+                + ("Check the accelerometer calibration (calib run --method kf_hand_joint estimates it), "
+                   if check_accelerometer else "")
+                + "Check the gyro–accelerometer time alignment, trace the residual with calib closeloop, and record "
+                "again turning the device at the wrist without moving the arm"
             )
     return HandAssumptions(ok, tuple(notes), eps, spread, float(tremor_band_rms_m_s2), rn, details)
 
@@ -242,6 +243,7 @@ def refuse_confounded(P: np.ndarray, layout: StateLayout, threshold: float = CON
             + "; ".join(bad)
             + ". The lever arm's acceleration grows with ω² and ω̇, a scale or axis error's attitude error with the "
             "angle turned: repeat the rotations about each axis at two clearly different speeds (one at least "
-            "twice the other), including rotations about horizontal axes — or use --method kf_session if the device "
-            "turned about its own sensor (no lever arm)"
+            "twice the other), including rotations about horizontal axes — or use the hand-blind filter (--method "
+            "kf_joint; kf_session_r with the accelerometer calibrated) if the device turned about its own sensor (no "
+            "lever arm)"
         )

@@ -651,7 +651,8 @@ def _checks(ses: _Session, fit: _Fit, cov: np.ndarray, sig: _Sigma, theta: np.nd
                             hand_aware=True, noise_free=prep.noise.noise_free)
     if ses.thermal is not None:
         notes = notes + [sig.temperature["note"]]
-    status = apply_inflation(status, notes, sig.infl, can_fail=not prep.noise.noise_free, hand_aware=True)
+    status = apply_inflation(status, notes, sig.infl, can_fail=not prep.noise.noise_free, hand_aware=True,
+                             accelerometer=ses.accelerometer)
     if prep.noise.noise_free and status != "ok":
         # noise-free input: the innovations are the gyro integration's deterministic error, which the
         # floor-level noise cannot cover (measured on the independent generator at 100 Hz: error 2.4e-6,
@@ -781,8 +782,8 @@ def _status_and_notes(ses: _Session, fit: _Fit, cov: np.ndarray, sig: _Sigma, th
         status = "inconsistent"
         notes.append("experimental sway model (sway='band', kf_hand_band): its σ failed the independent generator's "
                      "consistency test (3–5× small on a noise-free sensor with a line-spectrum sway; docs/hand.md, "
-                     "'A band-limited sway model'), so its result is never 'ok'. Use kf_hand (calib run --method hand "
-                     "--accelerometer calibrated) for an answer whose σ has been validated")
+                     "'A band-limited sway model'), so its result is never 'ok'. Use kf_hand (calib run --method "
+                     "kf_hand) for an answer whose σ has been validated")
     if sig.spectral is not None:
         fsg = [v for k, v in sig.spectral["sigma_factor"].items() if k.startswith(("gyro_scale", "gyro_nonorth"))]
         notes.append(f"σ of S, G follows the slow residual's own spectrum, not the fitted a_e model's: ×{min(fsg):.2f}–"
