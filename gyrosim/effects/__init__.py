@@ -42,6 +42,7 @@ from .environment import EARTH_RATE_RAD_S, EarthRate, MagneticSensitivity
 from .error_terms import (
                     Bias,
                     GSensitivity,
+                    GyroAccMisalignment,
                     Misalignment,
                     NonOrthogonality,
                     ScaleFactor,
@@ -65,7 +66,8 @@ from .thermal import TemperatureBias, TemperaturePiecewise, TemperatureRBF, Temp
 __all__ = [
     "SignalContext", "Effect", "VectorEffect", "EFFECTS", "effect_from_dict", "unregister_effect", "zeros_field",
     "rotation_matrix", "nonortho_matrix", "spectral_noise", "haar_gain2", "EARTH_RATE_RAD_S",
-    "Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "ScaleNonlinearity", "GSensitivity",
+    "Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "GyroAccMisalignment", "ScaleNonlinearity",
+    "GSensitivity",
     "TemperatureBias", "TemperatureScale", "ThermalHysteresis", "TemperaturePiecewise", "TemperatureRBF",
     "EarthRate", "MagneticSensitivity", "HardIron", "SoftIron", "FrameRotation",
     "WhiteNoise", "BiasInstability", "RandomWalk", "GaussMarkov", "QuantizationNoise", "RateRamp",
