@@ -45,7 +45,7 @@ def cell(schedule: str, hand: str, sensor: str, seeds: int, rate_hz: float = 100
         t6 = np.concatenate([tc.value(t, k) for t, k in ITEMS])
         user = as_user_file(rec)
         try:
-            c = calibrate(user, "kf_session", accelerometer="estimate", keep_history=False, hand_check=False)
+            c = calibrate(user, "kf_joint", keep_history=False, hand_check=False)
         except Exception as exc:   # a refused session is not an answer
             rows.append({"seed": seed, "status": f"error: {type(exc).__name__}"})
             continue

@@ -9,7 +9,7 @@ measured, when ../shared/data is there), each repeat times, interleaved:
 * boundary — ``calib.inputs.prepare_recording`` (time base, degenerate data, spikes, gaps, units,
   motion, rate: everything ``calib run`` checks before the filter);
 * re-check — ``calib.inputs.check_recording`` as ``prepare()`` runs it inside ``calibrate``;
-* calibrate — ``calib.session.paper.calibrate(rec, "kf_session")`` (the filter; includes the re-check), as
+* calibrate — ``calib.session.paper.calibrate(rec)`` (``kf_joint``) (the filter; includes the re-check), as
   ``calib run`` runs it (accelerometer estimated; BROAD with ``--accelerometer calibrated``, as its
   motion cannot separate the accelerometer).
 
@@ -71,7 +71,7 @@ def main() -> None:
             t_read, (raw, info) = _time(lambda: read_recording(path))
             t_bound, loaded = _time(lambda: prepare_recording(raw, KF, info=info))
             t_check, _ = _time(lambda: check_recording(loaded.recording, requirements=KF))
-            t_cal, _ = _time(lambda: calibrate(loaded.recording, "kf_session", accelerometer=accelerometer))
+            t_cal, _ = _time(lambda: calibrate(loaded.recording, accelerometer=accelerometer))
             cpu = [x[0] for x in (t_read, t_bound, t_check, t_cal)]
             wall = [x[1] for x in (t_read, t_bound, t_check, t_cal)]
             rows.append(cpu + [(cpu[1] + cpu[2]) / (cpu[0] + cpu[3] - cpu[2]),

@@ -7,6 +7,13 @@ A user's script that imports an old path (``from calib.handkf import kf_hand``,
 name to the new one (``calib.orientation`` and ``calib.temperature`` became packages of the same
 name that re-export the old module's names), and the import returns the very same module object (so monkeypatching
 either name patches both) after a :class:`DeprecationWarning` that names the new path.
+
+A name that moved to a module *above* its old one (an alias in the old module would import upwards, a cycle) is
+listed in :data:`MOVED_NAMES`; the old module's ``__getattr__`` (:func:`moved_attribute`, PEP 562) finds it at its
+new home, with the same warning (``from calib.session.kernel import crlb`` → :mod:`calib.session.bounds`).  A module
+switch that became a method's parameter (:data:`NOW_PARAMETERS`: ``calib.session.hand.filter.QB_LADDER`` is
+``HandParams.qb_ladder``) is an AttributeError that says how to pass it: assigning the old global would change
+nothing, so reading it must not seem to work.
 """
 
 from __future__ import annotations
@@ -17,7 +24,7 @@ import importlib.machinery
 import sys
 import warnings
 
-__all__ = ["MOVED", "install"]
+__all__ = ["MOVED", "MOVED_NAMES", "NOW_PARAMETERS", "install", "moved_attribute"]
 
 MOVED: dict[str, str] = {
     "calib.kalman": "calib.session.model",
@@ -65,6 +72,50 @@ MOVED: dict[str, str] = {
     "calib.closeloop.mag_select": "calib.closeloop.mag.select",
     "calib.closeloop.mag_terms": "calib.closeloop.mag.terms",
 }
+
+
+# module → {name: the module it moved to}, for names that moved upwards (module docstring)
+MOVED_NAMES: dict[str, dict[str, str]] = {
+    "calib.session.kernel": {"crlb": "calib.session.bounds", "crlb_joint": "calib.session.bounds"},
+    "calib.session.model": {"ZhouFilter": "calib.session.reference"},
+    "calib.session.hand.filter": {"hand_cross_check": "calib.session.crosscheck",
+                                  "CROSS_CHECK_TAIL": "calib.session.crosscheck"},
+}
+
+
+# module → {former experiment switch: the parameter that replaced it, and how to pass it}
+_HAND = "calib.session.hand.params.HandParams"
+NOW_PARAMETERS: dict[str, dict[str, str]] = {
+    "calib.session.hand.filter": {
+        "SPECTRAL_SIGMA": f"{_HAND}.spectral_sigma", "PREFILTER_REFERENCE": f"{_HAND}.prefilter_reference",
+        "GYRO_TEMP_BIAS": f"{_HAND}.gyro_temp_bias", "QB_LADDER": f"{_HAND}.qb_ladder",
+        "JOINT_GYRO_THERMAL": f"{_HAND}.joint_gyro_thermal", "JOINT_GYRO_TEMP_BIAS": f"{_HAND}.joint_gyro_temp_bias",
+        "PASSES": f"{_HAND}.passes",
+    },
+}
+
+
+def moved_attribute(module: str):
+    """The ``__getattr__`` of ``module`` (PEP 562): a name of :data:`MOVED_NAMES` resolves at its new home after a
+    :class:`DeprecationWarning` naming it; a former switch of :data:`NOW_PARAMETERS` is an AttributeError naming its
+    parameter; any other name is an AttributeError, as without the hook."""
+    table = MOVED_NAMES.get(module, {})
+    params = NOW_PARAMETERS.get(module, {})
+
+    def __getattr__(name: str):
+        if name in params:
+            cls, _, fld = params[name].rpartition(".")
+            raise AttributeError(f"{module}.{name} is now the parameter {params[name]}: pass "
+                                 f"{cls.rpartition('.')[2]}({fld}=…) to the method (params=…) instead of editing the "
+                                 "module")
+        if name not in table:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        new = table[name]
+        warnings.warn(f"{module}.{name} has moved to {new}.{name}: import it from there (the old path still works, "
+                      "for now)", DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module(new), name)
+
+    return __getattr__
 
 
 class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):

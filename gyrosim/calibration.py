@@ -19,9 +19,13 @@ simulator's own truth as an oracle):
   ``warnings``: named findings, each saying what to do;
 * ``diagnostics``: JSON-able extras of the estimator (rest segments, noise levels, NIS, ...),
   written at the top level of the JSON; ``history``: the estimator's run history for viewers
-  (not serialised).
+  (not serialised);
+* ``report``: what a session run adds around the estimate (``calib run``, :func:`calib.session.run.run_session`):
+  sections named in :data:`REPORT_SECTIONS` — ``input`` (what the input boundary read and did), ``coaching``
+  (what the hand cost), ``truth`` (a simulated file's own device) — written at the top level of the JSON
+  after the estimate, under those keys, and read back into ``report`` by :meth:`Calibration.from_dict`.
 
-It saves and loads itself (:meth:`to_json` / :meth:`from_json`, versioned, NaN never written:
+It saves and loads itself (:meth:`to_json` / :meth:`from_json`, versioned, UTF-8, NaN never written:
 ``null`` with the reason in ``warnings``) and compensates a recording (:meth:`compensate`, which
 inverts the effects with :meth:`gyrosim.sensor_model.SensorModel.compensate_triad`).  Exports to
 other tools live in :mod:`gyrosim.exchange` (Kalibr ``imu.yaml``, imucal JSON).
@@ -49,12 +53,16 @@ from .effects import (
 from .errors import GyrosimError
 from .recording import FRAMES, Recording
 
-__all__ = ["Calibration", "CALIBRATION_FORMAT", "CALIBRATION_VERSION", "STATUSES", "truth_calibration"]
+__all__ = ["Calibration", "CALIBRATION_FORMAT", "CALIBRATION_VERSION", "STATUSES", "REPORT_SECTIONS",
+           "truth_calibration"]
 
 CALIBRATION_FORMAT = "gyrosim.calibration"
 CALIBRATION_VERSION = 1
 STATUSES = ("ok", "diverged", "inconsistent")
 TRIADS = ("gyro", "accelerometer")
+# the sections a session run adds around the estimate (``calib run --json`` promises these keys): the input
+# boundary's report, the coaching, and a simulated file's truth
+REPORT_SECTIONS = ("coaching", "input", "truth")
 # the summary blocks of the JSON (``calib run --json`` promises these keys): kind → key per triad
 _SUMMARY = {"gyro": ((Bias.kind, "bias_rad_s"), (ScaleFactor.kind, "scale_factor"),
                      (NonOrthogonality.kind, "nonorthogonality")),
@@ -105,6 +113,7 @@ class Calibration:
     method: str = ""
     diagnostics: Mapping[str, Any] = field(default_factory=dict)
     history: Any = field(default=None, repr=False, compare=False)
+    report: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for triad in TRIADS:
@@ -124,6 +133,14 @@ class Calibration:
         cov.setflags(write=False)
         object.__setattr__(self, "covariance", cov)
         object.__setattr__(self, "diagnostics", dict(self.diagnostics))
+        report = dict(self.report)
+        unknown = [k for k in report if k not in REPORT_SECTIONS]
+        if unknown:
+            raise GyrosimError(f"Calibration.report takes the sections {REPORT_SECTIONS}, got {unknown}")
+        clash = [k for k in report if k in self.diagnostics]
+        if clash:
+            raise GyrosimError(f"Calibration.report and .diagnostics both hold {clash}: one key, one place in the JSON")
+        object.__setattr__(self, "report", report)
         missing = [name for name, v in zip(self.parameter_names(), np.diag(cov)) if not np.isfinite(v)]
         warnings = tuple(self.warnings)
         if missing:
@@ -300,6 +317,7 @@ class Calibration:
         d["effects"] = {triad: [e.to_dict() for e in getattr(self, triad)] for triad in TRIADS}
         d["parameters"] = self.parameter_names()
         d["covariance"] = self.covariance
+        d.update(self.report)   # after the estimate, in the order the run added them (REPORT_SECTIONS)
         nan_paths: list[str] = []
         out = _clean(d, "", nan_paths)
         other = [p for p in nan_paths if not (p.startswith("covariance") or ".std." in p)]
@@ -309,15 +327,15 @@ class Calibration:
         return out
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
+        """:meth:`to_dict` as JSON text (indent 2; non-ASCII characters such as µ and σ as themselves)."""
+        return json.dumps(self.to_dict(), indent=2, ensure_ascii=False, allow_nan=False)
 
     def save(self, path: str | Path) -> Path:
-        """Write :meth:`to_json` to ``path`` (temporary file, then rename: never half-written)."""
-        path = Path(path)
-        tmp = path.with_name(f".{path.name}.part")
-        tmp.write_text(self.to_json() + "\n")
-        tmp.replace(path)
-        return path
+        """Write :meth:`to_json` and a newline to ``path`` as UTF-8 (temporary file, then rename: never
+        half-written; :func:`gyrosim.outputs.write_text_atomic`).  ``calib run --json`` writes exactly these bytes."""
+        from .outputs import write_text_atomic
+
+        return write_text_atomic(Path(path), self.to_json() + "\n")
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Calibration":
@@ -334,11 +352,12 @@ class Calibration:
         cov = d.get("covariance")
         cov = None if cov is None else np.array([[np.nan if v is None else v for v in row] for row in cov], float)
         known = {"format", "version", "method", "status", "warnings", "frames", "effects", "parameters", "covariance",
-                 "gyro", "accelerometer"}
+                 "gyro", "accelerometer", *REPORT_SECTIONS}
         diagnostics = {k: v for k, v in d.items() if k not in known}
         out = cls(gyro=gyro, accelerometer=acc, covariance=cov, status=d.get("status", "ok"),
                   warnings=tuple(w for w in d.get("warnings", []) if not w.startswith("not a number, written as null")),
-                  method=d.get("method", ""), diagnostics=diagnostics)
+                  method=d.get("method", ""), diagnostics=diagnostics,
+                  report={k: d[k] for k in d if k in REPORT_SECTIONS})
         if d.get("parameters") is not None and list(d["parameters"]) != out.parameter_names():
             raise GyrosimError(
                 "calibration file: 'parameters' does not match its effects; the file was edited by hand?"
@@ -358,7 +377,12 @@ class Calibration:
         path = Path(path)
         if not path.is_file():
             raise GyrosimError(f"no such calibration file: {path}")
-        return cls.from_json(path.read_text())
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as exc:
+            raise GyrosimError(f"{path} is not a calibration JSON (not UTF-8 text: {exc.reason}); pass the file "
+                               "calib run --json wrote") from exc
+        return cls.from_json(text)
 
 
 def truth_calibration(rec: Recording, *, linear_only: bool = True) -> Calibration | None:

@@ -133,7 +133,8 @@ def cmd_chamber(args: argparse.Namespace) -> int:
 
 
 def cmd_ratetable(args: argparse.Namespace) -> int:
-    """Seed 001's ±rate / one-position scheme on the virtual rate table inside a chamber profile."""
+    """The ±rate / one-position scheme of "Measurement Error and Calibration of FOG IMU" on the virtual rate table
+    inside a chamber profile (``calib ratetable`` analyses the recording)."""
     from .chamber import load_chamber
     from .ratetable import RateTableSequence, simulate_rate_table
 
@@ -165,7 +166,8 @@ def _knocks(specs: list[str] | None):
 
 
 def cmd_northfind(args: argparse.Namespace) -> int:
-    """A north-finding (gyrocompassing) record on the virtual indexing table (gyrosim.northfind)."""
+    """A north-finding (gyrocompassing) record on the virtual indexing table (gyrosim.northfind; ``calib northfind``
+    analyses it)."""
     from .northfind import NorthFindSequence, shielded, simulate_northfind
     from .sensor_model import load_sensor
 
@@ -186,7 +188,8 @@ def cmd_northfind(args: argparse.Namespace) -> int:
 
 
 def cmd_tilttable(args: argparse.Namespace) -> int:
-    """Seed 001's static tilt-sensor test on a dividing head (gyrosim.tilttable)."""
+    """The static tilt-sensor test of "Static Capacitance Test of MEMS Tilt Sensor" on a dividing head
+    (gyrosim.tilttable; ``calib tilt`` analyses the recording)."""
     from .tilttable import SEED_001_ANGLES_DEG, TiltSequence, simulate_tilttable
 
     out = Path(args.out)
@@ -264,7 +267,8 @@ def cmd_orientation_campaign(args: argparse.Namespace) -> int:
               f"{r['drift_rms_deg_min_hi']:.3f}] {r['convergence_s']:6.2f} [{r['convergence_s_lo']:.2f}, "
               f"{r['convergence_s_hi']:.2f}] {r['not_converged']:5d}")
     print(f"wrote {path}, {Path(args.out) / 'orientation_summary.csv'} and the plots")
-    return 1 if any(r["failed"] for r in summary) else 0
+    failed = sum(r["failed"] for r in summary)
+    return status_exit(not failed, f"{failed} session(s) failed: the fail column above and {path} say which and why")
 
 
 def cmd_orientation_broad(args: argparse.Namespace) -> int:
@@ -280,7 +284,8 @@ def cmd_orientation_broad(args: argparse.Namespace) -> int:
 
         write_json_atomic(args.json, result)
         print(f"wrote {args.json}")
-    return 0 if result["within_tolerance"] else 1
+    return status_exit(bool(result["within_tolerance"]),
+                       "outside the tolerance of BROAD's published numbers: see the table above")
 
 
 def cmd_orientation_view(args: argparse.Namespace) -> int:
@@ -356,13 +361,8 @@ def cmd_campaign_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``gyrosim`` command line's parser: one subcommand per job (``simulate``, ``campaign``, ``chamber``,
-    …), each bound to the ``cmd_*`` function that runs it."""
-    p = argparse.ArgumentParser(prog="gyrosim", description="Virtual hand-held IMU in MuJoCo.")
-    p.add_argument("--version", action="version", version=f"gyrosim {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
-
+def _add_sessions(sub) -> None:
+    """``simulate`` and the preset listings (``hands``, ``schedules``, ``sensors``)."""
     s = sub.add_parser("simulate", help="simulate a hand-held session and write an HDF5 recording")
     s.add_argument("--schedule", default="zhou2020", help="built-in name or TOML path (default zhou2020)")
     s.add_argument("--hand", default="typical", help="ideal|steady|typical|shaky or a TOML path")
@@ -400,6 +400,10 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("--show", help="print one preset (SI values) as JSON")
     se.set_defaults(func=cmd_sensors)
 
+
+def _add_rigs(sub) -> None:
+    """The test rigs: ``chamber``, ``ratetable``, ``northfind``, ``tilttable`` (each writes a recording a calib
+    command analyses)."""
     ch = sub.add_parser("chamber", help="a static board through a thermal-chamber profile (HDF5 with /temp)")
     ch.add_argument("--profile", default="tde_cycles_003", help="built-in chamber profile or TOML path")
     ch.add_argument("--sensor", default="consumer_thermal", help="sensor preset or TOML path")
@@ -410,7 +414,8 @@ def build_parser() -> argparse.ArgumentParser:
     ch.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
     ch.set_defaults(func=cmd_chamber)
 
-    rt = sub.add_parser("ratetable", help="virtual rate table: ±rate / one-position on six faces at each chamber hold")
+    rt = sub.add_parser("ratetable", help="simulate a rate-table record: ±rate / one-position on six faces at each "
+                        "chamber hold (calib ratetable analyses it)")
     rt.add_argument("--profile", default="points_001", help="chamber profile whose holds are the calibration points")
     rt.add_argument(
         "--sensor", default="consumer_thermal", help="sensor preset or TOML path (default consumer_thermal)"
@@ -428,7 +433,8 @@ def build_parser() -> argparse.ArgumentParser:
     rt.set_defaults(func=cmd_ratetable)
 
     nf = sub.add_parser(
-        "northfind", help="gyrocompassing: a board held still in 2/4 positions on the indexing table at a latitude"
+        "northfind", help="simulate a north-finding record: a board held still in 2/4 positions on the indexing "
+        "table at a latitude (calib northfind analyses it)"
     )
     nf.add_argument("--sensor", default="fog_tactical", help="sensor preset or TOML path (its Earth rate is set to "
                                                              "--latitude)")
@@ -465,11 +471,12 @@ def build_parser() -> argparse.ArgumentParser:
     nf.set_defaults(func=cmd_northfind)
 
     tt = sub.add_parser(
-        "tilttable", help="tilt-sensor static test: tilt steps about each axis on a dividing head, held still"
+        "tilttable", help="simulate a tilt-sensor static test: tilt steps about each axis on a dividing head, held "
+        "still (calib tilt analyses it)"
     )
     tt.add_argument("--sensor", default="tilt_001", help="sensor preset or TOML path (default tilt_001, the chip of "
                                                          "'Static Capacitance Test of MEMS Tilt Sensor')")
-    tt.add_argument("--angles", default=None, help="FROM:TO:STEP in ° (default -15:15:2.5, the seed's ±15° range)")
+    tt.add_argument("--angles", default=None, help="FROM:TO:STEP in ° (default -15:15:2.5, the test's ±15° range)")
     tt.add_argument("--hold", type=number(0, 1e7, lo_open=True, unit="s"), default=30.0, help="hold per step, s, > 0")
     tt.add_argument("--zero-hold", type=number(0, 1e7, unit="s"), default=3600.0,
                     help="final level hold for the zero stability, s, ≥ 0 (seed: 1 h)")
@@ -482,6 +489,9 @@ def build_parser() -> argparse.ArgumentParser:
     tt.add_argument("--out", required=True, help="output .h5 path (written atomically; never an input TOML)")
     tt.set_defaults(func=cmd_tilttable)
 
+
+def _add_campaigns(sub) -> None:
+    """Campaigns, orientation scoring and the speed tables."""
     cp = sub.add_parser("campaign", help="robustness campaign: sessions × estimators scored against the truth, on Dask")
     cp.add_argument("campaign", nargs="?", help="campaign TOML (flags override its keys)")
     cp.add_argument("--hand", help="comma-separated hand presets (default ideal,steady,typical,shaky)")
@@ -536,7 +546,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cb.set_defaults(func=cmd_campaign_bench)
 
-    b = sub.add_parser("bench", help="speed table: our simulation vs bare mujoco.rollout")
+    b = sub.add_parser("bench", help="simulation speed: our simulation vs bare mujoco.rollout (calibration speed: "
+                       "calib lab bench)")
     b.add_argument("what", nargs="?", choices=("all", "scene", "sensor"), default="all",
                    help="scene: simulation vs bare mujoco.rollout; sensor: error model vs bare numpy")
     b.add_argument("--repeats", type=integer(1, 1000), default=5, help="timing repeats, 1 … 1000 (default 5)")
@@ -548,10 +559,41 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--rate", type=number(0, MAX_RATE_HZ, lo_open=True, unit="Hz"), default=100.0,
                    help="sample rate, Hz, in (0, 1e6] (default 100)")
     b.set_defaults(func=cmd_bench)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``gyrosim`` command line's parser: one subcommand per job (``simulate``, ``campaign``, ``chamber``,
+    …), each bound to the ``cmd_*`` function that runs it."""
+    p = argparse.ArgumentParser(prog="gyrosim", description="Virtual hand-held IMU in MuJoCo: gyrosim simulates "
+                                "recordings, calib analyses them\n(gyrosim northfind, ratetable and tilttable write "
+                                "what calib northfind, ratetable\nand tilt read).", epilog=EXIT_CODES_HELP,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"gyrosim {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    _add_sessions(sub)
+    _add_rigs(sub)
+    _add_campaigns(sub)
     return p
 
 
+# The exit codes of every command of both command lines (gyrosim and calib), in one place.
 EXIT_OK, EXIT_NOT_OK, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_CODES = {EXIT_OK: "done and ok", EXIT_NOT_OK: "done, not ok (said on stderr)",
+              EXIT_BAD_INPUT: "bad input (what is wrong, what to do)",
+              EXIT_INTERNAL: "internal error (a bug)"}
+# the table as the two lines each command line's --help ends with
+EXIT_CODES_HELP = ("exit codes: " + " · ".join(f"{c} {EXIT_CODES[c]}" for c in (EXIT_OK, EXIT_NOT_OK)) + "\n"
+                   + " " * 12 + " · ".join(f"{c} {EXIT_CODES[c]}" for c in (EXIT_BAD_INPUT, EXIT_INTERNAL)))
+
+
+def status_exit(ok: bool, message: str) -> int:
+    """The exit code of a command that finished: 0 when its result is ok, else 1 with ``message`` (one line
+    saying what was found and where to look) on stderr.  Bad input (2) and internal errors (3) are
+    :func:`run_cli`'s."""
+    if ok:
+        return EXIT_OK
+    print(message, file=sys.stderr)
+    return EXIT_NOT_OK
 
 
 def run_cli(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:

@@ -1,4 +1,5 @@
-"""The ``calib`` command line and what it writes: the parser and commands (:mod:`.cli`), the main job
+"""The ``calib`` command line and what it writes: the parser (:mod:`.cli`), the commands one module per group
+(:mod:`.commands`: session, noise, temperature, closeloop, mag, instruments, and ``calib lab``), the main job
 (:mod:`.demo`), the session report (:mod:`.report`), the rerun recordings (:mod:`.rerun`,
 :mod:`.rerun_temperature`), ``calib inspect`` (:mod:`.inspect`) and the output boundary (:mod:`.outputs`).
 

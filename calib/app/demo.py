@@ -42,7 +42,7 @@ def run_demo(
     log: Callable[[str], None] = lambda msg: None,
 ) -> DemoResult:
     """Simulate ``schedule`` × ``hand`` × ``sensor`` (seed ``seed``), calibrate it with the paper-family joint filter
-    (:func:`calib.session.paper.calibrate`, ``kf_session``: Zhou's Figures 2–3 on the paper's sensor; ``calib run``'s
+    (:func:`calib.session.paper.calibrate`, ``kf_joint``: Zhou's Figures 2–3 on the paper's sensor; ``calib run``'s
     default is the hand-aware filter (docs/hand.md) — with this preset's noise the two agree in S, G, and the filter's
     own gyro bias is 3× tighter than the rest mean the hand-aware one reports, measured on seed 1), validate the
     attitude on the free-style session of seed + 1000 (:func:`calib.session.validation.validate_attitude`), and write
@@ -65,7 +65,7 @@ def run_demo(
     rec = simulate(sched, hnd, model, rate_hz, seed=seed, progress=progress)
     rec_path = save_hdf5(rec, out / "session.h5")
     log(f"calibrating {rec.n} samples (Zhou 2020 filter) …")
-    result = calibrate(rec, "kf_session", accelerometer=accelerometer)
+    result = calibrate(rec, accelerometer=accelerometer)   # kf_joint, or kf_session_r with it calibrated
     truth = true_gyro_parameters(rec)
     log("validating the attitude on a free-style session of the same device …")
     validation = validate_attitude(rec, result, hand=hnd.name, seed=seed + 1000)

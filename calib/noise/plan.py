@@ -6,7 +6,7 @@
   is where that curve crosses it (log–log interpolation on a √2-spaced grid of T).  The 95 %
   interval's relative half-width is ≈ 1.96 σ(log θ̂).
 * Deterministic calibration parameters (S, G of the gyro): the Cramér–Rao bound of one pass of
-  the schedule (:func:`calib.session.kernel.crlb`, ideal hand, the preset's ARW and VRW); R independent
+  the schedule (:func:`calib.session.bounds.crlb`, ideal hand, the preset's ARW and VRW); R independent
   repetitions carry R times the information, so R = ⌈(σ₁/σ_target)²⌉.
 """
 
@@ -114,7 +114,7 @@ def schedule_repetitions(sensor, schedule: str, rate_hz: float, target_s: float,
     from gyrosim.schedule import load_schedule
     from gyrosim.simulate import simulate_truth
 
-    from calib.session.kernel import crlb
+    from calib.session.bounds import crlb
     from calib.session.model import FilterConfig
 
     def density(effects) -> float:

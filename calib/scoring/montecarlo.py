@@ -13,7 +13,7 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
   ("the accelerometer has been well calibrated"); with the raw MPU-9250 accelerometer and
   ``accelerometer="calibrated"`` the gravity reference is tilted by up to 3.5° and the result is
   flagged (status ``inconsistent``).
-* CRLB: :func:`calib.session.kernel.crlb_joint` at the truth trajectory of the first seed and the first
+* CRLB: :func:`calib.session.bounds.crlb_joint` at the truth trajectory of the first seed and the first
   device, with the noise levels the calibration estimated (all three measurement rows: the bound
   of the full model); for the static bias σ²/n of the rest average.  With the accelerometer
   calibrated the layout is the paper's and the bias is the static average.
@@ -24,13 +24,13 @@ parameters the calibration reports (gyro b, S, G and, when estimated, the accele
   algorithm here, in ``calib run`` and in a campaign.  Each sees only the recording, as a user's file would be
   (:func:`as_user_file`: samples and rate; no truth, no sensor model, no hand).
 * The hand-aware bound (with the accelerometer estimated: when a hand-aware method ran, with the
-  accelerometer's nine states vague — :func:`hand_crlb`'s ``estimate_accelerometer``): the same Riccati recursion with
-  the :data:`calib.session.model.HAND` layout — the lever arm as three nuisance parameters with a vague
-  prior, the slow external acceleration a Gauss–Markov process with the PSD ``kf_hand`` estimated on
-  the first seed (median σ_s, τ over the seeds), the measurement the tremor-free, decimated one
-  ``kf_hand`` uses (:func:`hand_crlb`).  Efficiency is reported against both bounds: the ideal one
-  (the sensor's white noise only, no hand: what a perfect hand would allow) and the hand-aware one
-  (what this hand allows any unbiased estimator).
+  accelerometer's nine states vague — :func:`calib.session.bounds.hand_crlb`'s ``estimate_accelerometer``): the
+  same Riccati recursion with the :data:`calib.session.model.HAND` layout — the lever arm as three nuisance
+  parameters with a vague prior, the slow external acceleration a Gauss–Markov process with the PSD ``kf_hand``
+  estimated on the first seed (median σ_s, τ over the seeds), the measurement the tremor-free, decimated one
+  ``kf_hand`` uses (:func:`calib.session.bounds.hand_crlb`).  Efficiency is reported against both bounds: the ideal
+  one (the sensor's white noise only, no hand: what a perfect hand would allow) and the hand-aware one (what this
+  hand allows any unbiased estimator).
 * Each method's hand bound is that of the quantity it is scored on (``sqrt_crlb_hand_by_method``): on a sensor
   whose scale factor moves with the session's temperature, a method that states S at temperatures T_r
   (``kf_hand``) is scored and bounded there; one that states none (``kf``) is scored at the oracle's S, the
@@ -58,24 +58,18 @@ from gyrosim.sensor_model import load_sensor
 from gyrosim.simulate import apply_sensor, simulate_truth
 from gyrosim.strapdown import integrate_gyro
 
-from calib.session.hand.filter import acc_bias_at_temperature, joint_layout, scale_at_temperature, session_temperature
-from calib.session.kernel import crlb_joint, run_filter
+from calib.session.bounds import crlb_joint, hand_crlb, hand_crlb_layout
+from calib.session.hand.thermal import acc_bias_at_temperature, scale_at_temperature, session_temperature
 from calib.session.model import (
-    ACC_DELAY_BLOCKS,
-    EXT_ACC_EXTRA_BLOCKS,
-    G_SENS_BLOCKS,
-    HAND,
-    HAND_BIAS,
     HAND_JOINT,
     JOINT,
     PAPER,
     FilterConfig,
-    StateLayout,
-    initial_covariance,
 )
-from calib.session.paper import METHODS, calibrate, prepare
+from calib.session.paper import METHODS, REGISTERED_NAME, calibrate, prepare
 
-__all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb"]
+__all__ = ["MonteCarloResult", "MethodStats", "monte_carlo", "PAPER_ABS_ERROR", "PARAMS", "as_user_file", "hand_crlb",
+           "hand_crlb_layout"]
 
 GYRO_PARAMS = ("bias_x", "bias_y", "bias_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_z")
 ACC_PARAMS = ("acc_b_x", "acc_b_y", "acc_b_z", "acc_S_x", "acc_S_y", "acc_S_z", "acc_G_x", "acc_G_y", "acc_G_z")
@@ -216,125 +210,10 @@ def _estimator(method: str, accelerometer: str) -> Callable:
     """The callable behind a method name (module docstring, "Methods")."""
     if method in METHODS:   # calib run's filter, in the accelerometer mode asked
         def run(rec):
-            return calibrate(rec, method, accelerometer=accelerometer, keep_history=False)
+            return calibrate(rec, REGISTERED_NAME[method, accelerometer], keep_history=False)
         run.estimates = ("gyro", "accelerometer") if accelerometer == "estimate" else ("gyro",)
         return run
     return load_estimator(method)
-
-
-def hand_crlb(omega_true_rad_s: np.ndarray, f_gravity_body_m_s2: np.ndarray, quat_true_nb: np.ndarray,
-              t_s: np.ndarray, theta_true: np.ndarray, config: FilterConfig, rate_hz: float, sigma_s_m_s2: float,
-              tau_s: float, vague: float = 10.0, highpass_tau_s: float = math.inf,
-              bias_rw_rad_s_sqrt_s: float = 0.0, highpass_order: int = 1,
-              temperature_rel_c: np.ndarray | None = None, g_sensitivity: bool = False,
-              estimate_accelerometer: bool = False, band_hz: tuple[float, float] | None = None,
-              band_rms_m_s2: float = 0.0, band_order: int = 2, delay: bool = True) -> np.ndarray:
-    """The hand-aware Cramér–Rao bound (n, n) over the :data:`calib.session.model.HAND` states (module docstring): the
-    Riccati recursion at the truth with the lever arm's regressor K(ω, ω̇) of the true rate, a vague prior on S, G and
-    r, the Gauss–Markov a_e (σ_s, τ, high-pass τ_h) and the decimated, tremor-free measurement of
-    :mod:`calib.session.hand.filter` (every D-th sample, R = σ_f²/D); with ``bias_rw_rad_s_sqrt_s`` > 0 the gyro bias is
-    a random-walk state as in ``kf_hand`` (prior: the rest average's σ in ``config``); with ``temperature_rel_c`` (N,),
-    T − T₀ (°C), the scale factor's temperature coefficient s_T is three more nuisance states with a vague prior, S_i(T)
-    = S_i(T₀) + s_T,i (T − T₀), as in ``kf_hand`` on a session whose temperature moved
-    (:func:`calib.session.hand.filter.scale_at_temperature` maps the result to S at the temperatures the session
-    determined it); ``g_sensitivity``: the gyro's g-sensitivity (diagonal, b_g,i = b_i + k_i f_i with f the true
-    specific force) is three more nuisance states with a vague prior, as in ``kf_hand``.  ``estimate_accelerometer``:
-    ``kf_hand_joint``'s model — the :data:`calib.session.model.HAND_JOINT` states, the accelerometer's nine with a vague
-    prior, the true device's accelerometer reading M_a f + b_a and all three measurement rows (no g-sensitivity block,
-    which ``kf_hand_joint`` does not carry; with ``temperature_rel_c`` its temperature blocks,
-    :func:`calib.session.hand.filter.joint_layout`: the accelerometer bias's c_a and the gyro scale's s_T as nuisance
-    states with vague priors).  ``band_hz`` (f₁, f₂): kf_hand's band-limited sway — a_e is then the Gauss–Markov floor
-    (``sigma_s_m_s2``, ``tau_s``) plus a Butterworth band-pass of ``band_order`` poles per edge with RMS
-    ``band_rms_m_s2`` (:meth:`calib.session.model.FilterConfig.ext_acc_model`), the same model the filter fitted.  S, G
-    are rows 3:9 of the result either way (S at T₀).  ``delay``: the accelerometer's delay behind the gyro is one more
-    nuisance state (as in ``kf_hand``: one δ for the triad, prior σ 10 ms; regressor ḟ of the true specific force).  The
-    layout is :func:`hand_crlb_layout`'s."""
-    from calib.session.hand.filter import (
-        _common_delay_prior,
-        _g_sensitivity_prior,
-        _variance_ratio,
-        lever_jacobian,
-        lever_regressor,
-    )
-
-    th = np.asarray(theta_true, float)
-    m = np.eye(3) + np.diag(th[0:3]) + np.array([[0, th[5], th[4]], [th[5], 0, th[3]], [th[4], th[3], 0]])
-    gyro = np.asarray(omega_true_rad_s) @ m.T + th[6:9]
-    dec = max(1, int(math.floor(1.0 / _variance_ratio(rate_hz))))
-    n = t_s.size
-    upd = np.zeros(n, bool)
-    upd[::dec] = True
-    cfg = replace(
-        config,
-        external_acc_allowance_m_s2=0.0,
-        ext_acc_rms_m_s2=max(sigma_s_m_s2, 1e-9),
-        ext_acc_tau_s=tau_s,
-        ext_acc_highpass_tau_s=highpass_tau_s,
-        ext_acc_highpass_order=int(highpass_order),
-        gyro_bias_rw_rad_s_sqrt_s=bias_rw_rad_s_sqrt_s,
-        ext_acc_band_hz=None if band_hz is None else (float(band_hz[0]), float(band_hz[1])),
-        ext_acc_band_rms_m_s2=float(band_rms_m_s2),
-        ext_acc_band_order=int(band_order),
-    )
-    layout = hand_crlb_layout(
-        bias_rw_rad_s_sqrt_s > 0,
-        temperature_rel_c is not None,
-        g_sensitivity,
-        estimate_accelerometer,
-        2 * int(band_order) - 2 if band_hz is not None else 0,
-        delay,
-    )
-    p0 = initial_covariance(layout, cfg)
-    _common_delay_prior(p0, layout)
-    p0[3:9, 3:9] = np.eye(6) * vague**2
-    vague_blocks = ("lever_arm", "acc_bias", "acc_scale", "acc_nonorth") if estimate_accelerometer else ("lever_arm",)
-    for blk in vague_blocks:
-        o = layout.offset(blk)
-        p0[o:o + 3, o:o + 3] = np.eye(3) * vague**2
-    # vague priors of the nuisance blocks in their own units: 0.1/°C (10 %/°C) for s_T, 0.01 rad/s per m/s²
-    # (5.6 °/s/g) for the g-sensitivity — fifty times any MEMS datasheet; ``vague`` itself (10 rad/s per m/s²)
-    # would put ~100 rad/s in the bias's direction and lose the recursion's precision
-    # (and 1 m/s²/°C for the accelerometer bias's c_a, 700 times the MPU-9250's datasheet limit)
-    for blk, sd in (("gyro_temp_scale", 0.1), ("gyro_g_sens", 0.01), ("acc_temp_bias", 1.0)):
-        if layout.has(blk):
-            ot = layout.offset(blk)
-            p0[ot:ot + 3, ot:ot + 3] = np.eye(3) * sd**2
-    if layout.has("gyro_g_sens") and layout.has("gyro_bias"):   # the bias's prior is a rest's reading b + diag(k) f̄
-        _g_sensitivity_prior(p0, layout, np.asarray(f_gravity_body_m_s2)[0])
-    acc = np.asarray(f_gravity_body_m_s2, float)
-    if estimate_accelerometer:
-        ma = np.eye(3) + np.diag(th[12:15]) + np.array([[0, th[17], th[16]], [th[17], 0, th[15]], [th[16], th[15], 0]])
-        acc = acc @ ma.T + th[9:12]
-    r_var = config.vrw_m_s2_sqrt_hz**2 * rate_hz / dec
-    run = run_filter(gyro[None], acc[None], t_s, np.asarray(quat_true_nb[0], float)[None],
-                     th[None], p0, layout, cfg, rate_hz, r_var_per_sample=np.full(n, r_var), update_mask=upd,
-                     lever_regressor=lever_regressor(np.asarray(omega_true_rad_s), t_s, rate_hz),
-                     lever_jacobian=lever_jacobian(np.asarray(omega_true_rad_s), t_s, rate_hz, m),
-                     rows=3 if estimate_accelerometer else 2,
-                     temperature_rel_c=temperature_rel_c if layout.models_temperature else None,
-                     specific_force_m_s2=np.asarray(f_gravity_body_m_s2) if layout.has("gyro_g_sens") else None,
-                     acc_rate_m_s3=np.gradient(acc, t_s, axis=0) if layout.models_acc_delay else None)
-    return run.p[0]
-
-
-def hand_crlb_layout(bias_rw: bool, temperature: bool, g_sensitivity: bool, estimate_accelerometer: bool,
-                     band_states: int = 0, delay: bool = True) -> StateLayout:
-    """The states of :func:`hand_crlb`: kf_hand's (:func:`calib.session.hand.filter.hand_layout`; ``band_states`` extra
-    shaping-filter blocks of the band-limited sway) or kf_hand_joint's (:func:`calib.session.hand.filter.joint_layout`)
-    on a session whose temperature moved (``temperature``) or not; ``delay``: with the accelerometer's delay δ.  The
-    gyro bias's temperature coefficient c_b (kf_hand's since this round,
-    :data:`calib.session.hand.filter.GYRO_TEMP_BIAS`) is in neither: the bound's bias is the random walk of the truth's
-    own end-to-end drift, as before."""
-    if estimate_accelerometer:
-        return joint_layout(temperature, delay=delay, gyro_temp_bias=False)
-    base = HAND_BIAS if bias_rw else HAND
-    return StateLayout(
-        base.blocks
-        + (("gyro_temp_scale",) if temperature else ())
-        + (G_SENS_BLOCKS if g_sensitivity else ())
-        + EXT_ACC_EXTRA_BLOCKS[:band_states]
-        + (ACC_DELAY_BLOCKS if delay else ())
-    )
 
 
 def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
@@ -342,7 +221,7 @@ def truth_scale_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     the oracle's S: Σ ∂δ_i/∂x_i at x = 0 of its deterministic, non-affine error effects (a temperature-dependent scale —
     the MPU-9250's ``temperature_scale`` — contributes its polynomial in T − T_ref; a nonlinearity k x|x| or a bias-like
     term nothing), evaluated at T_i (scoring only: it reads the truth).  A calibration that says at which temperature
-    its S holds (``diagnostics["temperature"]``, :func:`calib.session.hand.filter.scale_at_temperature`) is scored
+    its S holds (``diagnostics["temperature"]``, :func:`calib.session.hand.thermal.scale_at_temperature`) is scored
     against the device's S at that temperature; the oracle's S (:func:`gyrosim.calibration.truth_calibration`) is the
     one at the preset's reference."""
     from gyrosim.sensor_model import stored_sensor_model
@@ -396,7 +275,7 @@ def _scale_change(model, t_c: np.ndarray) -> np.ndarray:
 
 def truth_gyro_scale_at_rate(rec, rate_rad_s: np.ndarray, t_c: np.ndarray) -> np.ndarray:
     """The simulated device's gyro scale factor change (3,) at the rates a calibration states its S for
-    (``diagnostics["scale_reference_rate"]``, :func:`calib.session.hand.filter.scale_reference_rate`): axis i's chord
+    (``diagnostics["scale_reference_rate"]``, :func:`calib.session.hand.reports.scale_reference_rate`): axis i's chord
     slope over ±m_i, (δ_i(+m_i e_i) − δ_i(−m_i e_i)) / 2m_i, minus its slope at 0 rad/s (which
     :func:`truth_scale_at_temperature` already counts), of the deterministic, non-affine, pointwise error effects at the
     temperature T_i (scoring only: it reads the truth).  A nonlinearity k ω|ω| reads k m_i; a temperature- dependent
@@ -433,7 +312,7 @@ def truth_acc_bias_at_temperature(rec, t_c: np.ndarray) -> np.ndarray:
     ``temperature_bias``: its polynomial in T − T_ref; a nonlinearity k x|x| gives 0), axis i at T_i (scoring only: it
     reads the truth).  A calibration that states the temperature its b_a holds at
     (``diagnostics["temperature"]["acc_bias_reference_temperature_c"]``,
-    :func:`calib.session.hand.filter.acc_bias_at_temperature`) is scored against the device's bias there, as S is by
+    :func:`calib.session.hand.thermal.acc_bias_at_temperature`) is scored against the device's bias there, as S is by
     :func:`truth_scale_at_temperature`."""
     from gyrosim.sensor_model import stored_sensor_model
 
@@ -458,7 +337,7 @@ def truth_acc_scale_at_gravity(rec, t_c: np.ndarray, gravity_m_s2: float = 9.806
     k g (σ 4.2e-4, five to nine times the filter's σ of S_a) on this sphere and nothing at 0 m/s²; a temperature-
     dependent scale reads its polynomial at T_i; a temperature-dependent bias cancels in the chord.  ``force_m_s2``
     (3,): the chord over ±force_m_s2[i] instead, where a calibration states its S_a holds
-    (``diagnostics["acc_scale_reference_force"]``, :func:`calib.session.hand.filter.acc_scale_reference_force`)."""
+    (``diagnostics["acc_scale_reference_force"]``, :func:`calib.session.hand.reports.acc_scale_reference_force`)."""
     from gyrosim.sensor_model import stored_sensor_model
 
     model = stored_sensor_model(rec.meta or {})
@@ -593,6 +472,26 @@ def _stats(est: np.ndarray, cov: np.ndarray, truth: np.ndarray, sqrt_crlb: np.nd
                        int(np.sum((np.asarray(statuses) == "ok") & (nees6 > stats.chi2.ppf(0.999, k6)))))
 
 
+@dataclass
+class _Seeds:
+    """What the seeds gave, per method: estimates, covariances, statuses, refusals and the truth each is scored
+    against (S at the temperature/rate the method states, b at its rest, …), the temperatures it stated, whether it
+    estimated the g-sensitivity; the kf_hand PSDs and drifts for the hand-aware bound; the first scored seed."""
+
+    est: dict
+    cov: dict
+    status: dict
+    refused: dict
+    truths: list
+    truth_m: dict
+    t_ref_m: dict
+    t_ref_a_m: dict
+    gs_m: dict
+    psd: list
+    drift: list
+    first: tuple | None = None
+
+
 def monte_carlo(
     schedule: str = "zhou2020",
     hand: str | Hand = "ideal",
@@ -625,25 +524,40 @@ def monte_carlo(
         blind = [m for m, r in runners.items() if (d := estimated_triads(r)) is not None and "accelerometer" not in d]
         if blind:
             raise GyrosimError(_GYRO_ONLY.format(", ".join(repr(m) for m in blind)))
-    psd, drift = [], []
+    sd = _run_seeds(sched, hnd, model, runners, seeds, first_seed, rate_hz, estimate, progress)
+    for m in methods:
+        if not sd.est[m]:
+            raise RecordingError(f"{m} refused every one of the {seeds} sessions; the first: {sd.refused[m][0]}")
+    truths_arr = np.stack(sd.truths)
+    bound = _ideal_bound(sd.first[0], truths_arr, accelerometer, rate_hz, hnd)
+    sqrt_hand, hand_psd, sqrt_hand_m = np.zeros(0), {}, {}
+    if sd.psd or not estimate:   # with the accelerometer estimated: when a hand-aware method gave the hand's PSD
+        sqrt_hand, hand_psd, sqrt_hand_m = _hand_bounds(sd, bound, model, methods, estimate, rate_hz)
+    result = {m: _stats(np.stack(sd.est[m]), np.stack(sd.cov[m]), np.stack(sd.truth_m[m]), bound.sqrt_crlb,
+                        sd.status[m], slice(3, 9), sqrt_hand_m.get(m, sqrt_hand), refused=len(sd.refused[m]))
+              for m in methods}
+    return MonteCarloResult(schedule, hnd.name if isinstance(hand, Hand) else hand, model.name, seeds,
+                            truths_arr.mean(axis=0), bound.sqrt_crlb, result, accelerometer, names, sqrt_hand,
+                            hand_psd, sqrt_hand_m)
+
+
+def _run_seeds(sched, hnd: Hand, model, runners: dict, seeds: int, first_seed: int, rate_hz: float, estimate: bool,
+               progress: Callable[[int], None] | None) -> _Seeds:
+    """Every seed: a device drawn from the preset with its own noise, each method on the user's file of it."""
+    methods = tuple(runners)
+    def per_method() -> dict:
+        return {m: [] for m in methods}
+
+    sd = _Seeds(est=per_method(), cov=per_method(), status=per_method(), refused=per_method(), truths=[],
+                truth_m=per_method(), t_ref_m=per_method(), t_ref_a_m=per_method(), gs_m={m: False for m in methods},
+                psd=[], drift=[])
     truth_fixed = simulate_truth(sched, hnd, rate_hz, seed=first_seed) if hnd.is_ideal else None
-    est = {m: [] for m in methods}
-    cov = {m: [] for m in methods}
-    status = {m: [] for m in methods}
-    # seeds a method refused (calib run's exit 2): counted, not scored
-    refused: dict[str, list[str]] = {m: [] for m in methods}
-    truths = []
-    truth_m = {m: [] for m in methods}          # per method: S at the temperature its calibration states, if it does
-    t_ref_m = {m: [] for m in methods}
-    t_ref_a_m = {m: [] for m in methods}      # … and its accelerometer bias's
-    gs_m = {m: False for m in methods}
-    first = None
     for k in range(seeds):
         seed = first_seed + k
         truth = truth_fixed if truth_fixed is not None else simulate_truth(sched, hnd, rate_hz, seed=seed)
         rec = apply_sensor(truth, model, np.random.default_rng(10_000 + seed))
         tc = truth_calibration(rec)
-        truths.append(np.concatenate([tc.vector("gyro")] + ([tc.vector("accelerometer")] if estimate else [])))
+        sd.truths.append(np.concatenate([tc.vector("gyro")] + ([tc.vector("accelerometer")] if estimate else [])))
         user = as_user_file(rec)
         slow_cache: dict = {}
         t_session = float(np.mean(rec.temp_c)) if rec.temp_c is not None else 25.0
@@ -651,12 +565,12 @@ def monte_carlo(
             try:
                 c = runners[m](user)
             except RecordingError as exc:   # this session is bad input for the method: a status, not a crash
-                refused[m].append(str(exc))
+                sd.refused[m].append(str(exc))
                 continue
             if "hand" in c.diagnostics and "external_acc_psd" in c.diagnostics["hand"]:
-                psd.append(c.diagnostics["hand"]["external_acc_psd"])
+                sd.psd.append(c.diagnostics["hand"]["external_acc_psd"])
             if "gyro_bias_drift" in c.diagnostics:
-                drift.append(c.diagnostics["gyro_bias_drift"]["rate_random_walk_rad_s_sqrt_s"])
+                sd.drift.append(c.diagnostics["gyro_bias_drift"]["rate_random_walk_rad_s_sqrt_s"])
             items = [("gyro", "bias"), ("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
             if estimate:
                 items += [
@@ -667,51 +581,77 @@ def monte_carlo(
             block = c.block_covariance(items)
             if estimate and k == 0 and not np.all(np.diag(block)[len(GYRO_PARAMS):] > 0):
                 raise GyrosimError(_GYRO_ONLY.format(repr(m)))
-            tm = truths[-1].copy()
-            temp = c.diagnostics.get("temperature", {})
-            if temp.get("modelled") and "scale_reference_temperature_c" in temp:
-                t_r = np.asarray(temp["scale_reference_temperature_c"], float)
-                tm[3:6] += truth_scale_at_temperature(rec, t_r)
-                t_ref_m[m].append(t_r)
-            srate = c.diagnostics.get("scale_reference_rate", {})
-            if "rate_rad_s" in srate:   # S as the chord slope over the session's rates (a nonlinearity's share)
-                t_s = np.asarray(temp["scale_reference_temperature_c"], float) if (
-                    temp.get("modelled") and "scale_reference_temperature_c" in temp) else np.full(3, t_session)
-                tm[3:6] += truth_gyro_scale_at_rate(rec, np.asarray(srate["rate_rad_s"], float), t_s)
-            gb = c.diagnostics.get("gyro_bias", {})
-            # the bias at the rest it states (calib.session.rest_bias), not at T_ref, f = 0
-            if "rest_index_range" in gb:
-                rng_ = tuple(gb["rest_index_range"])
-                if rng_ not in slow_cache:
-                    slow_cache[rng_] = truth_bias_at_reference(
-                        rec, rng_, slow_gyro_bias(rec, truth, model, 10_000 + seed, rng_)
-                    )
-                tm[0:3] += slow_cache[rng_]
-            t_acc = np.full(3, t_session)
-            if estimate and temp.get("modelled") and "acc_bias_reference_temperature_c" in temp:
-                # the accelerometer bias at the temperatures its calibration states (kf_hand_joint on a warming sensor)
-                t_acc = np.asarray(temp["acc_bias_reference_temperature_c"], float)
-                tm[9:12] += truth_acc_bias_at_temperature(rec, t_acc)
-                t_ref_a_m[m].append(t_acc)
-            # the accelerometer's scale where a gravity calibration measures it: at ±g, or at the specific
-            if estimate:
-                # force the method states (kf_hand_joint), at the stated temperature (else the session's mean)
-                fref = c.diagnostics.get("acc_scale_reference_force", {}).get("specific_force_m_s2")
-                tm[12:15] += truth_acc_scale_at_gravity(rec, t_acc, force_m_s2=fref)
-            truth_m[m].append(tm)
-            gs_m[m] = gs_m[m] or "gyro_g_sensitivity" in c.diagnostics
-            est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))
-            cov[m].append(block)
-            status[m].append(c.status)
-            if first is None:
-                first = (rec, c)
+            tm = _method_truth(sd, m, c, rec, truth, model, seed, sd.truths[-1], t_session, slow_cache, estimate)
+            sd.truth_m[m].append(tm)
+            sd.gs_m[m] = sd.gs_m[m] or "gyro_g_sensitivity" in c.diagnostics
+            sd.est[m].append(np.concatenate([c.value(t, kd) for t, kd in items]))
+            sd.cov[m].append(block)
+            sd.status[m].append(c.status)
+            if sd.first is None:
+                sd.first = (rec, c)
         if progress is not None:
             progress(1)
-    for m in methods:
-        if not est[m]:
-            raise RecordingError(f"{m} refused every one of the {seeds} sessions; the first: {refused[m][0]}")
-    truths_arr = np.stack(truths)
-    rec0, c0 = first
+    return sd
+
+
+def _method_truth(sd: _Seeds, m: str, c, rec, truth, model, seed: int, oracle: np.ndarray, t_session: float,
+                  slow_cache: dict, estimate: bool) -> np.ndarray:
+    """The truth ``c`` (method ``m``'s calibration of this seed) is scored against: the oracle's parameters moved to
+    the conditions the calibration states — S at its temperatures and rates, b at its rest, b_a and S_a at their
+    temperatures and force (scoring only: reads the truth).  Records the stated temperatures in ``sd``."""
+    tm = oracle.copy()
+    temp = c.diagnostics.get("temperature", {})
+    if temp.get("modelled") and "scale_reference_temperature_c" in temp:
+        t_r = np.asarray(temp["scale_reference_temperature_c"], float)
+        tm[3:6] += truth_scale_at_temperature(rec, t_r)
+        sd.t_ref_m[m].append(t_r)
+    srate = c.diagnostics.get("scale_reference_rate", {})
+    if "rate_rad_s" in srate:   # S as the chord slope over the session's rates (a nonlinearity's share)
+        t_s = np.asarray(temp["scale_reference_temperature_c"], float) if (
+            temp.get("modelled") and "scale_reference_temperature_c" in temp) else np.full(3, t_session)
+        tm[3:6] += truth_gyro_scale_at_rate(rec, np.asarray(srate["rate_rad_s"], float), t_s)
+    gb = c.diagnostics.get("gyro_bias", {})
+    # the bias at the rest it states (calib.session.rest_bias), not at T_ref, f = 0
+    if "rest_index_range" in gb:
+        rng_ = tuple(gb["rest_index_range"])
+        if rng_ not in slow_cache:
+            slow_cache[rng_] = truth_bias_at_reference(
+                rec, rng_, slow_gyro_bias(rec, truth, model, 10_000 + seed, rng_)
+            )
+        tm[0:3] += slow_cache[rng_]
+    t_acc = np.full(3, t_session)
+    if estimate and temp.get("modelled") and "acc_bias_reference_temperature_c" in temp:
+        # the accelerometer bias at the temperatures its calibration states (kf_hand_joint on a warming sensor)
+        t_acc = np.asarray(temp["acc_bias_reference_temperature_c"], float)
+        tm[9:12] += truth_acc_bias_at_temperature(rec, t_acc)
+        sd.t_ref_a_m[m].append(t_acc)
+    # the accelerometer's scale where a gravity calibration measures it: at ±g, or at the specific
+    if estimate:
+        # force the method states (kf_hand_joint), at the stated temperature (else the session's mean)
+        fref = c.diagnostics.get("acc_scale_reference_force", {}).get("specific_force_m_s2")
+        tm[12:15] += truth_acc_scale_at_gravity(rec, t_acc, force_m_s2=fref)
+    return tm
+
+
+@dataclass(frozen=True)
+class _Bound:
+    """The ideal bound (the sensor's white noise only, no hand) and what the hand-aware bound reuses: the first
+    scored seed, its noise config, the integrated true attitude and gravity from the filter's start, θ_true."""
+
+    sqrt_crlb: np.ndarray
+    bias_crlb: np.ndarray
+    rec0: object
+    config: FilterConfig
+    start: int
+    q_int: np.ndarray
+    f_g: np.ndarray
+    th: np.ndarray
+
+
+def _ideal_bound(rec0, truths_arr: np.ndarray, accelerometer: str, rate_hz: float, hnd: Hand) -> _Bound:
+    """:func:`calib.session.bounds.crlb_joint` at the first seed's truth with the noise levels the calibration
+    estimated (module docstring, "CRLB"); the static bias's σ²/n."""
+    estimate = accelerometer == "estimate"
     prep0 = prepare(rec0, accelerometer=accelerometer)
     noise = prep0.config
     if hnd.is_ideal:   # the calibration's own noise levels, as before
@@ -740,123 +680,133 @@ def monte_carlo(
     crlb = [bias_crlb if not estimate else sd[9:12], sd[3:9]]
     if estimate:
         crlb.append(sd[12:21])
-    sqrt_crlb = np.concatenate(crlb)
-    sqrt_hand, hand_psd = np.zeros(0), {}
-    sqrt_hand_m: dict[str, np.ndarray] = {}
+    return _Bound(np.concatenate(crlb), bias_crlb, rec0, config, start, q_int, f_g, th)
+
+
+def _hand_psd(psd: list[dict], drift: list[float]) -> dict:
+    """The hand-aware bound's a_e model: the median over the seeds of kf_hand's fitted PSD (its band-limited sway
+    when most seeds fitted one); the ideal hand's zero sway without a hand-aware method."""
+    if not psd:
+        return {"rms_m_s2": 0.0, "tau_s": 1.0, "highpass_tau_s": math.inf, "highpass_order": 1,
+                "bias_rw_rad_s_sqrt_s": 0.0}
+    hp = [d.get("highpass_tau_s") for d in psd]
+    hand_psd = {"rms_m_s2": float(np.median([d["rms_m_s2"] for d in psd])),
+                "tau_s": float(np.median([d["tau_s"] for d in psd])),
+                "highpass_tau_s": float(np.median([math.inf if h is None else h for h in hp])),
+                "highpass_order": int(round(float(np.median([d.get("highpass_order", 1) for d in psd])))),
+                "bias_rw_rad_s_sqrt_s": float(np.median(drift)) if drift else 0.0}
+    bands = [d for d in psd if d.get("band_hz")]
+    # kf_hand's band-limited sway in most seeds: the bound's a_e is its median
+    if bands and len(bands) * 2 > len(psd):
+        hand_psd.update({"psd_model": bands[0].get("psd_model"),
+                         "band_hz": [float(np.median([d["band_hz"][i] for d in bands])) for i in (0, 1)],
+                         "band_rms_m_s2": float(np.median([d["band_rms_m_s2"] for d in bands])),
+                         "band_order": int(bands[0].get("band_order", 2))})
+    return hand_psd
+
+
+def _hand_bounds(sd: _Seeds, bound: _Bound, model, methods: tuple[str, ...], estimate: bool,
+                 rate_hz: float) -> tuple[np.ndarray, dict, dict[str, np.ndarray]]:
+    """The hand-aware bound (module docstring) of the quantity each method is scored on: (the bound, the hand's
+    PSD it assumed, per method its bound)."""
+    rec0, start, config = bound.rec0, bound.start, bound.config
+    tr = rec0.truth
+    hand_psd = _hand_psd(sd.psd, sd.drift)
+    # a method that models the scale factor's temperature dependence (kf_hand on a session that warmed) reports
+    # S at the temperatures the session determined it: the bound is that of the same quantity, with s_T nuisance
+    # — and, for a method that states none, that of S at the oracle's reference temperature, where it is scored
+    t_oracle = None if estimate else _oracle_reference_temperature_c(rec0)
+    thermal = (
+        session_temperature(rec0.temp_c[start:], rate_hz)
+        if (rec0.temp_c is not None and (any(sd.t_ref_m[m] or sd.t_ref_a_m[m] for m in methods)
+                                         or t_oracle is not None))
+        else None
+    )
+    # and its g-sensitivity, when a method estimated it (kf_hand): three nuisance states of the same model
+    g_sens = any(sd.gs_m[m] for m in methods)
+
+    def bound_of(temperature_rel_c, band: bool = True, accel: bool = estimate) -> np.ndarray:
+        return hand_crlb(tr.omega_body_rad_s[start:], bound.f_g, bound.q_int, rec0.t_s[start:], bound.th, config,
+                         rate_hz, hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
+                         bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"],
+                         highpass_order=hand_psd["highpass_order"], temperature_rel_c=temperature_rel_c,
+                         g_sensitivity=g_sens, estimate_accelerometer=accel,
+                         **({"band_hz": hand_psd.get("band_hz"), "band_rms_m_s2": hand_psd.get("band_rms_m_s2", 0.0),
+                             "band_order": hand_psd.get("band_order", 2)} if band else {}))
+
+    ph = bound_of(None if thermal is None else thermal[0])
+    sdh = np.sqrt(np.diag(ph))
+    sd_sg = sdh[3:9]
+    oa = HAND_JOINT.offset("acc_bias")
+    sd_acc = sdh[oa:oa + 9] if estimate else None
+    sd_plain_joint = None
     sd_sg_oracle = None
-    if psd or not estimate:   # with the accelerometer estimated: when a hand-aware method gave the hand's PSD
-        if psd:
-            hp = [d.get("highpass_tau_s") for d in psd]
-            hand_psd = {"rms_m_s2": float(np.median([d["rms_m_s2"] for d in psd])),
-                        "tau_s": float(np.median([d["tau_s"] for d in psd])),
-                        "highpass_tau_s": float(np.median([math.inf if h is None else h for h in hp])),
-                        "highpass_order": int(round(float(np.median([d.get("highpass_order", 1) for d in psd])))),
-                        "bias_rw_rad_s_sqrt_s": float(np.median(drift)) if drift else 0.0}
-            bands = [d for d in psd if d.get("band_hz")]
-            # kf_hand's band-limited sway in most seeds: the bound's a_e is its median
-            if bands and len(bands) * 2 > len(psd):
-                hand_psd.update({"psd_model": bands[0].get("psd_model"),
-                                 "band_hz": [float(np.median([d["band_hz"][i] for d in bands])) for i in (0, 1)],
-                                 "band_rms_m_s2": float(np.median([d["band_rms_m_s2"] for d in bands])),
-                                 "band_order": int(bands[0].get("band_order", 2))})
-        else:
-            hand_psd = {"rms_m_s2": 0.0, "tau_s": 1.0, "highpass_tau_s": math.inf, "highpass_order": 1,
-                        "bias_rw_rad_s_sqrt_s": 0.0}
-        # a method that models the scale factor's temperature dependence (kf_hand on a session that warmed) reports
-        # S at the temperatures the session determined it: the bound is that of the same quantity, with s_T nuisance
-        # — and, for a method that states none, that of S at the oracle's reference temperature, where it is scored
-        t_oracle = None if estimate else _oracle_reference_temperature_c(rec0)
-        thermal = (
-            session_temperature(rec0.temp_c[start:], rate_hz)
-            if (rec0.temp_c is not None and (any(t_ref_m[m] or t_ref_a_m[m] for m in methods) or t_oracle is not None))
-            else None
+    if thermal is not None and not estimate:
+        sd_sg, sd_sg_oracle = _thermal_bound_calibrated(sd, ph, hand_psd, thermal, t_oracle, g_sens, model, rec0,
+                                                        start, config, methods)
+    if thermal is not None and estimate:
+        # kf_hand_joint on a warming session: S and b_a at the temperatures it states, c_a and s_T nuisance
+        lay = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, True)
+        t_r, jt = scale_at_temperature(ph, lay, thermal[1])
+        t_a, ja = acc_bias_at_temperature(ph, lay, thermal[1])
+        sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
+        sd_acc = sd_acc.copy()
+        sd_acc[0:3] = np.sqrt(np.diag(ja @ ph @ ja.T))
+        hand_psd["acc_bias_reference_temperature_c"] = t_a.tolist()
+        if any(sd.t_ref_m[m] for m in methods):
+            hand_psd["scale_reference_temperature_c"] = t_r.tolist()
+            hand_psd["scale_reference_temperature_c_estimates"] = np.median(
+                np.concatenate([np.stack(v) for v in sd.t_ref_m.values() if v]), axis=0).tolist()
+        if not all(sd.t_ref_a_m[m] for m in methods):
+            # a joint method that states no temperature (kf_session) keeps the bound of the model without the
+            # temperature blocks, as before them (one more recursion, ~1 s)
+            sdp = np.sqrt(np.diag(bound_of(None, band=False, accel=True)))
+            sd_plain_joint = np.concatenate([bound.bias_crlb, sdp[3:9], sdp[oa:oa + 9]])
+    if not math.isfinite(hand_psd["highpass_tau_s"]):
+        hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
+    # kf_hand(_joint) reports the rest-average gyro bias: its bound is the static one in both modes
+    sqrt_hand = np.concatenate([bound.bias_crlb, sd_sg] + ([sd_acc] if estimate else []))
+    sqrt_hand_m: dict[str, np.ndarray] = {}
+    for m in methods:   # each method's bound is that of the quantity it is scored against
+        sqrt_hand_m[m] = sqrt_hand
+        if sd_sg_oracle is not None and not sd.t_ref_m[m]:
+            sqrt_hand_m[m] = np.concatenate([bound.bias_crlb, sd_sg_oracle] + ([sdh[oa:oa + 9]] if estimate else []))
+        if sd_plain_joint is not None and not sd.t_ref_a_m[m]:
+            sqrt_hand_m[m] = sd_plain_joint
+    return sqrt_hand, hand_psd, sqrt_hand_m
+
+
+def _thermal_bound_calibrated(sd: _Seeds, ph: np.ndarray, hand_psd: dict, thermal, t_oracle: float | None,
+                              g_sens: bool, model, rec0, start: int, config: FilterConfig,
+                              methods: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray | None]:
+    """kf_hand on a warming session (accelerometer calibrated): the bound of S at the temperatures it states, and of
+    S at the oracle's reference temperature for a method that states none (with the preset's population prior on
+    s_T).  Returns (σ of S, G at T_r; σ of S, G at the oracle's reference or None); records them in ``hand_psd``."""
+    lay_t = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, False,
+                             2 * hand_psd["band_order"] - 2 if hand_psd.get("band_hz") else 0)   # hand_crlb's
+    t_r, jt = scale_at_temperature(ph, lay_t, thermal[1])
+    sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
+    sd_sg_oracle = None
+    if t_oracle is not None:   # S(T) = S(T₀) + s_T (T − T₀) at T = the oracle's reference, every axis
+        j_or = jt.copy()
+        o = lay_t.offset("gyro_temp_scale")
+        j_or[0:3, o:o + 3] = np.eye(3) * (t_oracle - thermal[1])
+        t_all = rec0.temp_c[start:]
+        p_pop = _with_population_prior(
+            ph,
+            o,
+            config.prior_gyro_temp_scale_per_c,
+            _scale_temperature_sigma_per_c(model, float(np.min(t_all)), float(np.max(t_all))),
         )
-        # and its g-sensitivity, when a method estimated it (kf_hand): three nuisance states of the same model
-        g_sens = any(gs_m[m] for m in methods)
-        ph = hand_crlb(tr.omega_body_rad_s[start:], f_g, q_int, rec0.t_s[start:], th, config, rate_hz,
-                       hand_psd["rms_m_s2"], hand_psd["tau_s"], highpass_tau_s=hand_psd["highpass_tau_s"],
-                       bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"], highpass_order=hand_psd["highpass_order"],
-                       temperature_rel_c=None if thermal is None else thermal[0], g_sensitivity=g_sens,
-                       estimate_accelerometer=estimate, band_hz=hand_psd.get("band_hz"),
-                       band_rms_m_s2=hand_psd.get("band_rms_m_s2", 0.0), band_order=hand_psd.get("band_order", 2))
-        sdh = np.sqrt(np.diag(ph))
-        sd_sg = sdh[3:9]
-        oa = HAND_JOINT.offset("acc_bias")
-        sd_acc = sdh[oa:oa + 9] if estimate else None
-        sd_plain_joint = None
-        if thermal is not None and not estimate:
-            lay_t = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, False,
-                                     2 * hand_psd["band_order"] - 2 if hand_psd.get("band_hz") else 0)   # hand_crlb's
-            t_r, jt = scale_at_temperature(ph, lay_t, thermal[1])
-            sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
-            if t_oracle is not None:   # S(T) = S(T₀) + s_T (T − T₀) at T = the oracle's reference, every axis
-                j_or = jt.copy()
-                o = lay_t.offset("gyro_temp_scale")
-                j_or[0:3, o:o + 3] = np.eye(3) * (t_oracle - thermal[1])
-                t_all = rec0.temp_c[start:]
-                p_pop = _with_population_prior(
-                    ph,
-                    o,
-                    config.prior_gyro_temp_scale_per_c,
-                    _scale_temperature_sigma_per_c(model, float(np.min(t_all)), float(np.max(t_all))),
-                )
-                sd_sg_oracle = np.sqrt(np.diag(j_or @ p_pop @ j_or.T))
-                hand_psd["oracle_reference_temperature_c"] = t_oracle
-                # for a file of methods that state no temperature to borrow (benchmarks/hand_campaign.py)
-                hand_psd["sqrt_crlb_hand_sg_at_oracle_reference"] = sd_sg_oracle.tolist()
-            if any(t_ref_m[m] for m in methods):
-                # the bound's; the estimates' median beside it
-                hand_psd["scale_reference_temperature_c"] = t_r.tolist()
-                hand_psd["scale_reference_temperature_c_estimates"] = np.median(
-                    np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
-            else:
-                sd_sg = sd_sg_oracle
-        if thermal is not None and estimate:
-            # kf_hand_joint on a warming session: S and b_a at the temperatures it states, c_a and s_T nuisance
-            lay = hand_crlb_layout(hand_psd["bias_rw_rad_s_sqrt_s"] > 0, True, g_sens, True)
-            t_r, jt = scale_at_temperature(ph, lay, thermal[1])
-            t_a, ja = acc_bias_at_temperature(ph, lay, thermal[1])
-            sd_sg = np.sqrt(np.diag(jt @ ph @ jt.T))
-            sd_acc = sd_acc.copy()
-            sd_acc[0:3] = np.sqrt(np.diag(ja @ ph @ ja.T))
-            hand_psd["acc_bias_reference_temperature_c"] = t_a.tolist()
-            if any(t_ref_m[m] for m in methods):
-                hand_psd["scale_reference_temperature_c"] = t_r.tolist()
-                hand_psd["scale_reference_temperature_c_estimates"] = np.median(
-                    np.concatenate([np.stack(v) for v in t_ref_m.values() if v]), axis=0).tolist()
-            if not all(t_ref_a_m[m] for m in methods):
-                # a joint method that states no temperature (kf_session) keeps the bound of the model without the
-                # temperature blocks, as before them (one more recursion, ~1 s)
-                pp = hand_crlb(
-                    tr.omega_body_rad_s[start:],
-                    f_g,
-                    q_int,
-                    rec0.t_s[start:],
-                    th,
-                    config,
-                    rate_hz,
-                    hand_psd["rms_m_s2"],
-                    hand_psd["tau_s"],
-                    highpass_tau_s=hand_psd["highpass_tau_s"],
-                    bias_rw_rad_s_sqrt_s=hand_psd["bias_rw_rad_s_sqrt_s"],
-                    highpass_order=hand_psd["highpass_order"],
-                    g_sensitivity=g_sens,
-                    estimate_accelerometer=True,
-                )
-                sdp = np.sqrt(np.diag(pp))
-                sd_plain_joint = np.concatenate([bias_crlb, sdp[3:9], sdp[oa:oa + 9]])
-        if not math.isfinite(hand_psd["highpass_tau_s"]):
-            hand_psd["highpass_tau_s"] = None                 # JSON: no high-pass
-        # kf_hand(_joint) reports the rest-average gyro bias: its bound is the static one in both modes
-        sqrt_hand = np.concatenate([bias_crlb, sd_sg] + ([sd_acc] if estimate else []))
-        for m in methods:   # each method's bound is that of the quantity it is scored against
-            sqrt_hand_m[m] = sqrt_hand
-            if sd_sg_oracle is not None and not t_ref_m[m]:
-                sqrt_hand_m[m] = np.concatenate([bias_crlb, sd_sg_oracle] + ([sdh[oa:oa + 9]] if estimate else []))
-            if sd_plain_joint is not None and not t_ref_a_m[m]:
-                sqrt_hand_m[m] = sd_plain_joint
-    result = {m: _stats(np.stack(est[m]), np.stack(cov[m]), np.stack(truth_m[m]), sqrt_crlb, status[m], slice(3, 9),
-                        sqrt_hand_m.get(m, sqrt_hand), refused=len(refused[m])) for m in methods}
-    return MonteCarloResult(schedule, hnd.name if isinstance(hand, Hand) else hand, model.name, seeds,
-                            truths_arr.mean(axis=0), sqrt_crlb, result, accelerometer, names, sqrt_hand, hand_psd,
-                            sqrt_hand_m)
+        sd_sg_oracle = np.sqrt(np.diag(j_or @ p_pop @ j_or.T))
+        hand_psd["oracle_reference_temperature_c"] = t_oracle
+        # for a file of methods that state no temperature to borrow (benchmarks/hand_campaign.py)
+        hand_psd["sqrt_crlb_hand_sg_at_oracle_reference"] = sd_sg_oracle.tolist()
+    if any(sd.t_ref_m[m] for m in methods):
+        # the bound's; the estimates' median beside it
+        hand_psd["scale_reference_temperature_c"] = t_r.tolist()
+        hand_psd["scale_reference_temperature_c_estimates"] = np.median(
+            np.concatenate([np.stack(v) for v in sd.t_ref_m.values() if v]), axis=0).tolist()
+    else:
+        sd_sg = sd_sg_oracle
+    return sd_sg, sd_sg_oracle

@@ -11,7 +11,7 @@ best of ``repeats``:
   run`` ran before the accelerometer states (the baseline, 1.00);
 * ``calib run`` now — 21 states (gyro bias, the accelerometer's 9 parameters), the |f| = g stage,
   observability and consistency checks, compiled;
-* the same with ``--method iterated_session`` and with ``--accelerometer calibrated`` (these include the hand
+* the same with ``--method iterated_joint`` and with ``--accelerometer calibrated`` (these include the hand
   cross-check, which runs ``kf_hand`` once);
 * the paper's ``kf`` compiled without the hand cross-check, ``kf_hand`` and ``kf_hand_joint`` (``calib run
   --method hand``: + the accelerometer's 9 states; their speed target is ≤ 1 s for this 3-minute session
@@ -40,22 +40,22 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
     from calib.session.hand.filter import kf_hand
     from calib.session.kernel import run_filter
     from calib.session.model import JOINT
-    from calib.session.paper import _run, calibrate, prepare
-    from calib.session.registry import _run as _paper
+    from calib.session.paper import PaperParams, calibrate, paper_filter, prepare, session_filter_run
 
     rec = simulate("zhou2020", "ideal", "mpu9250", 100.0, seed=seed)
     prep = prepare(rec, accelerometer="estimate")
     a = prep.start
     n = rec.n - a
-    calibrate(rec, "kf_session")  # compile and warm every path once
+    calibrate(rec, "kf_joint")  # compile and warm every path once
     cases = {
         "kf_session_r (9 states, filterpy)": lambda: calibrate(
-            rec, "kf_session", accelerometer="calibrated", engine="filterpy", hand_check=False
+            rec, "kf_session_r", engine="filterpy", hand_check=False
         ),
-        "calib run (21 states, compiled)": lambda: calibrate(rec, "kf_session"),
-        "calib run --method iterated_session": lambda: calibrate(rec, "iterated_session"),
-        "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session", accelerometer="calibrated"),
-        "kf (paper, 9 states, compiled, no hand check)": lambda: _paper(rec, name="kf", check_hand=False),
+        "calib run (21 states, compiled)": lambda: calibrate(rec, "kf_joint"),
+        "calib run --method iterated_joint": lambda: calibrate(rec, "iterated_joint"),
+        "calib run --accelerometer calibrated": lambda: calibrate(rec, "kf_session_r"),
+        "kf (paper, 9 states, compiled, no hand check)": lambda: paper_filter(rec, PaperParams(), name="kf",
+                                                                             hand_check=False),
         "kf_hand (33 states: + c_b, s_T, δ, 3 passes, compiled)": lambda: kf_hand(rec),
         "kf_hand_joint (42 states: + s_T, c_a, δ, 3 passes)": lambda: kf_hand(rec, accelerometer="estimate"),
     }
@@ -74,8 +74,8 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
         run_filter(np.repeat(g, b, 0), np.repeat(f, b, 0), rec.t_s[a:], np.repeat(prep.quat0_nb[None], b, 0),
                    prep.theta0[None], prep.p0, JOINT, prep.config, rec.rate_hz)
         kernel[b] = time.perf_counter() - t0
-    ref = _run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "filterpy", False)
-    fast = _run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "compiled", False)
+    ref = session_filter_run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "filterpy", False)
+    fast = session_filter_run(prep, rec, prep.theta0, prep.quat0_nb, prep.p0, "compiled", False)
     diff = float(np.max(np.abs(ref.theta - fast.theta)))
     base = best["kf_session_r (9 states, filterpy)"]
     print(f"zhou2020, ideal hand, mpu9250 (raw accelerometer), {n} filter samples; best of {repeats}, interleaved")
@@ -108,7 +108,7 @@ class ClosedLoopTiming:
 
 def closeloop_bench() -> list[ClosedLoopTiming]:
     """``calib closeloop-bench``: closeloop wall time on ~3-minute recordings against the Zhou filter
-    (``calibrate(rec, "kf_session")``) on the same data, in the same run; the simulated zhou2020
+    (``calibrate(rec, "kf_joint")``) on the same data, in the same run; the simulated zhou2020
     session always, BROAD 07 when the dataset is present.  Each closeloop is run once first to warm
     caches (numba, FFT plans), so both timings are steady state."""
     from gyrosim.loaders import available_datasets, load_dataset
@@ -132,6 +132,6 @@ def closeloop_bench() -> list[ClosedLoopTiming]:
         run_closeloop(rec)
         t_cl = time.perf_counter() - t0
         t0 = time.perf_counter()
-        calibrate(rec, "kf_session")
+        calibrate(rec, "kf_joint")
         out.append(ClosedLoopTiming(name, int(rec.t_s.size), t_cl, time.perf_counter() - t0))
     return out

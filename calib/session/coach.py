@@ -4,14 +4,14 @@ Three findings, all from the recording itself (a user's file; nothing from a sim
 
 * **external acceleration seen** (m/s² RMS, magnitude of the 3-vector): |f| − g is the component of
   the hand's acceleration a_e along gravity; for an isotropic a_e, E[(|f| − g)²] = |a_e|²/3, so
-  |a_e|_RMS ≈ √(3 (⟨(|f| − g)²⟩ − σ_f²)) — split at ``calib.session.hand.filter.CUTOFF_HZ`` into the tremor band
+  |a_e|_RMS ≈ √(3 (⟨(|f| − g)²⟩ − σ_f²)) — split at ``calib.session.hand.lowpass.CUTOFF_HZ`` into the tremor band
   (removed by a low-pass) and the slow part (sway, the lever arm's ω²r: what costs accuracy);
 * **σ reached vs σ an ideal hand would reach**: the result's σ of S and G beside the Cramér–Rao bound
   of the same rotations with the sensor's white noise only (the Riccati recursion of the paper's
   9-state model, :func:`calib.session.kernel.run_filter`, on the session's own attitude: the gyro integrated
   from the rest attitude, gravity predicted from it, so the residual is zero and P is the information
   of that trajectory), noise densities from the spectrum above the tremor band
-  (:func:`calib.session.hand.filter.white_density`).  The ratio is what the hand cost;
+  (:func:`calib.session.noiselevels.white_density`).  The ratio is what the hand cost;
 * **segments that hurt most**: 10-s stretches of motion (outside the detected rests), ranked by their
   slow external acceleration (RMS of the low-passed |f| − g, ×√3), with their times — the ones to redo
   more smoothly.
@@ -29,10 +29,10 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.strapdown import integrate_gyro
 
-from calib.session.hand.filter import _lowpass
+from calib.session.hand.lowpass import lowpass
 from calib.session.kernel import run_filter
 from calib.session.model import PAPER, initial_covariance, m_matrix
-from calib.session.paper import Prepared, rest_mask
+from calib.session.prepare import Prepared, rest_mask
 
 __all__ = ["Coaching", "coach"]
 
@@ -54,6 +54,13 @@ class Coaching:
     @property
     def cost(self) -> np.ndarray:
         return self.sigma_reached / self.sigma_ideal_hand
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Coaching":
+        """Inverse of :meth:`to_dict` (``calib run --json``'s ``coaching``)."""
+        return cls(d["external_acc_rms_m_s2"], d["tremor_band_rms_m_s2"], d["slow_external_acc_rms_m_s2"],
+                   np.array([d["sigma_reached"][k] for k in SG], float),
+                   np.array([d["sigma_ideal_hand"][k] for k in SG], float), tuple(d["worst_segments"]))
 
     def to_dict(self) -> dict:
         return {"external_acc_rms_m_s2": self.external_acc_rms_m_s2, "tremor_band_rms_m_s2": self.tremor_band_rms_m_s2,
@@ -85,7 +92,7 @@ def _acc_rms(excess: np.ndarray, sigma2: float) -> float:
 
 def coach(rec: Recording, cal: Calibration, prep: Prepared, top: int = 3) -> Coaching:
     """The findings of the module docstring for ``cal`` (a calibration of ``rec``; ``prep`` its
-    :func:`calib.session.paper.prepare`)."""
+    :func:`calib.session.prepare.prepare`)."""
     fs, a = rec.rate_hz, prep.start
     cfg = prep.config
     arw = prep.noise.gyro_density_rad_s_sqrt_hz or cfg.arw_rad_s_sqrt_hz     # the rest's spectrum (prepare's)
@@ -96,7 +103,7 @@ def coach(rec: Recording, cal: Calibration, prep: Prepared, top: int = 3) -> Coa
         m = m_matrix(cal.value("accelerometer", "scale_factor"), cal.value("accelerometer", "nonorthogonality"))
         f = (f - cal.value("accelerometer", "bias")) @ np.linalg.inv(m).T
     excess = np.linalg.norm(f[a:], axis=1) - g
-    lp = _lowpass(excess, fs)
+    lp = lowpass(excess, fs)
     s2 = vrw**2 * fs
     total = _acc_rms(excess, s2)
     slow = _acc_rms(lp, 0.0)

@@ -1,41 +1,55 @@
-"""The calibration filter of :mod:`calib.session.model`, compiled (numba) and batched over B runs, and the
-Cramér–Rao bound of the paper's model.
+"""The calibration filter of :mod:`calib.session.model`, compiled (numba) and batched over B runs.
 
-Same equations and order as the filterpy reference (:class:`calib.session.model.ZhouFilter`; equal to
-1e-9, tested); the error state is reset after each update, so the predicted state is zero and the
-innovation is z itself.  The structure keeps each step O(n²) for n states:
+Same equations and order as the readable reference (:mod:`calib.session.reference`; every layout is tested
+against it); the error state is reset after each update, so the predicted state is zero and the innovation is z
+itself (before the first update the error state carries the prior's mean x₀).  The structure keeps each step O(n²)
+for n states:
 
 * propagation: Φ = I + E with E non-zero only in the three φ rows (the gyro-parameter columns), so
-  Φ P Φᵀ = P + E P + (E P)ᵀ + E P Eᵀ with E P a 3 × n product;
-* update: H has non-zero entries only in the φ_x, φ_y columns and the accelerometer columns;
-  the Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ is evaluated as T = P − K (H P),
-  T − (T Hᵀ) Kᵀ + K R Kᵀ — the same products as the dense form, in O(n² m) for m measurement rows.
+  Φ P Φᵀ = P + E P + (E P)ᵀ + E P Eᵀ with E P a 3 × n product; the external acceleration's shaping filter
+  (the hand's blocks) is propagated on its own rows and columns first;
+* update: H has non-zero entries only in the φ_x, φ_y columns, the accelerometer's, the hand's and the lever
+  arm term's gyro columns (stored by column: ``H_COLS`` at most); the Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ
+  is evaluated as T = P − K (H P), T − (T Hᵀ) Kᵀ + K R Kᵀ — the same products as the dense form, in O(n² m) for m
+  measurement rows.
 
 A step costs ~2 µs for the paper's 9 states and ~5 µs for the 21 joint states, against ~160 µs of
 numpy calls on small arrays in the filterpy filter (``calib bench``).
 
-CRLB: for the linear-Gaussian error model linearised at the *true* trajectory (true attitude,
-true rate, true S and G), the Kalman covariance with a vague prior on the constants is the
-Cramér–Rao bound of any unbiased estimator of them from the whole record (for constant
-parameters the final filtered covariance equals the smoothed one): :func:`crlb`.
+**How the arguments travel.**  :func:`run_filter` (the Python entry point) checks and broadcasts its arguments
+into four typed tuples, which the compiled loop :func:`_kernel` reads by name:
+
+* :class:`Signals` — the samples of each run and their regressors, (B, N, …);
+* :class:`Start` — each run's initial nominal (attitude, θ, the hand's and the sensor's extra nominals),
+  error-state mean and covariance;
+* :class:`Settings` — the layout's block offsets and the noise model's numbers;
+* :class:`Shaping` — the external acceleration's general shaping filter, discretised per step;
+
+and :class:`RecordArrays` (the first run's linear error model, for :mod:`calib.session.spectral`).  Each step of
+the loop is a small compiled helper — ``_step_nominal`` (the attitude), ``_transition`` (Φ's φ rows),
+``_propagate_gauss_markov`` / ``_propagate_shaping`` (a_e), ``_propagate_attitude_rows`` (P), ``_corrected_force``
+and ``_residual`` (z), ``_measurement`` (H), ``_innovation``, ``_update_covariance`` (Joseph), ``_inject`` (the reset)
+— so the loop reads as the filter's steps; a helper reads a block's per-sample regressor only when the layout has
+the block (the others are (B, 1, …) placeholders).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from gyrosim.rotations import quat_to_matrix
-
+from calib.compat import moved_attribute
 from calib.session.model import (
     EXT_ACC_BLOCKS,
     PAPER,
     SENSOR_EXTRA_BLOCKS,
     FilterConfig,
     StateLayout,
+    ext_acc_discrete,
     initial_covariance,
     leave_out_means,
     theta_slice,
@@ -44,9 +58,15 @@ from calib.session.model import (
 # the update's H, its non-zero columns at most: φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27 + the lever
 # arm term's gyro columns (S, G, b, c_b, s_T, k) 18
 H_COLS = 65
+HAND_NOMINALS = 3 + 3 * len(EXT_ACC_BLOCKS)   # the lever arm, then a_e's shaping-filter states (3 per component)
+SENSOR_NOMINALS = 3 * len(SENSOR_EXTRA_BLOCKS)  # c_b, s_T, k, c_a, δ (calib.session.model.SENSOR_EXTRA_BLOCKS)
 
-__all__ = ["BatchResult", "FilterRun", "LeverJacobian", "run_batch", "run_filter", "crlb", "crlb_joint",
-           "regressor_half_window"]
+__all__ = ["BatchResult", "FilterRecord", "FilterRun", "LeverJacobian", "Signals", "Start", "Settings", "Shaping",
+           "RecordArrays", "FilterInputs", "filter_inputs", "run_batch", "run_filter", "regressor_half_window",
+           "ext_acc_discrete", "HAND_NOMINALS", "SENSOR_NOMINALS"]
+
+
+__getattr__ = moved_attribute(__name__)   # crlb, crlb_joint: calib.session.bounds
 
 
 def regressor_half_window(rate_hz: float) -> int:
@@ -54,19 +74,96 @@ def regressor_half_window(rate_hz: float) -> int:
     return max(2, int(round(0.05 * rate_hz)))
 
 
-def _j_g(w: np.ndarray) -> np.ndarray:
-    """J_G(ω) for (B, 3) rates → (B, 3, 3)."""
-    z = np.zeros(w.shape[0])
-    wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
-    return np.stack([np.stack([z, wz, wy], -1), np.stack([wz, z, wx], -1), np.stack([wy, wx, z], -1)], -2)
+# ---------------------------------------------------------------------------------------------------------------------
+# the compiled loop's arguments
 
 
-def _m_hat(scale: np.ndarray, nonortho: np.ndarray) -> np.ndarray:
-    m = _j_g(nonortho)  # N(G) has the same pattern as J_G
-    m[:, 0, 0] += 1 + scale[:, 0]
-    m[:, 1, 1] += 1 + scale[:, 1]
-    m[:, 2, 2] += 1 + scale[:, 2]
-    return m
+class Signals(NamedTuple):
+    """Per run b and sample k: the raw samples and the regressors the layout's blocks need.  A block's regressor
+    is a (B, 1, …) placeholder when the layout lacks the block."""
+
+    gyro: np.ndarray            # (B, N, 3) raw gyro, rad/s, body
+    acc: np.ndarray             # (B, N, 3) raw accelerometer, m/s², body
+    gyro_reg: np.ndarray        # (B, N, 3) leave-out rate regressor at t_{k−½} (calib.session.model, "Regressors")
+    still: np.ndarray           # (B, N) bool: the step k−1 → k lies in a rest (the rate regressor is zero)
+    update: np.ndarray          # (B, N) bool: update with sample k
+    r_var: np.ndarray           # (B, N) measurement variance per axis, (m/s²)²
+    temp_rel: np.ndarray        # (B, N) T − T₀, °C (zeros without a temperature block)
+    force: np.ndarray           # (B, N | 1, 3) specific force f, body, m/s² (g-sensitivity)
+    acc_rate: np.ndarray        # (B, N | 1, 3) ḟ̃, body, m/s³ (the accelerometer's delay)
+    lever: np.ndarray           # (B, N | 1, 3, 3) K(ω, ω̇) = [ω̇×] + [ω×]², body (the lever arm)
+    jac_rate: np.ndarray        # (B, N | 1, 3) LeverJacobian.rate_rad_s
+    jac_d_rate: np.ndarray      # (B, N | 1, 3, 9) LeverJacobian.d_rate
+    jac_d_rate_dot: np.ndarray  # (B, N | 1, 3, 9) LeverJacobian.d_rate_dot
+
+
+class Start(NamedTuple):
+    """Each run's start: nominal attitude, parameters and extra nominals, the error state's mean and covariance."""
+
+    quat: np.ndarray            # (B, 4) body→ENU
+    theta: np.ndarray           # (B, 18) nominal parameters (THETA order)
+    x: np.ndarray               # (B, n) the prior's mean as an error state, θ_prior − θ̂₀
+    P: np.ndarray               # (B, n, n)
+    hand: np.ndarray            # (B, HAND_NOMINALS) lever arm, then a_e's shaping-filter states (i, axis j: 3 + 3i + j)
+    sensor: np.ndarray          # (B, SENSOR_NOMINALS) c_b, s_T, k, c_a, δ
+
+
+class Settings(NamedTuple):
+    """The layout's offsets and the noise model's numbers (scalars of :class:`calib.session.model.FilterConfig`)."""
+
+    offsets: np.ndarray         # (len(BLOCKS),) first state of each block, −1 where absent (StateLayout.offsets)
+    sensor_offsets: np.ndarray  # (5,) offsets of SENSOR_EXTRA_BLOCKS
+    arw2: float                 # N_g², (rad/s)²/Hz: Q_φφ = N_g² Δt
+    bias_rw2: float             # q_b, rad²/s³: Q_bb = q_b Δt
+    gravity: float              # g, m/s²
+    gm_tau: float               # a_e's Gauss–Markov τ, s
+    gm_var: float               # its stationary variance σ², (m/s²)²
+    hp_tau: float               # its high-pass τ_h, s (inf: none)
+    hp_order: int               # 1 or 2 (z, z₂)
+    rows: int                   # measurement rows: 2 (levelling) or 3 (+ vertical)
+    gate: float                 # skip an update whose NIS exceeds this (0: never)
+    keep: bool                  # keep the per-step history of √diag P and θ̂
+    record: bool                # record the first run's linear error model (RecordArrays)
+
+
+class Shaping(NamedTuple):
+    """a_e's general shaping filter per nav axis (``d`` > 0 replaces the x, z, z₂ code): ẋ = A x + w, a_e = C x,
+    discretised exactly once per distinct step (:func:`calib.session.model.ext_acc_discrete`)."""
+
+    d: int                      # states per axis (0: the Gauss–Markov x, z, z₂ code)
+    offsets: np.ndarray         # (9,) offset of component i's block (EXT_ACC_BLOCKS)
+    c: np.ndarray               # (9,) a_e = Σ c_i x_i
+    step_index: np.ndarray      # (N,) step k → table row
+    phi: np.ndarray             # (U, 9, 9) Φ per distinct step
+    q: np.ndarray               # (U, 9, 9) Q_d per distinct step
+
+
+class RecordArrays(NamedTuple):
+    """The first run's linear error model, per step (filled when ``Settings.record``; :class:`FilterRecord`)."""
+
+    gain: np.ndarray
+    h: np.ndarray
+    hcols: np.ndarray
+    nh: np.ndarray
+    e: np.ndarray
+    ecols: np.ndarray
+    ne: np.ndarray
+    decay: np.ndarray
+    updated: np.ndarray
+
+
+class FilterInputs(NamedTuple):
+    """Everything the compiled loop reads, checked and broadcast by :func:`filter_inputs`."""
+
+    t: np.ndarray
+    signals: Signals
+    start: Start
+    settings: Settings
+    shaping: Shaping
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# small compiled helpers: 3-vectors, quaternions, 3 × 3 matrices, H stored by its non-zero columns
 
 
 @njit(cache=True)
@@ -115,6 +212,7 @@ def _nb_minv(s, g):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _nb_jg(w):  # pragma: no cover - compiled
+    """J_G(ω) = ∂(N(G) ω)/∂G (calib.session.model.jacobian_nonorthogonality)."""
     j = np.empty((3, 3))
     j[0, 0], j[0, 1], j[0, 2] = 0.0, w[2], w[1]
     j[1, 0], j[1, 1], j[1, 2] = w[2], 0.0, w[0]
@@ -177,10 +275,10 @@ def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _nb_lever_jac(ws, ld, ldd, r, out):  # pragma: no cover - compiled
+def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
     """out (3 × 9) = ∂(K(ω, ω̇) r)/∂(S, G, b) at ω = ``ws`` (the low-passed compensated rate), for the rate's
     low-passed sensitivities ``ld`` = L ∂ω/∂θ (3 × 9) and ``ldd`` = d/dt of it: with a = ω̇ × r + ω × (ω × r),
-    δa = δω̇ × r + δω × (ω × r) + ω × (δω × r) (:func:`calib.session.hand.filter.lever_jacobian`)."""
+    δa = δω̇ × r + δω × (ω × r) + ω × (δω × r) (:func:`calib.session.hand.lever.lever_jacobian`)."""
     u0 = ws[1] * r[2] - ws[2] * r[1]                           # u = ω × r
     u1 = ws[2] * r[0] - ws[0] * r[2]
     u2 = ws[0] * r[1] - ws[1] * r[0]
@@ -195,44 +293,469 @@ def _nb_lever_jac(ws, ld, ldd, r, out):  # pragma: no cover - compiled
         out[2, c] = (d0 * r[1] - d1 * r[0]) + (v0 * u1 - v1 * u0) + (ws[0] * p1 - ws[1] * p0)
 
 
+# ---------------------------------------------------------------------------------------------------------------------
+# one step of the filter, block by block (each called from _kernel)
+
+
+@njit(cache=True)
+def _propagate_gauss_markov(Pb, xs, hd, o_ea, o_el, o_e2, al, be, gm_var):  # pragma: no cover - compiled
+    """a_e = x − z (− z₂) per nav axis: x ← α x (α = e^{−Δt/τ}, Q = σ²(1 − α²)), z ← β z + (1 − β) x and
+    z₂ ← β z₂ + (1 − β)(x − z) with the old x, z (β = e^{−Δt/τ_h}): nominal ``hd``, error-state mean ``xs`` and
+    P ← A P Aᵀ + Q on the block's rows and columns."""
+    n = Pb.shape[0]
+    for j in range(3):
+        c = o_ea + j
+        if o_e2 >= 0:                                      # z₂ ← β z₂ + (1 − β)(x − z), old x and z
+            c2, cz = o_e2 + j, o_el + j
+            hd[9 + j] = be * hd[9 + j] + (1.0 - be) * (hd[3 + j] - hd[6 + j])
+            xs[c2] = be * xs[c2] + (1.0 - be) * (xs[c] - xs[cz])
+            for r in range(n):
+                Pb[c2, r] = be * Pb[c2, r] + (1.0 - be) * (Pb[c, r] - Pb[cz, r])
+            for r in range(n):
+                Pb[r, c2] = be * Pb[r, c2] + (1.0 - be) * (Pb[r, c] - Pb[r, cz])
+        if o_el >= 0:
+            cz = o_el + j
+            hd[6 + j] = be * hd[6 + j] + (1.0 - be) * hd[3 + j]
+            xs[cz] = be * xs[cz] + (1.0 - be) * xs[c]
+            for r in range(n):                             # P ← A P Aᵀ, A the z row (x before its decay)
+                Pb[cz, r] = be * Pb[cz, r] + (1.0 - be) * Pb[c, r]
+            for r in range(n):
+                Pb[r, cz] = be * Pb[r, cz] + (1.0 - be) * Pb[r, c]
+        hd[3 + j] *= al
+        xs[c] *= al
+        for r in range(n):
+            Pb[r, c] *= al
+            Pb[c, r] *= al
+        Pb[c, c] += gm_var * (1.0 - al * al)
+
+
+@njit(cache=True)
+def _propagate_shaping(Pb, xs, hd, d, offs_ae, phi, q, lrow, lv):  # pragma: no cover - compiled
+    """a_e's general shaping filter per nav axis j: x ← Φ x (nominal ``hd`` and error-state mean ``xs``),
+    P ← Φ P Φᵀ + Q_d on the axis's d states (Φ block-diagonal over the axes: its zeros skipped)."""
+    n = Pb.shape[0]
+    for j in range(3):
+        for i in range(d):                                 # nominal and error-state mean
+            s1 = 0.0
+            s2 = 0.0
+            for l in range(d):
+                s1 += phi[i, l] * hd[3 + 3 * l + j]
+                s2 += phi[i, l] * xs[offs_ae[l] + j]
+            lv[i] = s1
+            lrow[i, 0] = s2
+        for i in range(d):
+            hd[3 + 3 * i + j] = lv[i]
+            xs[offs_ae[i] + j] = lrow[i, 0]
+        for i in range(d):                                 # rows: Φ P (Φ block-diagonal: its zeros skipped)
+            for r in range(n):
+                lrow[i, r] = 0.0
+            for l in range(d):
+                f = phi[i, l]
+                if f != 0.0:
+                    cl = offs_ae[l] + j
+                    for r in range(n):
+                        lrow[i, r] += f * Pb[cl, r]
+        for i in range(d):
+            for r in range(n):
+                Pb[offs_ae[i] + j, r] = lrow[i, r]
+        for i in range(d):                                 # columns: (Φ P) Φᵀ
+            for r in range(n):
+                lrow[i, r] = 0.0
+            for l in range(d):
+                f = phi[i, l]
+                if f != 0.0:
+                    cl = offs_ae[l] + j
+                    for r in range(n):
+                        lrow[i, r] += Pb[r, cl] * f
+        for i in range(d):
+            for r in range(n):
+                Pb[r, offs_ae[i] + j] = lrow[i, r]
+        for i in range(d):
+            for l in range(d):
+                Pb[offs_ae[i] + j, offs_ae[l] + j] += q[i, l]
+
+
+@njit(cache=True)
+def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs):  # pragma: no cover - compiled
+    """The φ rows of Φ − I, E (3 × ne) in the columns ``ecols``, with CM = −Ĉ M̂⁻¹ Δt: the gyro error δω = M̂⁻¹ (X(ω)
+    [δS; δG] + δb + …) turns the attitude by −Ĉ δω Δt.  Returns ne."""
+    ne = _nb_put(E, ecols, 0, CM * wr, o_sg)               # scale: column j × ω_j
+    ne = _nb_put(E, ecols, ne, CM @ _nb_jg(wr), o_gg)      # non-orthogonality: J_G(ω)
+    if o_bg >= 0:
+        ne = _nb_put(E, ecols, ne, CM, o_bg)               # bias
+    if o_tb >= 0:
+        ne = _nb_put(E, ecols, ne, CM * dtm, o_tb)         # bias temperature coefficient: (T − T₀)
+    if o_ts >= 0:
+        ne = _nb_put(E, ecols, ne, CM * wr * dtm, o_ts)    # scale temperature coefficient: ω_j (T − T₀)
+    if o_gs >= 0:
+        ne = _nb_put(E, ecols, ne, CM * fm, o_gs)          # g-sensitivity: column j × f_j
+    return ne
+
+
+@njit(cache=True)
+def _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, qd, o_bg, bias_q):  # pragma: no cover - compiled
+    """x ← (I + E) x (non-zero only before the first update: the prior mean x₀); P ← (I + E) P (I + E)ᵀ + Q =
+    P + EP + (EP)ᵀ + E P Eᵀ + Q, Q_φφ = N_g² Δt I (``qd``), Q_bb = q_b Δt I (``bias_q``, with a bias block)."""
+    n = Pb.shape[0]
+    for i in range(3):
+        s = 0.0
+        for e in range(ne):
+            s += E[i, e] * xs[ecols[e]]
+        xs[i] += s
+    for i in range(3):
+        for c in range(n):
+            s = 0.0
+            for e in range(ne):
+                s += E[i, e] * Pb[ecols[e], c]
+            A[i, c] = s
+    for i in range(3):
+        for l in range(3):
+            s = 0.0
+            for e in range(ne):
+                s += A[i, ecols[e]] * E[l, e]
+            EPE[i, l] = s
+    for i in range(3):
+        for c in range(n):
+            Pb[i, c] += A[i, c]
+    for r in range(n):
+        for i in range(3):
+            Pb[r, i] += A[i, r]
+    for i in range(3):
+        for l in range(3):
+            Pb[i, l] += EPE[i, l]
+    Pb[0, 0] += qd
+    Pb[1, 1] += qd
+    Pb[2, 2] += qd
+    if o_bg >= 0 and bias_q > 0.0:                         # the bias's random walk: Q_bb = q_b Δt
+        for j in range(3):
+            Pb[o_bg + j, o_bg + j] += bias_q
+
+
+@njit(cache=True)
+def _lever_shift(J, dlt, th, th0, sx, temp_k, force_k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
+    """K r̂ was built at the pass's θ₀ and the nominal moved since: dlt = θ̂ − θ₀ for (S, G, b), with θ̂'s S and b at
+    this sample's temperature (and force); returns J dlt (3,), the first-order change of K r̂."""
+    for j in range(3):
+        dlt[j] = th[j] - th0[j]
+        dlt[3 + j] = th[3 + j] - th0[3 + j]
+        dlt[6 + j] = th[6 + j] - th0[6 + j]
+        if o_ts >= 0:
+            dlt[j] += sx[3 + j] * temp_k
+        if o_tb >= 0:
+            dlt[6 + j] += sx[j] * temp_k
+        if o_gs >= 0:
+            dlt[6 + j] += sx[6 + j] * force_k[j]
+    out = np.zeros(3)
+    for i in range(3):
+        s = 0.0
+        for c in range(9):
+            s += J[i, c] * dlt[c]
+        out[i] = s
+    return out
+
+
+@njit(cache=True)
+def _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, d, lti_c):  # pragma: no cover - compiled
+    """z = Ĉ f̂ − g_up − â_e (nav): the levelling residual at the nominal (f̂ already compensated, lever arm removed)."""
+    for i in range(3):
+        z[i] = C[i, 0] * fh[0] + C[i, 1] * fh[1] + C[i, 2] * fh[2]
+    z[2] -= gz
+    if o_ea >= 0:                                          # minus the external acceleration's nominal (nav)
+        for i in range(3):
+            z[i] -= hd[3 + i]
+            if o_el >= 0:
+                z[i] += hd[6 + i]                          # a_e = x − z
+            if o_e2 >= 0:
+                z[i] += hd[9 + i]                          # a_e = x − z − z₂
+    if d > 0:                                              # a_e = C x per nav axis
+        for i in range(3):
+            for l in range(d):
+                z[i] -= lti_c[l] * hd[3 + 3 * l + i]
+
+
+@njit(cache=True)
+def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J, jac_on, offs, offs_x,
+                 o_ea, o_el, o_e2, sh):  # pragma: no cover - compiled
+    """H (rows × n) stored by its non-zero columns: [g_up×] on φ, Ĉ M̂_a⁻¹ [I, diag(f), J_G(f)] on the accelerometer,
+    its temperature and delay columns, Ĉ K on the lever arm, ±I (or C_l I) on a_e's states, Ĉ J on the gyro's
+    states through the lever arm term (per-run arrays read at sample ``k`` only with their block).  Returns nh, the
+    number of columns used."""
+    for i in range(3):
+        for e in range(H_COLS):
+            Hc[i, e] = 0.0
+    Hc[1, 0] = gz                                          # [g_up×] on φ_x
+    hcols[0] = 0
+    Hc[0, 1] = -gz                                         # [g_up×] on φ_y
+    hcols[1] = 1
+    nh = 2
+    o_sg, o_gg, o_bg, o_ba, o_sa, o_ga, o_lv = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6], offs[7]
+    o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
+    if o_ba >= 0:
+        CMa = C @ Mia
+        nh = _nb_put(Hc, hcols, nh, CMa, o_ba)             # Ĉ M̂_a⁻¹
+        nh = _nb_put(Hc, hcols, nh, CMa * fr, o_sa)        # Ĉ M̂_a⁻¹ diag(f)
+        nh = _nb_put(Hc, hcols, nh, CMa @ _nb_jg(fr), o_ga)  # Ĉ M̂_a⁻¹ J_G(f)
+        if o_ta >= 0:
+            nh = _nb_put(Hc, hcols, nh, CMa * temp_k, o_ta)  # Ĉ M̂_a⁻¹ (T − T₀): c_a
+    if o_dl >= 0:
+        nh = _nb_put(Hc, hcols, nh, -(C * acc_rate[k]), o_dl)  # −Ĉ diag(ḟ): f̃ = f − δ ḟ
+    if o_lv >= 0:
+        nh = _nb_put(Hc, hcols, nh, C @ lever[k], o_lv)    # Ĉ K(ω, ω̇)
+    if o_ea >= 0:
+        nh = _nb_put(Hc, hcols, nh, np.eye(3), o_ea)       # I (nav)
+    if o_el >= 0:
+        nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_el)      # −I (nav): a_e = x − z
+    if o_e2 >= 0:
+        nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_e2)      # −I (nav): a_e = x − z − z₂
+    if sh.d > 0:
+        for l in range(sh.d):
+            if sh.c[l] != 0.0:
+                nh = _nb_put(Hc, hcols, nh, sh.c[l] * np.eye(3), sh.offsets[l])   # C_l I (nav)
+    if jac_on:                                             # Ĉ J: the lever arm term through the rate's errors
+        CJ = C @ J
+        nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3], o_sg)      # Ĉ ∂(K r̂)/∂S
+        nh = _nb_put(Hc, hcols, nh, CJ[:, 3:6], o_gg)      # Ĉ ∂(K r̂)/∂G
+        if o_bg >= 0:
+            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9], o_bg)  # Ĉ ∂(K r̂)/∂b
+        if o_ts >= 0:
+            nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3] * temp_k, o_ts)   # s_T: S's column × (T − T₀)
+        if o_tb >= 0:
+            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * temp_k, o_tb)   # c_b: b's column × (T − T₀)
+        if o_gs >= 0:
+            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * force[k], o_gs)  # k: b's column j × f_j
+    return nh
+
+
+@njit(cache=True)
+def _update_covariance(Pb, K, PHt, Si, T, THt, Hc, hcols, nh, m, r_var):  # pragma: no cover - compiled
+    """K = P Hᵀ S⁻¹, then the Joseph form P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ as T = P − K (P Hᵀ)ᵀ,
+    P = T − (T Hᵀ) Kᵀ + K R Kᵀ, re-symmetrised."""
+    n = Pb.shape[0]
+    for r in range(n):                                     # K = P Hᵀ S⁻¹
+        for i in range(m):
+            s = 0.0
+            for l in range(m):
+                s += PHt[r, l] * Si[l, i]
+            K[r, i] = s
+    for r in range(n):                                     # T = (I − K H) P = P − K (P Hᵀ)ᵀ
+        for c in range(n):
+            s = Pb[r, c]
+            for i in range(m):
+                s -= K[r, i] * PHt[c, i]
+            T[r, c] = s
+    _nb_times_ht(T, Hc, hcols, nh, m, THt)                 # T Hᵀ
+    for r in range(n):                                     # P = T (I − K H)ᵀ + K R Kᵀ
+        for c in range(n):
+            s = T[r, c]
+            for i in range(m):
+                s += K[c, i] * (r_var * K[r, i] - THt[r, i])
+            Pb[r, c] = s
+    for r in range(n):
+        for c in range(r + 1, n):
+            v = 0.5 * (Pb[r, c] + Pb[c, r])
+            Pb[r, c] = v
+            Pb[c, r] = v
+
+
+@njit(cache=True)
+def _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh):  # pragma: no cover - compiled
+    """x = x⁻ + K (z − H x⁻) (``z`` already the innovation), then the reset: θ̂ += δθ̂, the hand's and the sensor's
+    extra nominals += their δ, and the error state back to zero (the attitude's part is applied by the caller)."""
+    n = xs.shape[0]
+    for r in range(n):                                     # x = x⁻ + K (z − H x⁻)
+        s = xs[r]
+        for i in range(m):
+            s += K[r, i] * z[i]
+        x[r] = s
+        xs[r] = 0.0                                        # reset after the injection below
+    o_sg, o_gg, o_bg, o_ba, o_sa, o_ga, o_lv = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6], offs[7]
+    o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
+    for j in range(3):                                     # reset: θ̂ += δθ̂
+        th[0 + j] += x[o_sg + j]
+        th[3 + j] += x[o_gg + j]
+        if o_bg >= 0:
+            th[6 + j] += x[o_bg + j]
+        if o_ba >= 0:
+            th[9 + j] += x[o_ba + j]
+            th[12 + j] += x[o_sa + j]
+            th[15 + j] += x[o_ga + j]
+        if o_lv >= 0:
+            hd[j] += x[o_lv + j]
+        if o_ea >= 0:
+            hd[3 + j] += x[o_ea + j]
+        if o_el >= 0:
+            hd[6 + j] += x[o_el + j]
+        if o_e2 >= 0:
+            hd[9 + j] += x[o_e2 + j]
+        for l in range(sh.d):
+            hd[3 + 3 * l + j] += x[sh.offsets[l] + j]
+        if o_tb >= 0:
+            sx[j] += x[o_tb + j]
+        if o_ts >= 0:
+            sx[3 + j] += x[o_ts + j]
+        if o_gs >= 0:
+            sx[6 + j] += x[o_gs + j]
+        if o_ta >= 0:
+            sx[9 + j] += x[o_ta + j]
+        if o_dl >= 0:
+            sx[12 + j] += x[o_dl + j]
+
+
+@njit(cache=True)
+def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs):  # pragma: no cover - compiled
+    """The nominal's step k−1 → k (one run's arrays, sample index ``k``): M̂⁻¹ and b̂ at the step's mid temperature
+    (ΔT = ``dtm``; and mid specific force with the g-sensitivity: b_g,i += k_i f_i), the compensated rates at both
+    ends, q̂ ← q̂ ⊗ Exp(φ) (trapezoid + coning).  Returns (q̂, −Ĉ M̂⁻¹ Δt at the step's middle, the rate regressor ω
+    — zero at rest, else the leave-out mean at t_{k−½} —, f at the step's middle)."""
+    Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
+    bg = th[6:9] + sx[0:3] * dtm
+    fm = np.zeros(3)
+    if o_gs >= 0:
+        fm = 0.5 * (force[k - 1] + force[k])
+        bg = bg + sx[6:9] * fm
+    wp = Mi @ (gyro[k - 1] - bg)
+    wn = Mi @ (gyro[k] - bg)
+    cr = np.array([wp[1] * wn[2] - wp[2] * wn[1], wp[2] * wn[0] - wp[0] * wn[2], wp[0] * wn[1] - wp[1] * wn[0]])
+    phi = 0.5 * (wp + wn) * dt + cr * (dt * dt / 12.0)
+    Cm = _nb_qmat(_nb_qmul(q, _nb_qexp(0.5 * phi)))
+    q = _nb_qmul(q, _nb_qexp(phi))
+    q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    if still[k]:                                           # at rest the true rate is zero
+        wr = np.zeros(3)
+    else:
+        wr = Mi @ (gyro_reg[k] - bg)                       # leave-out regressor at t_{k−½}
+    return q, -dt * (Cm @ Mi), wr, fm
+
+
+@njit(cache=True)
+def _corrected_force(C, th, sx, th0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
+                     offs_x, jac_on):  # pragma: no cover - compiled
+    """The compensated specific force at sample ``k`` (body): f̂ = M̂_a⁻¹(f̃ − b̂_a − ĉ_a ΔT) + δ̂ ⊙ ḟ̃ − K r̂ − J (θ̂ − θ₀),
+    and the H regressor Ĉᵀ g_up (gravity predicted in the body).  Per-run arrays (``acc_rate``, ``lever``, ``force``,
+    ``jw``, ``jd``, ``jdd``) are read at ``k`` only when their block is in the layout.  Returns (f̂, the regressor,
+    M̂_a⁻¹)."""
+    o_ba, o_lv = offs[4], offs[7]
+    o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
+    if o_ba >= 0:
+        Mia = _nb_minv(th[12:15], th[15:18])
+    else:
+        Mia = np.eye(3)
+    ba = th[9:12]
+    if o_ta >= 0:                                          # the accelerometer bias at this sample's temperature
+        ba = ba + sx[9:12] * temp_k
+    fh = Mia @ (acc_k - ba)
+    if o_dl >= 0:                                          # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t)
+        for i in range(3):
+            fh[i] += sx[12 + i] * acc_rate[k, i]
+    fr = np.empty(3)                                       # regressor: gravity predicted in the body frame
+    for i in range(3):
+        fr[i] = C[2, i] * gz                               # Ĉᵀ g_up
+    if o_lv >= 0:                                          # minus the lever arm's K r̂ (body)
+        kr = lever[k] @ hd[0:3]
+        for i in range(3):
+            fh[i] -= kr[i]
+    if jac_on:                                             # K was built at the pass's θ₀, the nominal moved since:
+        lever_jacobian_columns(jw[k], jd[k], jdd[k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
+        # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
+        f_k = force[k] if o_gs >= 0 else np.zeros(3)
+        sh_k = _lever_shift(J, dlt, th, th0, sx, temp_k, f_k, o_ts, o_tb, o_gs)
+        for i in range(3):
+            fh[i] -= sh_k[i]
+    return fh, fr, Mia
+
+
+@njit(cache=True)
+def _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_row, wht_row):  # pragma: no cover - compiled
+    """ν = z − H x (``z`` in place), its NIS νᵀS⁻¹ν and the whitened levelling rows L⁻¹ν (S = L Lᵀ), written to
+    ``inn_row``, ``wht_row``; returns the NIS."""
+    for i in range(m):                                     # innovation z − H x
+        s = 0.0
+        for e in range(nh):
+            s += Hc[i, e] * xs[hcols[e]]
+        z[i] -= s
+    nis = 0.0
+    for i in range(m):
+        for l in range(m):
+            nis += z[i] * Si[i, l] * z[l]
+    for i in range(m):
+        inn_row[i] = z[i]
+    l00 = math.sqrt(S[0, 0])                               # Cholesky S = L Lᵀ of the levelling rows: L⁻¹ν
+    l10 = S[1, 0] / l00
+    l11 = math.sqrt(max(S[1, 1] - l10 * l10, 1e-300))
+    wht_row[0] = z[0] / l00
+    wht_row[1] = (z[1] - l10 * z[0] / l00) / l11
+    return nis
+
+
+@njit(cache=True)
+def _record_transition(rec, k, E, ecols, ne, gm_on, dt, gm_tau, hp_tau):  # pragma: no cover - compiled
+    """Step k's propagation into the linear error model (:class:`FilterRecord`)."""
+    rec.ne[k] = ne
+    for e in range(ne):
+        rec.ecols[k, e] = ecols[e]
+        for i in range(3):
+            rec.e[k, i, e] = E[i, e]
+    if gm_on:
+        rec.decay[k, 0] = math.exp(-dt / gm_tau)
+        rec.decay[k, 1] = math.exp(-dt / hp_tau)
+
+
+@njit(cache=True)
+def _record_update(rec, k, Hc, hcols, nh, K, m):  # pragma: no cover - compiled
+    """Step k's update (gain and H) into the linear error model (:class:`FilterRecord`)."""
+    rec.updated[k] = True
+    rec.nh[k] = nh
+    for e in range(nh):
+        rec.hcols[k, e] = hcols[e]
+        for i in range(m):
+            rec.h[k, i, e] = Hc[i, e]
+    for r in range(K.shape[0]):
+        for i in range(m):
+            rec.gain[k, r, i] = K[r, i]
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# the loop
+
+
 @njit(cache=True, fastmath=False)
-def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_rows, upd, keep, gate,
-            kreg, hand0, gm_tau, gm_var, bias_rw2, hp_tau, hp_order, dtemp, freg, offs_x, sens0,
-            lti_d, offs_ae, lti_c, phi_idx, lti_phi, lti_q, dreg, jw, jd, jdd,
-            rec_on, rK, rH, rHc, rNh, rE, rEc, rNe, rAB, rU):  # pragma: no cover
-    B, N = g.shape[0], g.shape[1]
-    n = P0.shape[1]
-    theta = theta0.copy()
+def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
+    """B runs of N samples (:func:`run_filter`); returns (θ̂, P, q, NIS, innovations, √diag P history, θ̂ history,
+    the hand's nominals, whitened innovations, the sensor's extra nominals)."""
+    B, N = sig.gyro.shape[0], sig.gyro.shape[1]
+    n = start.P.shape[1]
+    theta = start.theta.copy()
     # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
-    hand = hand0.copy()
-    # (general shaping filter, lti_d > 0: component i of axis j at 3 + 3i + j)
+    # (general shaping filter, sh.d > 0: component i of axis j at 3 + 3i + j)
+    hand = start.hand.copy()
     # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15):
     # calib.session.model.SENSOR_EXTRA_BLOCKS
-    sens = sens0.copy()
-    P = P0.copy()
+    sens = start.sensor.copy()
+    P = start.P.copy()
     qout = np.zeros((B, 4))
     nis_out = np.full((B, N - 1), np.nan)
     inn_out = np.full((B, N - 1, 3), np.nan)
     wht_out = np.full((B, N - 1, 3), np.nan)                   # whitened innovations L⁻¹ν, S = L Lᵀ
-    nk = N - 1 if keep else 0
+    nk = N - 1 if st.keep else 0
     hsd = np.zeros((B, nk, n))
     hth = np.zeros((B, nk, 18))
-    o_sg, o_gg, o_bg, o_ba, o_sa, o_ga = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6]
-    o_lv, o_ea, o_el = offs[7], offs[8], offs[9]
-    o_e2 = offs[10] if hp_order >= 2 else -1
-    if lti_d > 0:                                              # the general shaping filter replaces the x, z, z₂ code
+    offs, offs_x = st.offsets, st.sensor_offsets
+    o_sg, o_gg, o_bg, o_lv = offs[1], offs[2], offs[3], offs[7]
+    o_ea, o_el = offs[8], offs[9]
+    o_e2 = offs[10] if st.hp_order >= 2 else -1
+    if sh.d > 0:                                               # the general shaping filter replaces the x, z, z₂ code
         o_ea, o_el, o_e2 = -1, -1, -1
+    o_tb, o_ts, o_gs = offs_x[0], offs_x[1], offs_x[2]
+    gz, m = st.gravity, st.rows
     lrow = np.zeros((9, n))
     lv = np.zeros(9)
-    o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
-    acc_states = o_ba >= 0
     E = np.zeros((3, 18))
     ecols = np.zeros(18, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
     Hc = np.zeros((3, H_COLS))                                 # H's non-zero columns (H_COLS)
     hcols = np.zeros(H_COLS, dtype=np.int64)
-    jac_on = o_lv >= 0 and jw.shape[1] > 1                     # K r̂'s dependence on the gyro's errors (LeverJacobian)
+    jac_on = o_lv >= 0 and sig.jac_rate.shape[1] > 1           # K r̂'s dependence on the gyro's errors (LeverJacobian)
     J = np.zeros((3, 9))
     dlt = np.zeros(9)
     PHt = np.zeros((n, 3))
@@ -248,349 +771,53 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
         Pb = P[b]
         th = theta[b]
         hd = hand[b]
+        sx = sens[b]
         for i in range(n):                                     # the error state's mean: x0, zero after a reset
-            xs[i] = x0[b, i]
-        q = q0[b].copy()
+            xs[i] = start.x[b, i]
+        q = start.quat[b].copy()
         q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
         for k in range(1, N):
             dt = t[k] - t[k - 1]
-            # ---- propagation: nominal attitude with the compensated rate (trapezoid + coning); the
-            # temperature blocks' nominals at the step's mid temperature (T − T₀; zero without them)
-            dtm = 0.5 * (dtemp[b, k - 1] + dtemp[b, k])
-            sx = sens[b]
-            Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
-            bg = th[6:9] + sx[0:3] * dtm
-            fm = np.zeros(3)
-            # g-sensitivity: b_g,i += k_i f_i (f the specific force, body)
-            if o_gs >= 0:
-                fm = 0.5 * (freg[b, k - 1] + freg[b, k])
-                bg = bg + sx[6:9] * fm
-            wp = Mi @ (g[b, k - 1] - bg)
-            wn = Mi @ (g[b, k] - bg)
-            cr = np.array([wp[1] * wn[2] - wp[2] * wn[1], wp[2] * wn[0] - wp[0] * wn[2], wp[0] * wn[1] - wp[1] * wn[0]])
-            phi = 0.5 * (wp + wn) * dt + cr * (dt * dt / 12.0)
-            Cm = _nb_qmat(_nb_qmul(q, _nb_qexp(0.5 * phi)))
-            q = _nb_qmul(q, _nb_qexp(phi))
-            q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-            if still[b, k]:                                    # at rest the true rate is zero
-                wr = np.zeros(3)
-            else:
-                wr = Mi @ (greg[b, k] - bg)                    # leave-out regressor at t_{k−½}
-            CM = -dt * (Cm @ Mi)                               # −Ĉ M̂⁻¹ Δt
-            ne = _nb_put(E, ecols, 0, CM * wr, o_sg)           # scale: column j × ω_j
-            ne = _nb_put(E, ecols, ne, CM @ _nb_jg(wr), o_gg)  # non-orthogonality: J_G(ω)
-            if o_bg >= 0:
-                ne = _nb_put(E, ecols, ne, CM, o_bg)           # bias
-            if o_tb >= 0:
-                ne = _nb_put(E, ecols, ne, CM * dtm, o_tb)     # bias temperature coefficient: (T − T₀)
-            if o_ts >= 0:
-                ne = _nb_put(E, ecols, ne, CM * wr * dtm, o_ts)  # scale temperature coefficient: ω_j (T − T₀)
-            if o_gs >= 0:
-                ne = _nb_put(E, ecols, ne, CM * fm, o_gs)      # g-sensitivity: column j × f_j
+            # ---- propagation: nominal attitude with the compensated rate; the temperature blocks' nominals at the
+            # step's mid temperature (T − T₀; zero without them)
+            dtm = 0.5 * (sig.temp_rel[b, k - 1] + sig.temp_rel[b, k])
+            q, CM, wr, fm = _step_nominal(q, th, sx, sig.gyro[b], sig.gyro_reg[b], sig.still[b], sig.force[b], k, dt,
+                                          dtm, o_gs)
+            ne = _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs)
             if o_ea >= 0:                                      # Gauss–Markov a_e: Φ = diag(e^{−Δt/τ}), Q = σ²(1 − Φ²)
-                al = math.exp(-dt / gm_tau)
-                be = math.exp(-dt / hp_tau)                    # z ← β z + (1 − β) x: z the low-pass of x (τ_h)
-                for j in range(3):
-                    c = o_ea + j
-                    if o_e2 >= 0:                              # z₂ ← β z₂ + (1 − β)(x − z), old x and z
-                        c2, cz = o_e2 + j, o_el + j
-                        hd[9 + j] = be * hd[9 + j] + (1.0 - be) * (hd[3 + j] - hd[6 + j])
-                        xs[c2] = be * xs[c2] + (1.0 - be) * (xs[c] - xs[cz])
-                        for r in range(n):
-                            Pb[c2, r] = be * Pb[c2, r] + (1.0 - be) * (Pb[c, r] - Pb[cz, r])
-                        for r in range(n):
-                            Pb[r, c2] = be * Pb[r, c2] + (1.0 - be) * (Pb[r, c] - Pb[r, cz])
-                    if o_el >= 0:
-                        cz = o_el + j
-                        hd[6 + j] = be * hd[6 + j] + (1.0 - be) * hd[3 + j]
-                        xs[cz] = be * xs[cz] + (1.0 - be) * xs[c]
-                        for r in range(n):                     # P ← A P Aᵀ, A the z row (x before its decay)
-                            Pb[cz, r] = be * Pb[cz, r] + (1.0 - be) * Pb[c, r]
-                        for r in range(n):
-                            Pb[r, cz] = be * Pb[r, cz] + (1.0 - be) * Pb[r, c]
-                    hd[3 + j] *= al
-                    xs[c] *= al
-                    for r in range(n):
-                        Pb[r, c] *= al
-                        Pb[c, r] *= al
-                    Pb[c, c] += gm_var * (1.0 - al * al)
-            # a_e's shaping filter per nav axis: x ← Φ x, P ← Φ P Φᵀ + Q_d
-            if lti_d > 0:
-                u = phi_idx[k]
-                for j in range(3):
-                    for i in range(lti_d):                     # nominal and error-state mean
-                        s1 = 0.0
-                        s2 = 0.0
-                        for l in range(lti_d):
-                            s1 += lti_phi[u, i, l] * hd[3 + 3 * l + j]
-                            s2 += lti_phi[u, i, l] * xs[offs_ae[l] + j]
-                        lv[i] = s1
-                        lrow[i, 0] = s2
-                    for i in range(lti_d):
-                        hd[3 + 3 * i + j] = lv[i]
-                        xs[offs_ae[i] + j] = lrow[i, 0]
-                    for i in range(lti_d):                     # rows: Φ P (Φ block-diagonal: its zeros skipped)
-                        for r in range(n):
-                            lrow[i, r] = 0.0
-                        for l in range(lti_d):
-                            f = lti_phi[u, i, l]
-                            if f != 0.0:
-                                cl = offs_ae[l] + j
-                                for r in range(n):
-                                    lrow[i, r] += f * Pb[cl, r]
-                    for i in range(lti_d):
-                        for r in range(n):
-                            Pb[offs_ae[i] + j, r] = lrow[i, r]
-                    for i in range(lti_d):                     # columns: (Φ P) Φᵀ
-                        for r in range(n):
-                            lrow[i, r] = 0.0
-                        for l in range(lti_d):
-                            f = lti_phi[u, i, l]
-                            if f != 0.0:
-                                cl = offs_ae[l] + j
-                                for r in range(n):
-                                    lrow[i, r] += Pb[r, cl] * f
-                    for i in range(lti_d):
-                        for r in range(n):
-                            Pb[r, offs_ae[i] + j] = lrow[i, r]
-                    for i in range(lti_d):
-                        for l in range(lti_d):
-                            Pb[offs_ae[i] + j, offs_ae[l] + j] += lti_q[u, i, l]
-            # the linear error model of this step (calib.session.spectral)
-            if rec_on and b == 0:
-                rNe[k] = ne
-                for e in range(ne):
-                    rEc[k, e] = ecols[e]
-                    for i in range(3):
-                        rE[k, i, e] = E[i, e]
-                if o_ea >= 0:
-                    rAB[k, 0] = math.exp(-dt / gm_tau)
-                    rAB[k, 1] = math.exp(-dt / hp_tau)
-            # x ← (I + E) x (non-zero only before the first update: the prior mean x0)
-            for i in range(3):
-                s = 0.0
-                for e in range(ne):
-                    s += E[i, e] * xs[ecols[e]]
-                xs[i] += s
-            # P ← (I + E) P (I + E)ᵀ = P + EP + (EP)ᵀ + E P Eᵀ
-            for i in range(3):
-                for c in range(n):
-                    s = 0.0
-                    for e in range(ne):
-                        s += E[i, e] * Pb[ecols[e], c]
-                    A[i, c] = s
-            for i in range(3):
-                for l in range(3):
-                    s = 0.0
-                    for e in range(ne):
-                        s += A[i, ecols[e]] * E[l, e]
-                    EPE[i, l] = s
-            for i in range(3):
-                for c in range(n):
-                    Pb[i, c] += A[i, c]
-            for r in range(n):
-                for i in range(3):
-                    Pb[r, i] += A[i, r]
-            for i in range(3):
-                for l in range(3):
-                    Pb[i, l] += EPE[i, l]
-            qd = arw2 * dt
-            Pb[0, 0] += qd
-            Pb[1, 1] += qd
-            Pb[2, 2] += qd
-            if o_bg >= 0 and bias_rw2 > 0.0:                   # the bias's random walk: Q_bb = q_b Δt
-                for j in range(3):
-                    Pb[o_bg + j, o_bg + j] += bias_rw2 * dt
+                al = math.exp(-dt / st.gm_tau)
+                be = math.exp(-dt / st.hp_tau)                 # z ← β z + (1 − β) x: z the low-pass of x (τ_h)
+                _propagate_gauss_markov(Pb, xs, hd, o_ea, o_el, o_e2, al, be, st.gm_var)
+            if sh.d > 0:                                       # a_e's shaping filter per nav axis
+                u = sh.step_index[k]
+                _propagate_shaping(Pb, xs, hd, sh.d, sh.offsets, sh.phi[u], sh.q[u], lrow, lv)
+            if st.record and b == 0:                           # the linear error model of this step (spectral)
+                _record_transition(rec, k, E, ecols, ne, o_ea >= 0, dt, st.gm_tau, st.hp_tau)
+            _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, st.arw2 * dt, o_bg, st.bias_rw2 * dt)
             # ---- update with the accelerometer sample
-            if upd[b, k]:
+            if sig.update[b, k]:
                 C = _nb_qmat(q)
-                if acc_states:
-                    Mia = _nb_minv(th[12:15], th[15:18])
-                else:
-                    Mia = np.eye(3)
-                ba = th[9:12]
-                if o_ta >= 0:                                  # the accelerometer bias at this sample's temperature
-                    ba = ba + sx[9:12] * dtemp[b, k]
-                fh = Mia @ (a[b, k] - ba)
-                # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t), per axis
-                if o_dl >= 0:
-                    for i in range(3):
-                        fh[i] += sx[12 + i] * dreg[b, k, i]
-                fr = np.empty(3)                               # regressor: gravity predicted in the body frame
-                for i in range(3):
-                    fr[i] = C[2, i] * gz                       # Ĉᵀ g_up
-                if o_lv >= 0:                                  # minus the lever arm's K r̂ (body)
-                    kr = kreg[b, k] @ hd[0:3]
-                    for i in range(3):
-                        fh[i] -= kr[i]
-                if jac_on:                                     # K was built at the pass's θ₀, the nominal moved since:
-                    _nb_lever_jac(jw[b, k], jd[b, k], jdd[b, k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
-                    # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
-                    for j in range(3):
-                        dlt[j] = th[j] - theta0[b, j]
-                        dlt[3 + j] = th[3 + j] - theta0[b, 3 + j]
-                        dlt[6 + j] = th[6 + j] - theta0[b, 6 + j]
-                        if o_ts >= 0:
-                            dlt[j] += sx[3 + j] * dtemp[b, k]
-                        if o_tb >= 0:
-                            dlt[6 + j] += sx[j] * dtemp[b, k]
-                        if o_gs >= 0:
-                            dlt[6 + j] += sx[6 + j] * freg[b, k, j]
-                    for i in range(3):
-                        s = 0.0
-                        for c in range(9):
-                            s += J[i, c] * dlt[c]
-                        fh[i] -= s
-                for i in range(3):
-                    z[i] = C[i, 0] * fh[0] + C[i, 1] * fh[1] + C[i, 2] * fh[2]
-                z[2] -= gz
-                if o_ea >= 0:                                  # minus the external acceleration's nominal (nav)
-                    for i in range(3):
-                        z[i] -= hd[3 + i]
-                        if o_el >= 0:
-                            z[i] += hd[6 + i]                  # a_e = x − z
-                        if o_e2 >= 0:
-                            z[i] += hd[9 + i]                  # a_e = x − z − z₂
-                if lti_d > 0:                                  # a_e = C x per nav axis
-                    for i in range(3):
-                        for l in range(lti_d):
-                            z[i] -= lti_c[l] * hd[3 + 3 * l + i]
-                m = m_rows
-                for i in range(3):
-                    for e in range(H_COLS):
-                        Hc[i, e] = 0.0
-                Hc[1, 0] = gz                                  # [g_up×] on φ_x
-                hcols[0] = 0
-                Hc[0, 1] = -gz                                 # [g_up×] on φ_y
-                hcols[1] = 1
-                nh = 2
-                if acc_states:
-                    CMa = C @ Mia
-                    nh = _nb_put(Hc, hcols, nh, CMa, o_ba)             # Ĉ M̂_a⁻¹
-                    nh = _nb_put(Hc, hcols, nh, CMa * fr, o_sa)        # Ĉ M̂_a⁻¹ diag(f)
-                    nh = _nb_put(Hc, hcols, nh, CMa @ _nb_jg(fr), o_ga)  # Ĉ M̂_a⁻¹ J_G(f)
-                    if o_ta >= 0:
-                        nh = _nb_put(Hc, hcols, nh, CMa * dtemp[b, k], o_ta)  # Ĉ M̂_a⁻¹ (T − T₀): c_a
-                if o_dl >= 0:
-                    nh = _nb_put(Hc, hcols, nh, -(C * dreg[b, k]), o_dl)  # −Ĉ diag(ḟ): f̃ = f − δ ḟ
-                if o_lv >= 0:
-                    nh = _nb_put(Hc, hcols, nh, C @ kreg[b, k], o_lv)   # Ĉ K(ω, ω̇)
-                if o_ea >= 0:
-                    nh = _nb_put(Hc, hcols, nh, np.eye(3), o_ea)       # I (nav)
-                if o_el >= 0:
-                    nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_el)      # −I (nav): a_e = x − z
-                if o_e2 >= 0:
-                    nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_e2)      # −I (nav): a_e = x − z − z₂
-                if lti_d > 0:
-                    for l in range(lti_d):
-                        if lti_c[l] != 0.0:
-                            nh = _nb_put(Hc, hcols, nh, lti_c[l] * np.eye(3), offs_ae[l])   # C_l I (nav)
-                if jac_on:                                     # Ĉ J: the lever arm term through the rate's errors
-                    CJ = C @ J
-                    nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3], o_sg)      # Ĉ ∂(K r̂)/∂S
-                    nh = _nb_put(Hc, hcols, nh, CJ[:, 3:6], o_gg)      # Ĉ ∂(K r̂)/∂G
-                    if o_bg >= 0:
-                        nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9], o_bg)  # Ĉ ∂(K r̂)/∂b
-                    if o_ts >= 0:
-                        nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3] * dtemp[b, k], o_ts)   # s_T: S's column × (T − T₀)
-                    if o_tb >= 0:
-                        nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * dtemp[b, k], o_tb)   # c_b: b's column × (T − T₀)
-                    if o_gs >= 0:
-                        nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * freg[b, k], o_gs)    # k: b's column j × f_j
-                r_var = r_vars[b, k]
+                temp_k = sig.temp_rel[b, k]
+                fh, fr, Mia = _corrected_force(C, th, sx, start.theta[b], sig.acc[b, k], temp_k, sig.acc_rate[b],
+                                               sig.lever[b], sig.force[b], sig.jac_rate[b], sig.jac_d_rate[b],
+                                               sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs, offs_x, jac_on)
+                _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, sh.d, sh.c)
+                nh = _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, sig.force[b], sig.acc_rate[b], sig.lever[b], k,
+                                  J, jac_on, offs, offs_x, o_ea, o_el, o_e2, sh)
+                r_var = sig.r_var[b, k]
                 _nb_times_ht(Pb, Hc, hcols, nh, m, PHt)        # P Hᵀ
                 _nb_hph(Hc, hcols, nh, PHt, m, r_var, S)       # S = H P Hᵀ + R
                 _nb_inv_small(S, m, Si)
-                for i in range(m):                             # innovation z − H x
-                    s = 0.0
-                    for e in range(nh):
-                        s += Hc[i, e] * xs[hcols[e]]
-                    z[i] -= s
-                nis = 0.0
-                for i in range(m):
-                    for l in range(m):
-                        nis += z[i] * Si[i, l] * z[l]
-                for i in range(m):
-                    inn_out[b, k - 1, i] = z[i]
+                nis = _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_out[b, k - 1], wht_out[b, k - 1])
                 nis_out[b, k - 1] = nis
-                l00 = math.sqrt(S[0, 0])                       # Cholesky S = L Lᵀ of the levelling rows: L⁻¹ν
-                l10 = S[1, 0] / l00
-                l11 = math.sqrt(max(S[1, 1] - l10 * l10, 1e-300))
-                wht_out[b, k - 1, 0] = z[0] / l00
-                wht_out[b, k - 1, 1] = (z[1] - l10 * z[0] / l00) / l11
-                if not (gate > 0.0 and nis > gate):            # gating: skip an update whose NIS exceeds it
-                    for r in range(n):                         # K = P Hᵀ S⁻¹
-                        for i in range(m):
-                            s = 0.0
-                            for l in range(m):
-                                s += PHt[r, l] * Si[l, i]
-                            K[r, i] = s
-                    if rec_on and b == 0:                      # the update's gain and H (calib.session.spectral)
-                        rU[k] = True
-                        rNh[k] = nh
-                        for e in range(nh):
-                            rHc[k, e] = hcols[e]
-                            for i in range(m):
-                                rH[k, i, e] = Hc[i, e]
-                        for r in range(n):
-                            for i in range(m):
-                                rK[k, r, i] = K[r, i]
-                    for r in range(n):                         # T = (I − K H) P = P − K (P Hᵀ)ᵀ
-                        for c in range(n):
-                            s = Pb[r, c]
-                            for i in range(m):
-                                s -= K[r, i] * PHt[c, i]
-                            T[r, c] = s
-                    _nb_times_ht(T, Hc, hcols, nh, m, THt)     # T Hᵀ
-                    for r in range(n):                         # P = T (I − K H)ᵀ + K R Kᵀ
-                        for c in range(n):
-                            s = T[r, c]
-                            for i in range(m):
-                                s += K[c, i] * (r_var * K[r, i] - THt[r, i])
-                            Pb[r, c] = s
-                    for r in range(n):
-                        for c in range(r + 1, n):
-                            v = 0.5 * (Pb[r, c] + Pb[c, r])
-                            Pb[r, c] = v
-                            Pb[c, r] = v
-                    for r in range(n):                         # x = x⁻ + K (z − H x⁻)
-                        s = xs[r]
-                        for i in range(m):
-                            s += K[r, i] * z[i]
-                        x[r] = s
-                        xs[r] = 0.0                            # reset after the injection below
-                    for j in range(3):                         # reset: θ̂ += δθ̂, Ĉ ← (I + [φ×]) Ĉ
-                        th[0 + j] += x[o_sg + j]
-                        th[3 + j] += x[o_gg + j]
-                        if o_bg >= 0:
-                            th[6 + j] += x[o_bg + j]
-                        if acc_states:
-                            th[9 + j] += x[o_ba + j]
-                            th[12 + j] += x[o_sa + j]
-                            th[15 + j] += x[o_ga + j]
-                        if o_lv >= 0:
-                            hd[j] += x[o_lv + j]
-                        if o_ea >= 0:
-                            hd[3 + j] += x[o_ea + j]
-                        if o_el >= 0:
-                            hd[6 + j] += x[o_el + j]
-                        if o_e2 >= 0:
-                            hd[9 + j] += x[o_e2 + j]
-                        for l in range(lti_d):
-                            hd[3 + 3 * l + j] += x[offs_ae[l] + j]
-                        if o_tb >= 0:
-                            sx[j] += x[o_tb + j]
-                        if o_ts >= 0:
-                            sx[3 + j] += x[o_ts + j]
-                        if o_gs >= 0:
-                            sx[6 + j] += x[o_gs + j]
-                        if o_ta >= 0:
-                            sx[9 + j] += x[o_ta + j]
-                        if o_dl >= 0:
-                            sx[12 + j] += x[o_dl + j]
-                    q = _nb_qmul(_nb_qexp(x[0:3]), q)
+                if not (st.gate > 0.0 and nis > st.gate):      # gating: skip an update whose NIS exceeds it
+                    _update_covariance(Pb, K, PHt, Si, T, THt, Hc, hcols, nh, m, r_var)
+                    if st.record and b == 0:                   # the update's gain and H (calib.session.spectral)
+                        _record_update(rec, k, Hc, hcols, nh, K, m)
+                    _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh)
+                    q = _nb_qmul(_nb_qexp(x[0:3]), q)          # Ĉ ← (I + [φ×]) Ĉ
                     q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-            if keep:
+            if st.keep:
                 for i in range(n):
                     hsd[b, k - 1, i] = math.sqrt(max(Pb[i, i], 0.0))
                 for i in range(18):
@@ -599,13 +826,17 @@ def _kernel(g, a, greg, still, t, q0, theta0, x0, P0, offs, arw2, r_vars, gz, m_
     return theta, P, qout, nis_out, inn_out, hsd, hth, hand, wht_out, sens
 
 
+# ---------------------------------------------------------------------------------------------------------------------
+# what a run returns, and the Python entry point
+
+
 @dataclass(frozen=True)
 class LeverJacobian:
     """How the lever arm term K(ω, ω̇) r moves with the gyro's errors, per sample (body frame): ``rate_rad_s``
     (N, 3) the low-passed compensated rate ω the regressor K was built from, ``d_rate`` (N, 3, 9) its low-passed
     sensitivity L ∂ω/∂(S, G, b) and ``d_rate_dot`` (N, 3, 9) that sensitivity's time derivative (1/s)
-    (:func:`calib.session.hand.filter.lever_jacobian`).  With a = ω̇ × r + ω × (ω × r):
-    ∂a/∂θ = ∂ω̇/∂θ × r + ∂ω/∂θ × (ω × r) + ω × (∂ω/∂θ × r), column by column (``_nb_lever_jac``)."""
+    (:func:`calib.session.hand.lever.lever_jacobian`).  With a = ω̇ × r + ω × (ω × r):
+    ∂a/∂θ = ∂ω̇/∂θ × r + ∂ω/∂θ × (ω × r) + ω × (∂ω/∂θ × r), column by column (:func:`lever_jacobian_columns`)."""
 
     rate_rad_s: np.ndarray
     d_rate: np.ndarray
@@ -663,42 +894,22 @@ class FilterRun:
         return self.theta[:, theta_slice(name)]
 
     def block_cov(self, name: str) -> np.ndarray:
+        """Covariance (B, 3, 3) of a block of the layout."""
         o = self.layout.offset(name)
         return self.p[:, o:o + 3, o:o + 3]
 
 
-HAND_NOMINALS = 3 + 3 * len(EXT_ACC_BLOCKS)   # the lever arm, then a_e's shaping-filter states (3 per component)
-
-
-def ext_acc_discrete(a: np.ndarray, qc: np.ndarray, dt_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Exact discretisation (Φ (U, d, d), Q_d (U, d, d)) of ẋ = A x + w, E w wᵀ = Q_c δ, over the steps
-    ``dt_s`` (U,): Φ = e^{AΔt}, Q_d = ∫₀^Δt e^{As} Q_c e^{Aᵀs} ds, both from one matrix exponential of Van Loan's
-    block [[−A, Q_c], [0, Aᵀ]]Δt (Van Loan 1978, IEEE TAC 23(3); Brown & Hwang 4th ed. §3.9)."""
-    from scipy.linalg import expm
-
-    d = a.shape[0]
-    m = np.zeros((2 * d, 2 * d))
-    m[:d, :d] = -a
-    m[:d, d:] = qc
-    m[d:, d:] = a.T
-    e = expm(np.asarray(dt_s, float)[:, None, None] * m[None])
-    phi = np.transpose(e[:, d:, d:], (0, 2, 1))
-    q = phi @ e[:, :d, d:]
-    return phi, 0.5 * (q + np.transpose(q, (0, 2, 1)))
-
-
-def _ext_acc_discrete(layout: StateLayout, config: FilterConfig, t_s: np.ndarray) -> tuple:
-    """The kernel's general a_e arguments: (d, offsets (9,), C (9,), step → table index (N,), Φ (U, 9, 9),
-    Q_d (U, 9, 9)) — d = 0 (the x, z, z₂ code) unless the layout carries ``ext_acc_s3`` … (the general shaping
-    filter, :meth:`calib.session.model.FilterConfig.ext_acc_model`).  One table entry per distinct step (rounded to
-    1 ns): one for a uniformly sampled recording."""
+def _shaping(layout: StateLayout, config: FilterConfig, t_s: np.ndarray) -> Shaping:
+    """The kernel's general a_e arguments — d = 0 (the x, z, z₂ code) unless the layout carries ``ext_acc_s3`` …
+    (the general shaping filter, :meth:`calib.session.model.FilterConfig.ext_acc_model`).  One table entry per
+    distinct step (rounded to 1 ns): one for a uniformly sampled recording."""
     nb = len(EXT_ACC_BLOCKS)
     if not any(layout.has(b) for b in EXT_ACC_BLOCKS[3:]):
         if config.ext_acc_band_hz is not None and layout.has("ext_acc"):
             raise ValueError("a band-limited external acceleration (ext_acc_band_hz) needs a layout with "
                              f"{EXT_ACC_BLOCKS} (its five states per axis)")
-        return (0, np.zeros(nb, np.int64), np.zeros(nb), np.zeros(t_s.size, np.int64), np.zeros((1, nb, nb)),
-                np.zeros((1, nb, nb)))
+        return Shaping(0, np.zeros(nb, np.int64), np.zeros(nb), np.zeros(t_s.size, np.int64), np.zeros((1, nb, nb)),
+                       np.zeros((1, nb, nb)))
     a, qc, c = config.ext_acc_model()
     d = a.shape[0]
     if d > nb:
@@ -715,144 +926,165 @@ def _ext_acc_discrete(layout: StateLayout, config: FilterConfig, t_s: np.ndarray
     q5[:, :d, :d] = q
     c5 = np.zeros(nb)
     c5[:d] = c
-    return (d, np.array([layout.offset(b) for b in EXT_ACC_BLOCKS], np.int64), c5, idx.astype(np.int64),
-            np.ascontiguousarray(phi5), np.ascontiguousarray(q5))
+    return Shaping(d, np.array([layout.offset(b) for b in EXT_ACC_BLOCKS], np.int64), c5, idx.astype(np.int64),
+                   np.ascontiguousarray(phi5), np.ascontiguousarray(q5))
 
 
-def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.ndarray, theta0: np.ndarray,
-               p0: np.ndarray, layout: StateLayout, config: FilterConfig, rate_hz: float, *,
-               r_var_per_sample: np.ndarray | None = None, update_mask: np.ndarray | None = None,
-               keep_history: bool = False, gate_nis: float = 0.0, half_window: int | None = None,
-               rest_mask: np.ndarray | None = None, x0: np.ndarray | None = None, rows: int = 2,
-               lever_regressor: np.ndarray | None = None, hand0: np.ndarray | None = None,
-               temperature_rel_c: np.ndarray | None = None, specific_force_m_s2: np.ndarray | None = None,
-               sensor0: np.ndarray | None = None, acc_rate_m_s3: np.ndarray | None = None,
-               lever_jacobian: "LeverJacobian | None" = None, record: bool = False) -> FilterRun:
-    """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
+def _arr(x, dtype=float) -> np.ndarray:
+    """A writable C-contiguous copy: numba compiles one specialisation per array type, and a Recording's arrays are
+    read-only (a second compile costs ~15 s)."""
+    return np.require(np.array(x, dtype=dtype, copy=True), requirements=["C", "W"])
 
-    ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even when the layout does
-    not estimate it), ``p0`` (n, n) or (B, n, n), ``quat0`` (B, 4) body→ENU. ``r_var_per_sample``: measurement variance
-    per sample (N,) or (B, N) instead of the config's constant; ``update_mask`` (N,) or (B, N): False skips the update
-    of that sample (saturated); ``gate_nis`` > 0 skips every update whose NIS exceeds it; ``rest_mask`` (N,): samples
-    known to be at rest, where the rate regressor is zero (:mod:`calib.session.model`, "Regressors"); ``x0`` (n,) or (B,
-    n): the prior mean as an error state, θ_prior − θ̂₀ (zero: the prior is centred on the nominal); ``rows`` = 3 adds
-    the vertical row (the |f| = g information) — for bounds computed at the truth (:func:`crlb_joint`), not for
-    estimation, where the gravity fit carries it. ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] +
-    [ω×]² per sample (body), needed by a layout with ``lever_arm``; ``hand0`` (≤ 30,) or (B, ≤ 30): the nominal lever
-    arm, external acceleration x and its low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the
-    Gauss–Markov σ, τ and the high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` …
-    (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`) runs a_e as the general shaping filter of
-    :meth:`calib.session.model.FilterConfig.ext_acc_model` (the band-limited sway, or the same Gauss–Markov family),
-    discretised exactly per step (:func:`ext_acc_discrete`).  ``sensor0`` (≤ 15,) or (B, ≤ 15): the nominal c_b, s_T, k
-    of the gyro's extra blocks and c_a, δ of the accelerometer's (default 0; missing ones 0). ``temperature_rel_c`` (N,)
-    or (B, N): T − T₀ (°C), the sensor temperature relative to the filter's reference, needed by a layout with
-    ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then ω̃ = (M_g + diag(s_T)(T − T₀)) ω + b_g + c_b (T −
-    T₀) + ε (:mod:`calib.session.model`, ``THERMAL_BLOCKS``), and with ``acc_temp_bias`` f̃ = M_a f + b_a + c_a (T − T₀)
-    + v (``ACC_THERMAL_BLOCKS``; T at the update's sample); ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²),
-    needed by a layout with ``gyro_g_sens``: b_g,i += k_i f_i (:data:`calib.session.model.G_SENS_BLOCKS`).
-    ``acc_rate_m_s3`` (N, 3) or (B, N, 3): ḟ̃, the time derivative of the (compensated) specific force (body, m/s³),
-    needed by a layout with ``acc_delay``: the accelerometer samples f̃_i(t) = f_i(t − δ_i), so the update uses f̃ +
-    diag(δ̂) ḟ̃ and H's δ block is −Ĉ diag(ḟ̃) (first order in δ; :data:`calib.session.model.ACC_DELAY_BLOCKS`).
-    ``lever_jacobian`` (:class:`LeverJacobian`, (N, …) or (B, N, …)): how ``lever_regressor``'s K r̂ moves with the
-    gyro's S, G, b — K was computed from the rate compensated at ``theta0``, so the update subtracts K r̂ + J (θ̂ − θ₀)
-    and H gets Ĉ J on those states (and on c_b, s_T, k through them).  Without it K r̂ is taken as exact: right when S,
-    G are already well determined, but a session that pins S, G only weakly leaves K's error in the innovations,
-    correlated with the motion, and σ of S, G optimistic (docs/hand.md, "The lever arm term's Jacobian").
-    """
-    if rows not in (2, 3):
-        raise ValueError(f"rows must be 2 or 3, got {rows}")
-    # writable C-contiguous float64 copies: numba compiles one specialisation per array type, and a
-    # Recording's arrays are read-only (a second compile costs ~15 s)
-    def arr(x, dtype=float):
-        return np.require(np.array(x, dtype=dtype, copy=True), requirements=["C", "W"])
 
-    g = arr(gyro)
-    a = arr(acc)
-    B, N = g.shape[:2]
-    L = regressor_half_window(rate_hz) if half_window is None else int(half_window)
-    greg = np.ascontiguousarray(np.stack([leave_out_means(gb, L, midpoint=True) for gb in g]))
-    # at rest the true rate is zero: a regressor of pure gyro noise would "inform" S and G (kalman docstring)
-    still = np.zeros((B, N), dtype=np.bool_) if rest_mask is None else np.ascontiguousarray(
-        np.broadcast_to(np.asarray(rest_mask, bool), (B, N)))
-    p0 = np.asarray(p0, dtype=float)
-    p0 = np.ascontiguousarray(np.broadcast_to(p0, (B, layout.n, layout.n)) if p0.ndim == 2 else p0)
-    if r_var_per_sample is None:
-        r_vars = np.full((B, N), config.r_var(rate_hz))
-    else:
-        r_vars = np.ascontiguousarray(np.broadcast_to(np.asarray(r_var_per_sample, float), (B, N)))
-    upd = np.ones((B, N), dtype=np.bool_) if update_mask is None else np.ascontiguousarray(
-        np.broadcast_to(np.asarray(update_mask, bool), (B, N)))
-    theta0 = np.ascontiguousarray(np.broadcast_to(np.asarray(theta0, float), (B, 18)))
-    x0 = np.zeros((B, layout.n)) if x0 is None else np.ascontiguousarray(np.broadcast_to(np.asarray(x0, float),
-                                                                                          (B, layout.n)))
-    q0 = np.ascontiguousarray(np.broadcast_to(np.asarray(quat0, float), (B, 4)))
-    m_rows = int(rows)  # 2: the levelling rows (the vertical row's |f| = g is the gravity fit's); 3 for a bound
-    if layout.has("lever_arm"):
-        if lever_regressor is None:
-            raise ValueError("a layout with the lever arm needs lever_regressor (N, 3, 3)")
-        kreg = arr(np.broadcast_to(np.asarray(lever_regressor, float), (B, N, 3, 3)))
-    else:
-        kreg = np.zeros((B, 1, 3, 3))
-    h = np.zeros(HAND_NOMINALS) if hand0 is None else np.asarray(hand0, float)
-    if h.shape[-1] < HAND_NOMINALS:                        # lever arm and x (and z) only: the low-passes start at 0
-        h = np.concatenate([h, np.zeros(h.shape[:-1] + (HAND_NOMINALS - h.shape[-1],))], axis=-1)
-    hand0 = arr(np.broadcast_to(h, (B, HAND_NOMINALS)))
-    lti = _ext_acc_discrete(layout, config, np.asarray(t_s, float))
-    ns = 3 * len(SENSOR_EXTRA_BLOCKS)
-    s0 = np.zeros(ns) if sensor0 is None else np.asarray(sensor0, float)
-    if s0.shape[-1] < ns:                                  # callers that know the gyro's blocks only: c_a starts at 0
-        s0 = np.concatenate([s0, np.zeros(s0.shape[:-1] + (ns - s0.shape[-1],))], axis=-1)
-    sens0 = arr(np.broadcast_to(s0, (B, ns)))
-    offs_x = np.array([layout.offset(b) for b in SENSOR_EXTRA_BLOCKS], dtype=np.int64)
-    def body_regressor(used: bool, x: np.ndarray | None, need: str) -> np.ndarray:
-        """(B, N, 3) of a per-sample body-frame regressor a block needs; a (B, 1, 3) placeholder without the block."""
+def _per_run(x, shape: tuple, dtype=float) -> np.ndarray:
+    """``x`` broadcast to ``shape`` (B, …) as a C-contiguous array."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype), shape))
+
+
+def _padded(x, size: int, B: int) -> np.ndarray:
+    """Nominals (≤ size,) or (B, ≤ size) padded with zeros to (B, size): missing blocks start at 0."""
+    v = np.zeros(size) if x is None else np.asarray(x, float)
+    if v.shape[-1] < size:
+        v = np.concatenate([v, np.zeros(v.shape[:-1] + (size - v.shape[-1],))], axis=-1)
+    return _arr(np.broadcast_to(v, (B, size)))
+
+
+def _block_signals(layout: StateLayout, B: int, N: int, *, lever_regressor, lever_jacobian, temperature_rel_c,
+                   specific_force_m_s2, acc_rate_m_s3) -> dict:
+    """The per-sample regressors of the layout's extra blocks, (B, N, …), or (B, 1, …) placeholders without them."""
+    def body(used: bool, x, need: str) -> np.ndarray:
         if not used:
             return np.zeros((B, 1, 3))
         if x is None:
             raise ValueError(f"a layout with {need}")
-        return arr(np.broadcast_to(np.asarray(x, float), (B, N, 3)))
+        return _arr(np.broadcast_to(np.asarray(x, float), (B, N, 3)))
 
-    freg = body_regressor(layout.models_g_sensitivity, specific_force_m_s2,
-                          "the gyro's g-sensitivity needs specific_force_m_s2 (N, 3), body, m/s²")
-    dreg = body_regressor(layout.models_acc_delay, acc_rate_m_s3,
-                          "the accelerometer's delay needs acc_rate_m_s3 (N, 3): ḟ, body, m/s³")
+    if layout.has("lever_arm"):
+        if lever_regressor is None:
+            raise ValueError("a layout with the lever arm needs lever_regressor (N, 3, 3)")
+        lever = _arr(np.broadcast_to(np.asarray(lever_regressor, float), (B, N, 3, 3)))
+    else:
+        lever = np.zeros((B, 1, 3, 3))
+    if lever_jacobian is not None and layout.has("lever_arm"):
+        jw = _arr(np.broadcast_to(np.asarray(lever_jacobian.rate_rad_s, float), (B, N, 3)))
+        jd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate, float), (B, N, 3, 9)))
+        jdd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate_dot, float), (B, N, 3, 9)))
+    else:
+        jw, jd, jdd = np.zeros((B, 1, 3)), np.zeros((B, 1, 3, 9)), np.zeros((B, 1, 3, 9))
     if layout.models_temperature:
         if temperature_rel_c is None:
             raise ValueError("a layout with a temperature block needs temperature_rel_c (N,), T − T₀ in °C")
-        dtemp = arr(np.broadcast_to(np.asarray(temperature_rel_c, float), (B, N)))
+        temp = _arr(np.broadcast_to(np.asarray(temperature_rel_c, float), (B, N)))
     else:
-        dtemp = np.zeros((B, N))
-    # ``record``: the first run's linear error model, step by step (FilterRecord; calib.session.spectral)
-    nr = N if record else 1
-    if lever_jacobian is not None and layout.has("lever_arm"):
-        jw = arr(np.broadcast_to(np.asarray(lever_jacobian.rate_rad_s, float), (B, N, 3)))
-        jd = arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate, float), (B, N, 3, 9)))
-        jdd = arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate_dot, float), (B, N, 3, 9)))
-    else:
-        jw, jd, jdd = np.zeros((B, 1, 3)), np.zeros((B, 1, 3, 9)), np.zeros((B, 1, 3, 9))
-    rec_arrays = (np.zeros((nr, layout.n, 3)), np.zeros((nr, 3, H_COLS)), np.zeros((nr, H_COLS), np.int64),
-                  np.zeros(nr, np.int64), np.zeros((nr, 3, 18)), np.zeros((nr, 18), np.int64), np.zeros(nr, np.int64),
-                  np.zeros((nr, 2)), np.zeros(nr, np.bool_))
-    theta, p, q, nis, inn, hsd, hth, hand, wht, sens = _kernel(
-        g, a, arr(greg), arr(still, np.bool_), arr(t_s), arr(q0), arr(theta0), arr(x0), arr(p0), layout.offsets(),
-        config.arw_rad_s_sqrt_hz**2, arr(r_vars), config.gravity_m_s2, m_rows, arr(upd, np.bool_), keep_history,
-        float(gate_nis), kreg, hand0, float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
-        float(config.gyro_bias_rw_rad_s_sqrt_s**2), float(config.ext_acc_highpass_tau_s),
-        int(config.ext_acc_highpass_order), dtemp, freg, offs_x, sens0, *lti, dreg, jw, jd, jdd, bool(record),
-        *rec_arrays)
+        temp = np.zeros((B, N))
+    return {"temp_rel": temp,
+            "force": body(layout.models_g_sensitivity, specific_force_m_s2,
+                          "the gyro's g-sensitivity needs specific_force_m_s2 (N, 3), body, m/s²"),
+            "acc_rate": body(layout.models_acc_delay, acc_rate_m_s3,
+                             "the accelerometer's delay needs acc_rate_m_s3 (N, 3): ḟ, body, m/s³"),
+            "lever": lever, "jac_rate": jw, "jac_d_rate": jd, "jac_d_rate_dot": jdd}
+
+
+def filter_inputs(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.ndarray, theta0: np.ndarray,
+                  p0: np.ndarray, layout: StateLayout, config: FilterConfig, rate_hz: float, *,
+                  r_var_per_sample: np.ndarray | None = None, update_mask: np.ndarray | None = None,
+                  keep_history: bool = False, gate_nis: float = 0.0, half_window: int | None = None,
+                  rest_mask: np.ndarray | None = None, x0: np.ndarray | None = None, rows: int = 2,
+                  lever_regressor: np.ndarray | None = None, hand0: np.ndarray | None = None,
+                  temperature_rel_c: np.ndarray | None = None, specific_force_m_s2: np.ndarray | None = None,
+                  sensor0: np.ndarray | None = None, acc_rate_m_s3: np.ndarray | None = None,
+                  lever_jacobian: LeverJacobian | None = None, record: bool = False) -> FilterInputs:
+    """:func:`run_filter`'s arguments checked and broadcast to B runs, as the typed tuples the compiled loop reads
+    (and :func:`calib.session.reference.run_reference` steps through)."""
+    if rows not in (2, 3):
+        raise ValueError(f"rows must be 2 or 3, got {rows}")
+    g = _arr(gyro)
+    B, N = g.shape[:2]
+    L = regressor_half_window(rate_hz) if half_window is None else int(half_window)
+    greg = np.ascontiguousarray(np.stack([leave_out_means(gb, L, midpoint=True) for gb in g]))
+    # at rest the true rate is zero: a regressor of pure gyro noise would "inform" S and G (model docstring)
+    still = np.zeros((B, N), dtype=np.bool_) if rest_mask is None else _per_run(rest_mask, (B, N), bool)
+    p0 = np.asarray(p0, dtype=float)
+    p0 = np.ascontiguousarray(np.broadcast_to(p0, (B, layout.n, layout.n)) if p0.ndim == 2 else p0)
+    r_vars = (np.full((B, N), config.r_var(rate_hz)) if r_var_per_sample is None
+              else _per_run(r_var_per_sample, (B, N)))
+    upd = np.ones((B, N), dtype=np.bool_) if update_mask is None else _per_run(update_mask, (B, N), bool)
+    x0 = np.zeros((B, layout.n)) if x0 is None else _per_run(x0, (B, layout.n))
+    signals = Signals(g, _arr(acc), _arr(greg), _arr(still, np.bool_), _arr(upd, np.bool_), _arr(r_vars),
+                      **_block_signals(layout, B, N, lever_regressor=lever_regressor, lever_jacobian=lever_jacobian,
+                                       temperature_rel_c=temperature_rel_c, specific_force_m_s2=specific_force_m_s2,
+                                       acc_rate_m_s3=acc_rate_m_s3))
+    start = Start(_arr(_per_run(quat0, (B, 4))), _arr(_per_run(theta0, (B, 18))), _arr(x0), _arr(p0),
+                  _padded(hand0, HAND_NOMINALS, B), _padded(sensor0, SENSOR_NOMINALS, B))
+    settings = Settings(layout.offsets(), np.array([layout.offset(b) for b in SENSOR_EXTRA_BLOCKS], dtype=np.int64),
+                        config.arw_rad_s_sqrt_hz**2, float(config.gyro_bias_rw_rad_s_sqrt_s**2), config.gravity_m_s2,
+                        float(config.ext_acc_tau_s), float(config.ext_acc_rms_m_s2**2),
+                        float(config.ext_acc_highpass_tau_s), int(config.ext_acc_highpass_order),
+                        int(rows), float(gate_nis), bool(keep_history), bool(record))
+    t = _arr(t_s)
+    return FilterInputs(t, signals, start, settings, _shaping(layout, config, t))
+
+
+def _record_arrays(n: int, N: int, on: bool) -> RecordArrays:
+    """Room for the first run's linear error model (one row per step when ``on``, else placeholders)."""
+    nr = N if on else 1
+    return RecordArrays(np.zeros((nr, n, 3)), np.zeros((nr, 3, H_COLS)), np.zeros((nr, H_COLS), np.int64),
+                        np.zeros(nr, np.int64), np.zeros((nr, 3, 18)), np.zeros((nr, 18), np.int64),
+                        np.zeros(nr, np.int64), np.zeros((nr, 2)), np.zeros(nr, np.bool_))
+
+
+def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.ndarray, theta0: np.ndarray,
+               p0: np.ndarray, layout: StateLayout, config: FilterConfig, rate_hz: float, **options) -> FilterRun:
+    """Run B filters of ``layout`` on raw (B, N, 3) gyro (rad/s) and accelerometer (m/s²) samples.
+
+    ``theta0`` (B, 18) nominal parameters (the static gyro bias goes in its ``gyro_bias`` slot even when the layout does
+    not estimate it), ``p0`` (n, n) or (B, n, n), ``quat0`` (B, 4) body→ENU.  Keyword ``options`` (all optional):
+
+    * ``r_var_per_sample``: measurement variance per sample (N,) or (B, N) instead of the config's constant;
+      ``update_mask`` (N,) or (B, N): False skips the update of that sample (saturated); ``gate_nis`` > 0 skips every
+      update whose NIS exceeds it; ``rest_mask`` (N,): samples known to be at rest, where the rate regressor is zero
+      (:mod:`calib.session.model`, "Regressors"); ``half_window``: L of the leave-out rate regressor;
+    * ``x0`` (n,) or (B, n): the prior mean as an error state, θ_prior − θ̂₀ (zero: the prior is centred on the
+      nominal); ``rows`` = 3 adds the vertical row (the |f| = g information) — for bounds computed at the truth
+      (:func:`calib.session.bounds.crlb_joint`) and kf_hand_joint, not for the hand-blind filters, where the gravity
+      fit carries it;
+    * ``lever_regressor`` (N, 3, 3) or (B, N, 3, 3): K(ω, ω̇) = [ω̇×] + [ω×]² per sample (body), needed by a layout
+      with ``lever_arm``; ``hand0`` (≤ 30,) or (B, ≤ 30): the nominal lever arm, external acceleration x and its
+      low-passes z, z₂ (missing ones start at 0; a layout with ``ext_acc`` takes the Gauss–Markov σ, τ and the
+      high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` … (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`)
+      runs a_e as the general shaping filter of :meth:`calib.session.model.FilterConfig.ext_acc_model` (the
+      band-limited sway, or the same Gauss–Markov family), discretised exactly per step;
+    * ``sensor0`` (≤ 15,) or (B, ≤ 15): the nominal c_b, s_T, k of the gyro's extra blocks and c_a, δ of the
+      accelerometer's (default 0; missing ones 0); ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), needed by a
+      layout with ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then ω̃ = (M_g + diag(s_T)(T − T₀)) ω +
+      b_g + c_b (T − T₀) + ε (``THERMAL_BLOCKS``), and with ``acc_temp_bias`` f̃ = M_a f + b_a + c_a (T − T₀) + v
+      (``ACC_THERMAL_BLOCKS``; T at the update's sample); ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²),
+      needed by a layout with ``gyro_g_sens``: b_g,i += k_i f_i (``G_SENS_BLOCKS``);
+    * ``acc_rate_m_s3`` (N, 3) or (B, N, 3): ḟ̃, the time derivative of the (compensated) specific force (body,
+      m/s³), needed by a layout with ``acc_delay``: the accelerometer samples f̃_i(t) = f_i(t − δ_i), so the update
+      uses f̃ + diag(δ̂) ḟ̃ and H's δ block is −Ĉ diag(ḟ̃) (first order in δ; ``ACC_DELAY_BLOCKS``);
+    * ``lever_jacobian`` (:class:`LeverJacobian`, (N, …) or (B, N, …)): how ``lever_regressor``'s K r̂ moves with the
+      gyro's S, G, b — K was computed from the rate compensated at ``theta0``, so the update subtracts K r̂ +
+      J (θ̂ − θ₀) and H gets Ĉ J on those states (and on c_b, s_T, k through them).  Without it K r̂ is taken as
+      exact: right when S, G are already well determined, but a session that pins S, G only weakly leaves K's error
+      in the innovations, correlated with the motion, and σ of S, G optimistic (docs/hand.md, "The lever arm term's
+      Jacobian");
+    * ``keep_history``: the per-step √diag P and θ̂; ``record``: the first run's linear error model
+      (:class:`FilterRecord`, for :mod:`calib.session.spectral`).
+    """
+    inp = filter_inputs(gyro, acc, t_s, quat0, theta0, p0, layout, config, rate_hz, **options)
+    st = inp.settings
+    B, N = inp.signals.gyro.shape[:2]
+    rec = _record_arrays(layout.n, N, st.record)
+    theta, p, q, nis, inn, hsd, hth, hand, wht, sens = _kernel(inp.t, inp.signals, inp.start, st, inp.shaping, rec)
     return FilterRun(
-        layout,
-        theta,
-        p,
-        q,
-        nis,
-        inn,
-        hsd if keep_history else None,
-        hth if keep_history else None,
+        layout, theta, p, q, nis, inn,
+        hsd if st.keep else None,
+        hth if st.keep else None,
         hand if layout.models_hand else None,
         wht,
         sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None,
-        FilterRecord(*rec_arrays, rows=m_rows) if record else None,
+        FilterRecord(*rec, rows=st.rows) if st.record else None,
     )
 
 
@@ -893,66 +1125,3 @@ def run_batch(
                      r_var_per_sample=r_var_per_sample, keep_history=keep_history, gate_nis=gate_nis)
     hist = None if run.sd_history is None else np.transpose(run.sd_history, (1, 0, 2))
     return BatchResult(run.block("gyro_scale"), run.block("gyro_nonorth"), run.p, hist)
-
-
-def crlb(
-    omega_true_rad_s: np.ndarray,
-    quat_true_nb: np.ndarray,
-    t_s: np.ndarray,
-    config: FilterConfig,
-    rate_hz: float,
-    scale_true: np.ndarray,
-    nonortho_true: np.ndarray,
-    vague: float = 10.0,
-) -> np.ndarray:
-    """Cramér–Rao bound (9, 9) of [φ₀-tracked attitude, S, G] for one trajectory (module docstring).
-
-    The Riccati recursion of the error model at the true attitude and true rate (the
-    compensated rate equals the true one), with the true M⁻¹, a vague prior σ = ``vague`` on S
-    and G and the config's attitude prior; the measurement noise and ARW are the config's.
-    """
-    m = _m_hat(np.asarray(scale_true, float)[None], np.asarray(nonortho_true, float)[None])[0]
-    m_inv = np.linalg.inv(m)
-    c = config
-    p = np.diag([c.prior_attitude_rad**2] * 3 + [vague**2] * 6)
-    gz = c.gravity_m_s2
-    h = np.zeros((3, 9))
-    h[0, 1], h[1, 0] = -gz, gz
-    r = np.eye(3) * c.r_var(rate_hz)
-    cmats = quat_to_matrix(quat_true_nb)
-    w = np.asarray(omega_true_rad_s, float)
-    for k in range(1, t_s.size):
-        dt = float(t_s[k] - t_s[k - 1])
-        w_bar = 0.5 * (w[k - 1] + w[k])
-        c_mid = 0.5 * (cmats[k - 1] + cmats[k])
-        cm = -dt * c_mid @ m_inv
-        f = np.eye(9)
-        f[0:3, 3:6] = cm * w_bar[None, :]
-        f[0:3, 6:9] = cm @ _j_g(w_bar[None])[0]
-        p = f @ p @ f.T
-        p[0:3, 0:3] += np.eye(3) * c.arw_rad_s_sqrt_hz**2 * dt
-        ph = p @ h.T
-        s = h @ ph + r
-        kg = ph @ np.linalg.inv(s)
-        p = p - kg @ ph.T
-        p = 0.5 * (p + p.T)
-    return p
-
-
-def crlb_joint(omega_true_rad_s: np.ndarray, specific_force_true_m_s2: np.ndarray, quat_true_nb: np.ndarray,
-               t_s: np.ndarray, theta_true: np.ndarray, layout: StateLayout, config: FilterConfig, rate_hz: float,
-               vague: float = 10.0) -> np.ndarray:
-    """Cramér–Rao bound (n, n) of a layout's states for one trajectory: the filter's Riccati recursion
-    fed the noise-free readings of the true device (so its nominal stays on the truth and the
-    covariance is the information of the linearised model there), with all three measurement rows
-    and a vague prior (σ = ``vague`` in the parameters' units) on every parameter block."""
-    th = np.asarray(theta_true, float)
-    def m(s, g):
-        return np.eye(3) + np.diag(s) + np.array([[0, g[2], g[1]], [g[2], 0, g[0]], [g[1], g[0], 0]])
-    gyro = np.asarray(omega_true_rad_s) @ m(th[0:3], th[3:6]).T + th[6:9]
-    acc = np.asarray(specific_force_true_m_s2) @ m(th[12:15], th[15:18]).T + th[9:12]
-    p0 = np.eye(layout.n) * vague**2
-    p0[0:3, 0:3] = np.eye(3) * config.prior_attitude_rad**2
-    run = run_filter(gyro[None], acc[None], t_s, np.asarray(quat_true_nb[0], float)[None], th[None], p0, layout,
-                     config, rate_hz, rows=3)
-    return run.p[0]

@@ -1,4 +1,4 @@
-"""The calibration filter's model, its state layout, and the reference implementation (filterpy).
+"""The calibration filter's model: its equations, state layout, configuration and priors.
 
 Zhou et al. 2020 §3.3 estimate gyro scale factor and non-orthogonality with a 9-state error-state
 Kalman filter whose measurement is the accelerometer's gravity residual.  That assumes a
@@ -18,7 +18,8 @@ of Ferraris 1995 / Tedaldi 2014's multi-position calibration after fixing the fr
 
 **Nominal / error state.** The nominal (attitude Ĉ = C(q̂) body→ENU, θ̂ = [Ŝ_g, Ĝ_g, b̂_g, b̂_a, Ŝ_a, Ĝ_a])
 compensates the samples, ω̂ = M̂_g⁻¹(ω̃ − b̂_g), f̂ = M̂_a⁻¹(f̃ − b̂_a), and integrates q̂ (trapezoid
-+ coning, :meth:`ZhouFilter.step`).  The error state x = [φ, δθ] (blocks of :class:`StateLayout`),
++ coning, :meth:`calib.session.reference.ZhouFilter.step`).  The error state x = [φ, δθ] (blocks of
+:class:`StateLayout`),
 Ĉ = (I − [φ×]) C (Zhou eq. 10), δθ = θ − θ̂.  To first order (δM = diag(δS) + N(δG),
 δM ω = X(ω) [δS; δG], X(ω) = [diag(ω), J_G(ω)], J_G(ω) = ∂(N(G)ω)/∂G = N with G → ω):
 
@@ -56,15 +57,14 @@ integration and the measurement use the raw samples as before.  The averaging bi
 (≈ ω̈ (L Δt)²/6) multiplies δθ only: second order, gone as δθ → 0.
 
 **Reset** after every update: θ̂ += δθ̂, Ĉ ← (I + [φ̂×]) Ĉ, x ← 0.  Joseph-form covariance update,
-re-symmetrised.  :class:`ZhouFilter` runs this with filterpy, one sample at a time (readable,
-slow); :func:`calib.session.kernel.run_filter` is the same arithmetic compiled and batched (the one
-``calibrate`` uses; equal to 1e-9, tested).
+re-symmetrised.  :class:`calib.session.reference.ZhouFilter` runs this one sample at a time (readable,
+slow); :func:`calib.session.kernel.run_filter` is the same arithmetic compiled and batched (the one every
+method uses; the two agree on every layout, tested).
 
 **Adding states** (e.g. a lever arm or a coloured external acceleration): add a block name to
-``BLOCKS`` (and its nominal to ``THETA``), its prior to :func:`initial_covariance`, its columns of
-F / H and its reset in both implementations.  The layout of any run is a :class:`StateLayout`.
-
-filterpy pitfall: ``update`` must get z as a column vector (a 1-D z silently gives x the wrong shape).
+``BLOCKS`` (its nominal to ``THETA``, or beside it as the hand's and the sensor's extra blocks are), its
+prior to :func:`initial_covariance`, its columns of F / H and its reset in both implementations
+(:mod:`calib.session.kernel`, :mod:`calib.session.reference`).  The layout of any run is a :class:`StateLayout`.
 """
 
 from __future__ import annotations
@@ -73,15 +73,15 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 
 from gyrosim.effects import nonortho_matrix
 from gyrosim.rotations import quat_normalize, skew
 
+from calib.compat import moved_attribute
+
 __all__ = [
     "FilterConfig",
     "FilterHistory",
-    "ZhouFilter",
     "STATE_NAMES",
     "StateLayout",
     "PAPER",
@@ -102,11 +102,22 @@ __all__ = [
     "BLOCKS",
     "THETA",
     "jacobian_nonorthogonality",
+    "nonorthogonality_jacobians",
+    "ext_acc_discrete",
     "initial_covariance",
     "leave_out_means",
     "m_matrix",
     "BLOCK_LABELS",
+    "theta_slice",
+    "acc_theta",
+    "q_mul",
+    "q_exp",
+    "q_unit",
+    "q_matrix",
+    "cross3",
 ]
+
+__getattr__ = moved_attribute(__name__)   # ZhouFilter: calib.session.reference
 
 STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_z")
 
@@ -140,7 +151,7 @@ assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
 # the accelerometer's delay behind the gyro, one state per axis, δ_i (s): f̃_i(t) = f_i(t − δ_i), to first order
 # f_i(t) = f̃_i(t) + δ_i ḟ̃_i(t) — two sensors' anti-alias filters of different bandwidth (MPU-9250: 41 Hz gyro,
 # 44.8 Hz accelerometer DLPF) or a sampling skew; kf_hand ties the three into one δ with a rank-one prior
-# (calib.session.hand.filter._common_delay_prior)
+# (calib.session.hand.priors.common_delay_prior)
 ACC_DELAY_BLOCKS = ("acc_delay",)
 assert all(b in BLOCKS for b in ACC_DELAY_BLOCKS)
 # their nominals: calib.session.kernel.FilterRun.sensor_extra (c_b, s_T, k, c_a, δ)
@@ -245,43 +256,63 @@ HAND_JOINT = StateLayout(BLOCKS[:11])    # kf_hand_joint: HAND_BIAS + the accele
 
 
 def theta_slice(block: str) -> slice:
+    """Where ``block``'s nominal sits in θ (18, ``THETA`` order)."""
     i = THETA.index(block)
     return slice(3 * i, 3 * i + 3)
 
 
-# ---- single-quaternion helpers for the per-sample loop (the vectorised gyrosim.rotations versions
-#      cost ~10 µs of array bookkeeping per call on one vector)
-def _qmul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+def acc_theta(theta: np.ndarray) -> np.ndarray:
+    """θ_a = [b_a, S_a, G_a] (9,) of an 18-vector θ (``THETA`` order): the accelerometer's part, as
+    :func:`calib.session.gravityfit.compensate_acc` takes it."""
+    return np.concatenate([theta[theta_slice("acc_bias")], theta[theta_slice("acc_scale")],
+                           theta[theta_slice("acc_nonorth")]])
+
+
+# ---- single-quaternion helpers for the per-sample reference filter (the vectorised gyrosim.rotations versions
+#      cost ~10 µs of array bookkeeping per call on one vector); the compiled kernel has its own
+def q_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """p ⊗ q of two quaternions (w, x, y, z)."""
     pw, px, py, pz = p
     qw, qx, qy, qz = q
     return np.array([pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
                      pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw])
 
 
-def _qexp(v: np.ndarray) -> np.ndarray:
+def q_exp(v: np.ndarray) -> np.ndarray:
+    """Exp(v): the unit quaternion of the rotation vector ``v`` (rad; series below 1e-6 rad)."""
     th = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     k = 0.5 - th * th / 48.0 if th < 1e-6 else math.sin(0.5 * th) / th
     return np.array([math.cos(0.5 * th), k * v[0], k * v[1], k * v[2]])
 
 
-def _qunit(q: np.ndarray) -> np.ndarray:
+def q_unit(q: np.ndarray) -> np.ndarray:
+    """``q`` normalised to unit length."""
     return q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
-def _qmat(q: np.ndarray) -> np.ndarray:
+def q_matrix(q: np.ndarray) -> np.ndarray:
+    """C(q) (3, 3), body → navigation, of a unit quaternion."""
     w, x, y, z = q
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of two 3-vectors."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 def jacobian_nonorthogonality(omega: np.ndarray) -> np.ndarray:
     """J_G(ω) = ∂(N(G) ω)/∂G: the same symmetric pattern as N with G → ω (see module docstring)."""
     return nonortho_matrix(np.asarray(omega, dtype=float))
+
+
+def nonorthogonality_jacobians(w: np.ndarray) -> np.ndarray:
+    """J_G(ω) of every row of ``w`` (B, 3) → (B, 3, 3) (:func:`jacobian_nonorthogonality`, vectorised)."""
+    z = np.zeros(w.shape[0])
+    wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
+    return np.stack([np.stack([z, wz, wy], -1), np.stack([wz, z, wx], -1), np.stack([wy, wx, z], -1)], -2)
 
 
 def m_matrix(scale: np.ndarray, nonortho: np.ndarray) -> np.ndarray:
@@ -465,6 +496,23 @@ def _butter_band_ss(f1_hz: float, f2_hz: float, order: int) -> tuple[np.ndarray,
     return a * sd[None, :] / sd[:, None], b / sd, c * sd
 
 
+def ext_acc_discrete(a: np.ndarray, qc: np.ndarray, dt_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact discretisation (Φ (U, d, d), Q_d (U, d, d)) of ẋ = A x + w, E w wᵀ = Q_c δ, over the steps
+    ``dt_s`` (U,): Φ = e^{AΔt}, Q_d = ∫₀^Δt e^{As} Q_c e^{Aᵀs} ds, both from one matrix exponential of Van Loan's
+    block [[−A, Q_c], [0, Aᵀ]]Δt (Van Loan 1978, IEEE TAC 23(3); Brown & Hwang 4th ed. §3.9)."""
+    from scipy.linalg import expm
+
+    d = a.shape[0]
+    m = np.zeros((2 * d, 2 * d))
+    m[:d, :d] = -a
+    m[:d, d:] = qc
+    m[d:, d:] = a.T
+    e = expm(np.asarray(dt_s, float)[:, None, None] * m[None])
+    phi = np.transpose(e[:, d:, d:], (0, 2, 1))
+    q = phi @ e[:, :d, d:]
+    return phi, 0.5 * (q + np.transpose(q, (0, 2, 1)))
+
+
 def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.ndarray | None = None,
                        f0_body: np.ndarray | None = None, acc_m_inv: np.ndarray | None = None,
                        acc_covariance: np.ndarray | None = None, tilt_sigma_rad: float | None = None) -> np.ndarray:
@@ -499,7 +547,7 @@ def initial_covariance(layout: StateLayout, config: FilterConfig, quat0_nb: np.n
         oa = layout.offset("acc_bias")
         p[oa:oa + 9, oa:oa + 9] = acc_covariance
     if layout.estimates_accelerometer and quat0_nb is not None and f0_body is not None:
-        c0 = _qmat(quat_normalize(np.asarray(quat0_nb, float)))
+        c0 = q_matrix(quat_normalize(np.asarray(quat0_nb, float)))
         mi = np.eye(3) if acc_m_inv is None else acc_m_inv
         g = config.gravity_m_s2
         cm = c0 @ mi
@@ -541,140 +589,3 @@ class FilterHistory:
             "innovation": np.asarray(self.innovation),
             "nis": np.asarray(self.nis),
         }
-
-
-class ZhouFilter:
-    """The error-state filter of the module docstring, one sample at a time (filterpy inside).
-
-    ``theta0``: nominal parameters (18, ``THETA`` order; default: the config's S₀, G₀, zeros);
-    ``p0``: initial covariance (default :func:`initial_covariance` of the layout); ``x0``: the prior
-    mean as an error state (θ_prior − θ̂₀; default zero: the prior centred on the nominal).  The
-    error state is propagated (x ← Φ x) and used in the innovation (z − H x) until the first reset.
-    """
-
-    def __init__(self, config: FilterConfig, quat0_nb: np.ndarray, rate_hz: float, layout: StateLayout = PAPER,
-                 theta0: np.ndarray | None = None, p0: np.ndarray | None = None, x0: np.ndarray | None = None) -> None:
-        if layout.models_hand or layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay:
-            raise ValueError("the hand's blocks (lever arm, external acceleration) and the temperature blocks run in "
-                             "the compiled filter only (calib.session.kernel.run_filter)")
-        self.config = config
-        self.layout = layout
-        n = layout.n
-        self.kf = KalmanFilter(dim_x=n, dim_z=3)
-        self.kf.P = initial_covariance(layout, config) if p0 is None else np.array(p0, float)
-        self.kf.x = np.zeros((n, 1)) if x0 is None else np.asarray(x0, float).reshape(n, 1)  # prior mean − nominal
-        self.kf.Q = np.zeros((n, n))
-        self.g_up = np.array([0.0, 0.0, config.gravity_m_s2])
-        self.kf.R = np.eye(3) * config.r_var(rate_hz)
-        if theta0 is None:
-            theta0 = np.zeros(18)
-            theta0[theta_slice("gyro_scale")] = config.scale0
-            theta0[theta_slice("gyro_nonorth")] = config.nonorthogonality0
-        self.theta = np.array(theta0, dtype=float)
-        self.quat = quat_normalize(np.asarray(quat0_nb, dtype=float))
-        self._rows = 2  # the levelling rows; the vertical row's |f| = g information is the gravity fit's
-        self._hist: dict[str, list] = {"t_s": [], "sd": [], "theta": [], "innovation": [], "nis": [], "whitened": []}
-
-    # ------------------------------------------------------------------ nominal parameters
-    def _block(self, block: str) -> np.ndarray:
-        return self.theta[theta_slice(block)]
-
-    @property
-    def scale(self) -> np.ndarray:
-        return self._block("gyro_scale").copy()
-
-    @property
-    def nonortho(self) -> np.ndarray:
-        return self._block("gyro_nonorth").copy()
-
-    def m_hat(self) -> np.ndarray:
-        """M̂_g = I + Ŝ_g + N(Ĝ_g)."""
-        return m_matrix(self._block("gyro_scale"), self._block("gyro_nonorth"))
-
-    def m_hat_acc(self) -> np.ndarray:
-        return m_matrix(self._block("acc_scale"), self._block("acc_nonorth"))
-
-    @property
-    def whitened(self) -> np.ndarray:
-        """(steps, 3) whitened innovations L⁻¹ν of every step so far (NaN where no update)."""
-        return np.asarray(self._hist["whitened"]).reshape(-1, 3)
-
-    @property
-    def history(self) -> FilterHistory:
-        h = self._hist
-        return FilterHistory(np.asarray(h["t_s"]), np.asarray(h["sd"]).reshape(-1, self.layout.n),
-                             np.asarray(h["theta"]).reshape(-1, 18), np.asarray(h["innovation"]).reshape(-1, 3),
-                             np.asarray(h["nis"]), self.layout.names)
-
-    # ------------------------------------------------------------------ one step
-    def step(self, t_s: float, dt: float, w_prev: np.ndarray, w_now: np.ndarray, f_body: np.ndarray,
-             update: bool = True, w_reg: np.ndarray | None = None, f_reg: np.ndarray | None = None,
-             still: bool = False) -> None:
-        """Propagate from the previous sample to this one and update with this accelerometer sample.
-
-        ``w_prev`` / ``w_now``: raw gyro samples (rad/s, body); ``f_body``: raw accelerometer
-        (m/s², body); ``w_reg`` / ``f_reg``: the raw regressors for F and H (module docstring;
-        default: the step's midpoint rate and this sample).
-        """
-        lay, kf, n = self.layout, self.kf, self.layout.n
-        b_g = self._block("gyro_bias")
-        m_inv = np.linalg.inv(self.m_hat())
-        wp = m_inv @ (w_prev - b_g)                                      # ω̂ at k−1
-        wn = m_inv @ (w_now - b_g)                                       # ω̂ at k
-        phi = 0.5 * (wp + wn) * dt + _cross(wp, wn) * (dt * dt / 12.0)   # rotation vector of the step (coning)
-        q_mid = _qmul(self.quat, _qexp(0.5 * phi))
-        self.quat = _qunit(_qmul(self.quat, _qexp(phi)))                # q̂ ⊗ Exp(φ)
-        if still:                                                        # at rest the true rate is zero
-            w_bar = np.zeros(3)
-        else:
-            w_bar = 0.5 * (wp + wn) if w_reg is None else m_inv @ (w_reg - b_g)
-        cm = -dt * _qmat(q_mid) @ m_inv                                  # −Ĉ M̂⁻¹ Δt
-        F = np.eye(n)
-        F[0:3, lay.offset("gyro_scale"):lay.offset("gyro_scale") + 3] = cm * w_bar          # scale column j × ω_j
-        F[0:3, lay.offset("gyro_nonorth"):lay.offset("gyro_nonorth") + 3] = cm @ jacobian_nonorthogonality(w_bar)
-        if lay.has("gyro_bias"):
-            F[0:3, lay.offset("gyro_bias"):lay.offset("gyro_bias") + 3] = cm
-        kf.F = F                                                         # Φ = I + F Δt (exact, F² = 0)
-        kf.Q[0, 0] = kf.Q[1, 1] = kf.Q[2, 2] = self.config.arw_rad_s_sqrt_hz**2 * dt
-        ob = self.layout.offset("gyro_bias")
-        if ob >= 0:                                                      # the bias's random walk, q_b Δt
-            for j in range(3):
-                kf.Q[ob + j, ob + j] = self.config.gyro_bias_rw_rad_s_sqrt_s**2 * dt
-        kf.predict()                                                     # P = Φ P Φᵀ + Q
-        innov, nis, white = np.full(3, np.nan), float("nan"), np.full(3, np.nan)
-        if update:
-            c = _qmat(self.quat)
-            mi_a = np.linalg.inv(self.m_hat_acc())
-            f_hat = mi_a @ (f_body - self._block("acc_bias"))
-            H = np.zeros((3, n))
-            H[:, 0:3] = skew(self.g_up)                                  # [g_up×] φ
-            if lay.estimates_accelerometer:
-                f_bar = c.T @ self.g_up if f_reg is None else np.asarray(f_reg, float)   # gravity predicted in body
-                cma = c @ mi_a
-                H[:, lay.offset("acc_bias"):lay.offset("acc_bias") + 3] = cma
-                H[:, lay.offset("acc_scale"):lay.offset("acc_scale") + 3] = cma * f_bar
-                H[:, lay.offset("acc_nonorth"):lay.offset("acc_nonorth") + 3] = cma @ jacobian_nonorthogonality(f_bar)
-            m = self._rows
-            z = (c @ f_hat - self.g_up)[:m].reshape(m, 1)                # column vector (filterpy)
-            kf.update(z, R=kf.R[:m, :m], H=H[:m])                        # y = z − H x; Joseph form inside filterpy
-            kf.P = 0.5 * (kf.P + kf.P.T)
-            innov = np.full(3, np.nan)
-            innov[:m] = kf.y.ravel()
-            nis = float(kf.y.ravel() @ np.linalg.solve(kf.S, kf.y.ravel()))
-            white[:m] = np.linalg.solve(np.linalg.cholesky(kf.S), kf.y.ravel())   # L⁻¹ν, S = L Lᵀ
-            self._inject()
-        h = self._hist
-        h["t_s"].append(t_s)
-        h["sd"].append(np.sqrt(np.clip(np.diag(kf.P), 0.0, None)))
-        h["theta"].append(self.theta.copy())
-        h["innovation"].append(innov)
-        h["nis"].append(nis)
-        h["whitened"].append(white)
-
-    def _inject(self) -> None:
-        x = self.kf.x.ravel()
-        for b in self.layout.blocks[1:]:
-            o = self.layout.offset(b)
-            self.theta[theta_slice(b)] += x[o:o + 3]                     # θ̂ += δθ̂
-        self.quat = _qunit(_qmul(_qexp(x[0:3]), self.quat))              # Ĉ ← (I + [φ×]) Ĉ
-        self.kf.x = np.zeros((self.layout.n, 1))

@@ -23,14 +23,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrosim.rotations import quat_to_matrix, skew
+from gyrosim.errors import RecordingError
+from gyrosim.rotations import quat_conjugate, quat_rotate, quat_to_matrix, skew
 from gyrosim.schedule import Schedule
 from gyrosim.units import G0
 
-from calib.session.model import STATE_NAMES, jacobian_nonorthogonality
+from calib.session.gravityfit import GravityFit, gravity_regressor
+from calib.session.model import STATE_NAMES, StateLayout, jacobian_nonorthogonality
 
 __all__ = ["som", "parameter_gram", "SegmentObservability", "segment_observability", "unobservable_states",
-           "unobservable_parameters"]
+           "unobservable_parameters", "JointObservability", "joint_observability", "filter_observability",
+           "check_observability", "missing_poses", "pose_name", "schedule_accelerometer_observability"]
 
 
 def som(omega_body_rad_s: np.ndarray, quat_nb: np.ndarray, gravity_m_s2: float = G0,
@@ -228,10 +231,6 @@ def schedule_accelerometer_observability(schedule: Schedule, rate_hz: float = 10
     information at the truth, per-sample noise ``sigma_f_m_s2`` (default: the MPU-9250's 3 mg at 100 Hz),
     against the prior (±1 m/s² bias, ±5 % scale and axis errors); the verdict of
     :func:`joint_observability` and the rest poses :func:`missing_poses` would add."""
-    from gyrosim.rotations import quat_conjugate, quat_rotate
-
-    from calib.session.gravityfit import gravity_regressor
-
     t = np.arange(0.0, schedule.duration_s, 1.0 / rate_hz)
     kin = schedule.kinematics(t)
     f = quat_rotate(quat_conjugate(kin.quat_nb), np.array([0.0, 0.0, gravity_m_s2]))
@@ -242,3 +241,55 @@ def schedule_accelerometer_observability(schedule: Schedule, rate_hz: float = 10
     verdict = joint_observability(np.linalg.inv(info), np.diag(prior**2), names, np.ones(9, bool))
     step = max(1, int(round(0.1 * rate_hz)))
     return verdict, missing_poses(list(verdict.unobservable + verdict.weak), f[::step])
+
+
+def filter_observability(layout: StateLayout, p_post: np.ndarray, p0: np.ndarray,
+                         gravity_fit: GravityFit | None) -> JointObservability:
+    """What a calibration run determined: the gyro's S, G from the filter's information (posterior ``p_post`` (n, n)
+    against the prior ``p0``), the accelerometer from the |f| = g stage's (``gravity_fit``, when it is estimated) — a
+    session whose gravity directions do not determine the accelerometer is refused (:func:`check_observability`),
+    whatever the filter's horizontal rows would add: the criterion of Ferraris and Tedaldi."""
+    keep = np.array([blk in ("gyro_scale", "gyro_nonorth") for blk in layout.blocks for _ in range(3)])
+    gyro = joint_observability(p_post, p0, layout.names, keep)
+    if gravity_fit is None:
+        return gyro
+    gf = gravity_fit
+    names = tuple(f"{blk}_{ax}" for blk in ("ba", "Sa", "Ga") for ax in "xyz")
+    acc = joint_observability(gf.covariance, np.diag(gf.prior_sigma**2), names, np.ones(9, bool))
+    return JointObservability(gyro.names + acc.names, np.concatenate([gyro.ratio, acc.ratio]),
+                              gyro.unobservable + acc.unobservable, gyro.weak + acc.weak,
+                              gyro.directions + acc.directions)
+
+
+def _label(name: str) -> str:
+    """'Sa_x' → 'accelerometer S_x'; the gyro's names stay the paper's ('S_x', 'G_y')."""
+    block, ax = name.split("_")
+    return {"S": f"S_{ax}", "G": f"G_{ax}", "ba": f"accelerometer b_{ax}", "Sa": f"accelerometer S_{ax}",
+            "Ga": f"accelerometer G_{ax}"}[block]
+
+
+def check_observability(obs: JointObservability, windows_f_hat: np.ndarray | None, warnings: list[str]) -> None:
+    """An accelerometer the session cannot separate from the gyro errors is refused (RecordingError naming the rest
+    poses to add, from the quasi-static windows' gravity directions ``windows_f_hat``); gyro S, G the motion left
+    undetermined are named in ``warnings`` (appended)."""
+    acc_names = [n for n in obs.unobservable + obs.weak if n.split("_")[0] in ("ba", "Sa", "Ga")]
+    if acc_names:
+        poses = missing_poses(acc_names, windows_f_hat)
+        raise RecordingError(
+            "this session cannot separate the accelerometer from the gyro errors: "
+            f"{', '.join(_label(n) for n in acc_names)} "
+            "stay undetermined (posterior σ above half the prior). Add rest poses of ≥ 2 s with gravity along: "
+            f"{'; '.join(poses) if poses else 'more distinct directions (Tedaldi 2014: ≥ 9, well spread)'} — or slow "
+            "rotations through them — or pass --accelerometer calibrated if the accelerometer is calibrated already"
+        )
+    gyro_unobs = [n for n in obs.unobservable if n.split("_")[0] in ("S", "G")]
+    gyro_weak = [n for n in obs.weak if n.split("_")[0] in ("S", "G")]
+    if gyro_unobs:
+        warnings.append(
+            f"unobservable: {', '.join(gyro_unobs)}: the recording's motion leaves them undetermined (posterior σ "
+            "within 90 % of the prior; Zhou 2020 §4); add rotations about horizontal axes (scale factors) and about "
+            "the vertical (non-orthogonality), Zhou 2020 Table 5")
+    if gyro_weak:
+        warnings.append(
+            f"weakly observable: {', '.join(gyro_weak)} (posterior σ > half the prior): the motion barely excited "
+            "them for this noise level; rotate longer or faster about the axes Zhou 2020 Table 5 names")

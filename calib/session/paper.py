@@ -1,5 +1,5 @@
-"""calibrate(): one hand-held session → a :class:`~gyrosim.calibration.Calibration` of the gyro and,
-by default, the accelerometer.
+"""The paper family: ``calibrate()`` (one hand-held session → a :class:`~gyrosim.calibration.Calibration` of the gyro
+and, by default, the accelerometer) and the paper's 9-state filter's variants the registry names.
 
 **Method** (``accelerometer="estimate"``, the default): one augmented error-state filter,
 Zhou 2020's 9 states plus the gyro bias and the accelerometer's bias, scale factor and
@@ -17,62 +17,55 @@ multi-position accelerometer calibration feeding Zhou's filter:
 * the same structure takes further states (a lever arm, coloured external acceleration):
   a block of :class:`calib.session.model.StateLayout`, its F/H columns and its prior.
 
-A Tedaldi-style |f| = g fit over the session's quasi-static windows (:mod:`calib.session.gravityfit`) runs
-first; it is not the answer but the filter's starting point (linearisation), the source of the
-external-acceleration allowance (the residual |f̂| − g after it) and of the pose advice.
 ``accelerometer="calibrated"`` is the paper's 9-state filter with the static bias (Zhou §3.3.2
-assumes a calibrated accelerometer), today's behaviour.
+assumes a calibrated accelerometer).
 
 **Steps.**
 
-1. input checks (gaps, units, saturation: :mod:`calib.inputs`);
-2. rest detection and the static gyro bias (Zhou §3.2, :mod:`calib.session.rest`);
-3. noise levels from the first rest segment with floors (:mod:`calib.session.noiselevels`) — never from a
-   simulator's stored sensor model;  gravity: ``gravity_m_s2`` (default standard gravity
-   9.80665 m/s² when the accelerometer is estimated: the scale factors are relative to it, so a
-   local g off by 0.1 % shifts S_a by 0.1 %; with a calibrated accelerometer the mean |f| at rest);
-4. the |f| = g fit (estimate mode) and the initial attitude from gravity at rest (roll, pitch;
-   heading unobservable, set to 0), P₀ with the tilt's dependence on the accelerometer errors;
-5. external-acceleration allowance a_ext, unless given: the larger of the accelerometer's rest
-   variance beyond its white noise and √(3 (⟨(|f̂| − g)²⟩ − σ_f²)) over the session (|f| − g sees only
-   the component of the external acceleration along gravity, a third of an isotropic one's variance);
+1–5. the session prepared (:func:`calib.session.prepare.prepare`): input checks, rests and the static bias,
+   noise levels, the |f| = g fit and the initial attitude, the external-acceleration allowance;
 6. the filter (compiled, :func:`calib.session.kernel.run_filter`): ``kf_session`` one pass, ``iterated_session``
    three, each re-linearised at the previous pass's estimate with the prior kept where it was (the prior mean
    enters as the initial error state x₀ = θ_prior − θ̂: Gauss–Newton on the batch posterior);
-7. observability from the filter's own information (:func:`calib.session.observability.joint_observability`):
+7. observability from the filter's own information (:func:`calib.session.observability.filter_observability`):
    gyro combinations the motion left undetermined are named in ``warnings``; an accelerometer that
    this session cannot separate from the gyro errors is an error naming the parameters and the rest
    poses to add;
 8. the verdict (:mod:`calib.session.consistency`): ``status`` ok / diverged / inconsistent, with warnings
-   saying what to try.
+   saying what to try;
+9. an "ok" result is compared with the hand-aware estimate (:func:`calib.session.crosscheck.hand_checked`): the
+   public :func:`calibrate` and :func:`paper_filter` call it on their own result, so the method's verdict above
+   never runs another method.
 
-**Names.** One name per algorithm, the same in ``calib run``, campaigns and Monte Carlo: this
-function's filter, with its session-wide external-acceleration allowance (step 5), is ``kf_session``
-(``iterated_session``: three passes), and its result is labelled with the registered estimator that
-runs it (:data:`REGISTERED_NAME`: ``kf_joint``, ``iterated_joint`` with the accelerometer estimated;
-``kf_session_r``, ``iterated_session_r`` with it calibrated).  ``kf`` is the paper's filter (R from the
-accelerometer noise alone, :func:`calib.session.registry.kf`), which this function does not run; the former
-spellings ``calibrate(rec, "kf")`` / ``"iterated"`` still work and warn (DeprecationWarning).
+**Names.** One name per algorithm, the same in ``calib run``, campaigns and Monte Carlo: the registered
+estimator names (:data:`REGISTERED_NAME`).  This function's filter, with its session-wide external-acceleration
+allowance (step 5), is ``kf_joint`` with the accelerometer estimated and ``kf_session_r`` with it calibrated
+(``iterated_joint`` / ``iterated_session_r``: three passes); ``calibrate(rec, "kf_session_r")`` takes the
+accelerometer mode from the name.  ``kf`` is the paper's filter (R from the accelerometer noise alone,
+:func:`paper_filter` with :class:`PaperParams`), which :func:`calibrate` does not run.  The former spellings —
+the algorithm's own ``kf_session`` / ``iterated_session`` with ``accelerometer=``, and before them ``kf`` /
+``iterated`` — still work and warn (DeprecationWarning) naming the registered name.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from warnings import warn
 
 import numpy as np
+from scipy import signal as sp_signal
+from scipy import stats
 
 from gyrosim.calibration import Calibration, truth_calibration
-from gyrosim.effects import Bias, NonOrthogonality, ScaleFactor, WhiteNoise
-from gyrosim.errors import RecordingError
+from gyrosim.effects import Bias, NonOrthogonality, ScaleFactor, WhiteNoise, nonortho_matrix
 from gyrosim.recording import Recording
-from gyrosim.rotations import quat_from_two_vectors
-from gyrosim.units import G0
+from gyrosim.rotations import quat_conjugate, quat_rotate, skew
+from gyrosim.strapdown import integrate_gyro
 
-from calib.inputs import KF, check_recording
 from calib.session.consistency import (
     FixedParameterEffect,
+    Inflation,
     apply_inflation,
     check_estimate,
     check_innovations,
@@ -81,35 +74,43 @@ from calib.session.consistency import (
     rest_gravity,
     verdict,
 )
-from calib.session.gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows
+from calib.session.crosscheck import hand_checked
+from calib.session.drift import bias_drift_note
+from calib.session.gravityfit import compensate_acc
 from calib.session.kernel import FilterRun, regressor_half_window, run_filter
 from calib.session.model import (
     BLOCK_LABELS,
-    JOINT,
     PAPER,
-    FilterConfig,
     FilterHistory,
-    StateLayout,
-    ZhouFilter,
+    acc_theta,
     initial_covariance,
     leave_out_means,
-    m_matrix,
     theta_slice,
 )
-from calib.session.noiselevels import NoiseLevels, estimate_noise
-from calib.session.observability import JointObservability, joint_observability, missing_poses
-from calib.session.rest import BiasEstimate, RestSegments, detect_rest, static_bias
-from calib.session.rest_bias import RestBias, rest_bias
+from calib.session.observability import JointObservability, check_observability, filter_observability
+from calib.session.prepare import (  # noqa: F401 (re-exported: their old home)
+    ACCELEROMETER_MODES,
+    Prepared,
+    initial_attitude,
+    motion_unobservable,
+    prepare,
+    refuse_if_nothing_observed,
+    rest_mask,
+    tilt_sigma,
+)
+from calib.session.reference import ZhouFilter
 
 __all__ = ["calibrate", "prepare", "Prepared", "METHODS", "ACCELEROMETER_MODES", "REGISTERED_NAME", "resolve_method",
-           "true_gyro_parameters"]
+           "true_gyro_parameters", "PaperParams", "paper_filter", "session_filter_run", "prior_offset",
+           "lever_arm_two_pass", "GATE_NIS"]
 
-METHODS = ("kf_session", "iterated_session")
-ACCELEROMETER_MODES = ("estimate", "calibrated")
+METHODS = ("kf_session", "iterated_session")   # the algorithms: one pass, three re-linearised passes
 ENGINES = ("compiled", "filterpy")
-# the former spellings: "kf" now names the paper's filter everywhere (registered ``kf``: R from the
-# accelerometer noise only), which this function never ran; accepted here with a DeprecationWarning
-DEPRECATED_METHODS = {"kf": "kf_session", "iterated": "iterated_session"}
+# the former spellings → the algorithm, accepted with a DeprecationWarning naming the registered name: the
+# algorithm's own names, and "kf"/"iterated", which now name the paper's filter everywhere (registered ``kf``:
+# R from the accelerometer noise only) — this function never ran that
+DEPRECATED_METHODS = {"kf_session": "kf_session", "iterated_session": "iterated_session", "kf": "kf_session",
+                      "iterated": "iterated_session"}
 # the registered estimator name (``gyrosim.estimators``) of each (method, accelerometer) pair: the
 # label a result carries, the same in ``calib run``, a campaign and a Monte Carlo
 REGISTERED_NAME = {
@@ -118,162 +119,148 @@ REGISTERED_NAME = {
     ("kf_session", "calibrated"): "kf_session_r",
     ("iterated_session", "calibrated"): "iterated_session_r",
 }
+# innovation gating of the paper filter's gated variants: χ²₂(0.999) = 13.8
+GATE_NIS = float(stats.chi2.ppf(0.999, 2))
 
 
-def resolve_method(method: str, *, stacklevel: int = 3) -> str:
-    """``method`` as one of :data:`METHODS`; a deprecated spelling warns (DeprecationWarning) and maps."""
+def resolve_method(method: str | None, accelerometer: str | None = None, *, stacklevel: int = 3) -> tuple[str, str]:
+    """(algorithm of :data:`METHODS`, accelerometer mode) of ``method``, a registered name (None: ``kf_joint``, or
+    ``kf_session_r`` with ``accelerometer="calibrated"``) whose mode an ``accelerometer`` may not contradict; a former
+    spelling (:data:`DEPRECATED_METHODS`) takes the mode asked (default estimate) and warns (DeprecationWarning)."""
+    by_name = {name: key for key, name in REGISTERED_NAME.items()}
+    if method is None:
+        return "kf_session", accelerometer or "estimate"
+    if method in by_name:
+        algorithm, mode = by_name[method]
+        if accelerometer not in (None, mode):
+            other = REGISTERED_NAME[algorithm, accelerometer] if accelerometer in ACCELEROMETER_MODES else None
+            raise ValueError(f"method {method!r} is the filter with the accelerometer {mode}, not {accelerometer!r}"
+                             + (f"; use {other!r}" if other else ""))
+        return algorithm, mode
     if method in DEPRECATED_METHODS:
-        new = DEPRECATED_METHODS[method]
-        warn(f"method {method!r} is deprecated: this filter (session-wide external-acceleration "
-                      f"allowance) is {new!r}; 'kf' names the paper's filter (R from the accelerometer noise "
-                      "only) in every command", DeprecationWarning, stacklevel=stacklevel)
-        return new
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
-    return method
+        algorithm, mode = DEPRECATED_METHODS[method], accelerometer or "estimate"
+        name = REGISTERED_NAME.get((algorithm, mode), algorithm)   # an unknown mode: prepare() says so
+        why = ("its registered name" if method in METHODS else "this function's filter (session-wide "
+               "external-acceleration allowance) by its registered name; 'kf' names the paper's filter (R from the "
+               "accelerometer noise only) in every command")
+        warn(f"method {method!r} is deprecated: use {name!r}, {why}", DeprecationWarning, stacklevel=stacklevel)
+        return algorithm, mode
+    raise ValueError(f"unknown method {method!r}; use one of {', '.join(by_name)}")
 
 
-@dataclass(frozen=True)
-class Prepared:
-    """Everything the filter needs from a recording, before it runs (steps 1–5)."""
-
-    bias: BiasEstimate
-    rest: RestSegments
-    noise: NoiseLevels
-    config: FilterConfig
-    layout: StateLayout
-    quat0_nb: np.ndarray
-    theta0: np.ndarray
-    p0: np.ndarray
-    start: int
-    saturated: np.ndarray | None
-    warnings: tuple[str, ...]
-    gravity_fit: GravityFit | None
-    windows_f_hat: np.ndarray | None
-    bias_std_rad_s: np.ndarray
-    rest_range: tuple[int, int] = (0, 0)
-    # the first rest's mean at its stated reference with σ = white noise ⊕ the hand's rotation
-    # (calib.session.rest_bias); bias_std_rad_s is its σ
-    rest_bias: RestBias | None = None
-    bias_batch_std_rad_s: np.ndarray | None = None
-
-    @property
-    def accelerometer(self) -> str:
-        return "estimate" if self.layout.estimates_accelerometer else "calibrated"
+# ---------------------------------------------------------------------------------------------------------------------
+# calibrate(): kf_session / iterated_session
 
 
-def _allowance(rec: Recording, theta_a: np.ndarray | None, a: int, b: int, g: float, sigma_f2: float) -> float:
-    """a_ext (m/s² RMS, step 5): √max(rest excess, 3 (⟨(|f̂| − g)²⟩ − σ_f²), 0) over the session from ``a``."""
-    f_hat = rec.acc_m_s2 if theta_a is None else compensate_acc(rec.acc_m_s2, theta_a)
-    rest_excess = float(np.mean(np.var(rec.acc_m_s2[a:b], axis=0))) - sigma_f2
-    along_g = float(np.mean((np.linalg.norm(f_hat[a:], axis=1) - g - sigma_f2 / g) ** 2)) - sigma_f2
-    return math.sqrt(max(rest_excess, 3.0 * along_g, 0.0))
-
-
-def _tilt_sigma(rec: Recording, a: int, b: int, g: float) -> float:
-    """σ (rad) of roll and pitch from the accelerometer's mean over the rest [a, b): its standard
-    error from 10 batch means (honest when tremor correlates the samples) over g."""
-    means = np.array([m.mean(axis=0) for m in np.array_split(rec.acc_m_s2[a:b], 10)])
-    return float(np.mean(means.std(axis=0, ddof=1)) / math.sqrt(10) / g) + 1e-9
-
-
-def _initial_attitude(rec: Recording, theta: np.ndarray, a: int, b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """q₀ (body→ENU, heading 0) from the compensated accelerometer mean over the rest [a, b), that
-    mean f̂₀ and M̂_a⁻¹."""
-    th_a = np.concatenate([theta[theta_slice("acc_bias")], theta[theta_slice("acc_scale")],
-                           theta[theta_slice("acc_nonorth")]])
-    f0 = compensate_acc(rec.acc_m_s2[a:b], th_a).mean(axis=0)
-    q0 = quat_from_two_vectors(f0, np.array([0.0, 0.0, 1.0]))
-    return q0, f0, np.linalg.inv(m_matrix(th_a[3:6], th_a[6:9]))
-
-
-def prepare(
+def calibrate(
     rec: Recording,
+    method: str | None = None,
     *,
-    accelerometer: str = "estimate",
+    accelerometer: str | None = None,
     external_acc_allowance_m_s2: float | None = None,
     arw_rad_s_sqrt_hz: float | None = None,
     vrw_m_s2_sqrt_hz: float | None = None,
     gravity_m_s2: float | None = None,
     min_rest_s: float = 2.0,
-) -> Prepared:
-    """Steps 1–5 of the module docstring: checks, rest, bias, noise levels, |f| = g fit, allowance, P₀."""
-    if accelerometer not in ACCELEROMETER_MODES:
-        raise ValueError(f"accelerometer must be one of {ACCELEROMETER_MODES}, got {accelerometer!r}")
-    estimate = accelerometer == "estimate"
-    check = check_recording(rec, requirements=KF)
-    rest = detect_rest(rec)
-    bias = static_bias(rec, rest, min_rest_s=min_rest_s)
-    a, b = bias.index_range
-    fs = rec.rate_hz
-    g = gravity_m_s2 or (G0 if estimate else float(np.mean(np.linalg.norm(rec.acc_m_s2[a:b], axis=1))))
-    noise = estimate_noise(rec.gyro_rad_s, rec.acc_m_s2, (a, b), fs, g)
-    arw = arw_rad_s_sqrt_hz or noise.arw_rad_s_sqrt_hz
-    vrw = vrw_m_s2_sqrt_hz or noise.vrw_m_s2_sqrt_hz
-    sigma_f2 = vrw**2 * fs
-    warnings = list(check.warnings) + noise.notes()
-    # the bias's σ: white noise over the rest ⊕ the hand's rotation during it, which the 10 batch means of
-    # static_bias count as noise although it cancels in the whole mean (calib.session.rest_bias; measured: the batch
-    # means' σ was 4–14× too large with a hand). Its reference (time, temperature, specific force) is finished
-    # below, once the accelerometer's calibration is known.
-    # N_g from the rest's spectrum above the tremor band (a hand's tremor is not sensor noise), else the spread
-    # (at 2–6 Hz when that band is higher: an output low-pass, or a hand's motion that averages out of the mean)
-    wd = noise.gyro_white
-    n_g = (wd.rest_mean_density if wd is not None else 0.0) or arw    # 0 (noise-free): the floored σ
-    rbias = rest_bias(rec.gyro_rad_s, rec.t_s, (a, b), n_g, rec.acc_m_s2, rec.temp_c)
-    bias_std = rbias.std_rad_s
-    # the 10 batch means' standard error (floored at the white noise): the prior kf_hand's random-walk bias state
-    # still starts from (measured on the x-IMU3 hand-held recording: the honest σ above moves its lever arm
-    # 5.3 → 2.8 ± 1.5 cm; not yet understood, so kf_hand keeps this prior)
-    batch_std = np.maximum(bias.std_rad_s, arw * math.sqrt(fs) / math.sqrt(b - a))
-    layout = JOINT if estimate else PAPER
-    base = FilterConfig(arw, vrw, 0.0, gravity_m_s2=g, prior_gyro_bias_rad_s=tuple(bias_std))
-    theta0 = np.zeros(18)
-    theta0[theta_slice("gyro_bias")] = bias.value_rad_s
-    gfit, f_windows = None, None
-    if estimate:
-        f = rec.acc_m_s2[a:]
-        f_reg = leave_out_means(f, regressor_half_window(fs), midpoint=False)
-        prior = np.concatenate([base.prior_sigma("acc_bias"), base.prior_sigma("acc_scale"),
-                                base.prior_sigma("acc_nonorth")])
-        gfit = fit_gravity(f, f_reg, sigma_f2, sigma_f2, g, prior)
-        if external_acc_allowance_m_s2 is None:
-            external_acc_allowance_m_s2 = _allowance(rec, gfit.theta, a, b, g, sigma_f2)
-        if external_acc_allowance_m_s2 > 0:  # refit with the hand's allowance in the weights (honest P_a)
-            gfit = fit_gravity(f, f_reg, sigma_f2 + external_acc_allowance_m_s2**2, sigma_f2, g, prior, gfit.theta)
-        theta0[theta_slice("acc_bias")] = gfit.bias_m_s2
-        theta0[theta_slice("acc_scale")] = gfit.scale_factor
-        theta0[theta_slice("acc_nonorth")] = gfit.nonorthogonality
-        wins, _ = quasi_static_windows(f, fs, 0.1)
-        f_windows = compensate_acc(wins, gfit.theta)
-        rbias = replace(rbias, specific_force_m_s2=compensate_acc(rec.acc_m_s2[a:b], gfit.theta).mean(axis=0))
-    elif external_acc_allowance_m_s2 is None:
-        external_acc_allowance_m_s2 = _allowance(rec, None, a, b, g, sigma_f2)
-    config = FilterConfig(arw, vrw, external_acc_allowance_m_s2, gravity_m_s2=g, prior_gyro_bias_rad_s=tuple(bias_std))
-    q0, f0, mi_a = _initial_attitude(rec, theta0, a, b)
-    tilt = _tilt_sigma(rec, a, b, g) if estimate else None
-    p0 = initial_covariance(layout, config, q0, f0, mi_a, None if gfit is None else gfit.covariance, tilt)
-    saturated = check.excluded if check.excluded_samples else None  # at a rail, bridged or spike-repaired
-    # with the gyro bias a state the filter starts after the rest that gave its prior: the same gyro
-    # samples would otherwise inform the bias twice (the static average, and the tilt drift at rest)
-    start = b - 1 if estimate else a
-    return Prepared(bias, rest, noise, config, layout, q0, theta0, p0, start, saturated, tuple(warnings), gfit,
-                    f_windows, bias_std, (a, b), rbias, batch_std)
+    iterations: int = 3,
+    keep_history: bool = True,
+    engine: str = "compiled",
+    hand_check: bool = True,
+    prepared: Prepared | None = None,
+) -> Calibration:
+    """Calibrate ``rec`` (module docstring); ``rec`` is not modified.
+
+    ``method``: a registered name (module docstring, "Names"; default ``kf_joint``, or ``kf_session_r`` with
+    ``accelerometer="calibrated"``).  ``prepared``: steps 1–5 already run by :func:`prepare` with the same options
+    (a caller that needs them too, e.g. :func:`calib.session.run.run_session` for the coaching, prepares once).
+
+    Raises :class:`~gyrosim.errors.RecordingError` for input the method cannot use (no rest, gaps,
+    wrong units, an accelerometer the motion cannot separate from the gyro errors).  A run that fails
+    its own consistency check is returned with ``status`` "diverged" or "inconsistent".
+    ``engine``: "compiled" (:func:`calib.session.kernel.run_filter`) or "filterpy" (the readable reference,
+    :class:`calib.session.reference.ZhouFilter`; ~40× slower, the same numbers to rounding).
+    ``hand_check``: an "ok" result is compared with the hand-aware estimate (``kf_hand``; with the
+    accelerometer estimated ``kf_hand_joint`` on the raw recording) and becomes "inconsistent" when they
+    differ beyond both σ (:func:`calib.session.crosscheck.hand_cross_check`: a lever arm's error hides from the
+    innovations).
+    """
+    method, accelerometer = resolve_method(method, accelerometer)
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; use one of {', '.join(ENGINES)}")
+    if prepared is not None and prepared.accelerometer != accelerometer:
+        raise ValueError(f"prepared for the accelerometer {prepared.accelerometer}, asked: {accelerometer}")
+    prep = prepared or prepare(rec, accelerometer=accelerometer,
+                               external_acc_allowance_m_s2=external_acc_allowance_m_s2,
+                               arw_rad_s_sqrt_hz=arw_rad_s_sqrt_hz, vrw_m_s2_sqrt_hz=vrw_m_s2_sqrt_hz,
+                               gravity_m_s2=gravity_m_s2, min_rest_s=min_rest_s)
+    cal = _calibrate_session(prep, rec, method, iterations, keep_history, engine)
+    if not hand_check:
+        return cal
+    return hand_checked(cal, rec, noise_free=prep.noise.noise_free, accelerometer=prep.accelerometer)
 
 
-def rest_mask(prep: Prepared, n: int) -> np.ndarray:
-    """(n,) True at the steps k−1 → k that lie inside a detected rest segment (samples from ``start``)."""
-    mask = np.zeros(n, dtype=bool)
-    for a, b in prep.rest.index_ranges:
-        lo, hi = max(a - prep.start + 1, 0), min(b - prep.start, n)
-        if hi > lo:
-            mask[lo:hi] = True
-    return mask
+def _calibrate_session(prep: Prepared, rec: Recording, method: str, iterations: int, keep_history: bool,
+                       engine: str) -> Calibration:
+    """Steps 6–8 of the module docstring on a prepared session (no hand cross-check)."""
+    warnings = list(prep.warnings)
+    a, b = prep.bias.index_range
+    refuse_if_nothing_observed(rec, prep.bias.value_rad_s, a, b, prep.start)
+    passes = 1 if method == "kf_session" else max(1, iterations)
+    theta0, q0, p0 = prep.theta0, prep.quat0_nb, prep.p0
+    obs = None
+    for i in range(passes):
+        last = i == passes - 1
+        run = session_filter_run(prep, rec, theta0, q0, p0, engine, keep_history and last)
+        if i == 0:
+            obs = filter_observability(prep.layout, run.p[0], p0, prep.gravity_fit)
+            check_observability(obs, prep.windows_f_hat, warnings)
+        if not last:
+            theta0 = run.theta[0].copy()
+            if prep.layout.estimates_accelerometer:
+                q0, f0, mi_a = initial_attitude(rec, theta0, a, b)
+                p0 = initial_covariance(prep.layout, prep.config, q0, f0, mi_a, prep.gravity_fit.covariance,
+                                        tilt_sigma(rec, a, b, prep.config.gravity_m_s2))
+    fixed = None
+    if not prep.layout.has("gyro_bias") and run.whitened is not None:
+        # the static bias is held fixed (the paper's 9 states): its error is part of the model, in the
+        # innovation test and in σ of S, G (calib.session.consistency, "Parameters the filter holds fixed")
+        # compiled either engine: equal to 1e-9, ×40 faster
+        def rerun(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            r = session_filter_run(prep, rec, th, q0, p0, "compiled", False)
+            return r.whitened[0], r.theta[0][0:6]
+
+        fixed = fixed_parameter_effect(rerun, theta0, theta_slice("gyro_bias"), prep.bias_std_rad_s, run.whitened[0],
+                                       run.theta[0][0:6])
+    return _result(prep, rec, run, obs, warnings, REGISTERED_NAME[method, prep.accelerometer], passes, fixed)
 
 
-def _run_reference(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.ndarray, p0: np.ndarray,
+def prior_offset(prep: Prepared, theta: np.ndarray) -> np.ndarray:
+    """x₀ = θ_prior − θ̂ over the layout's states: the prior mean seen from the linearisation point θ̂
+    (the prior is the first pass's: S, G = 0, the static gyro bias, the |f| = g fit)."""
+    x0 = np.zeros(prep.layout.n)
+    for blk in prep.layout.blocks[1:]:
+        o = prep.layout.offset(blk)
+        x0[o:o + 3] = prep.theta0[theta_slice(blk)] - theta[theta_slice(blk)]
+    return x0
+
+
+def session_filter_run(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.ndarray, p0: np.ndarray,
+                       engine: str, keep_history: bool) -> FilterRun:
+    """One pass of ``calibrate()``'s filter over the session from ``prep.start``, linearised at ``theta0``:
+    compiled (:func:`calib.session.kernel.run_filter`) or the readable reference (``engine="filterpy"``)."""
+    a, fs = prep.start, rec.rate_hz
+    mask = None if prep.saturated is None else ~prep.saturated[a:]
+    x0 = prior_offset(prep, theta0)
+    if engine == "filterpy":
+        return _reference_run(prep, rec, theta0, q0, p0, mask, x0)
+    return run_filter(rec.gyro_rad_s[None, a:], rec.acc_m_s2[None, a:], rec.t_s[a:], q0[None], theta0[None], p0,
+                      prep.layout, prep.config, fs, update_mask=mask, keep_history=keep_history,
+                      rest_mask=rest_mask(prep, rec.n - a), x0=x0[None])
+
+
+def _reference_run(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.ndarray, p0: np.ndarray,
                    mask: np.ndarray | None, x0: np.ndarray | None = None) -> FilterRun:
-    """The filterpy filter (:class:`calib.session.model.ZhouFilter`) over the session, as a FilterRun."""
+    """The readable filter (:class:`calib.session.reference.ZhouFilter`) over the session, as a FilterRun."""
     a, fs = prep.start, rec.rate_hz
     g, acc, t = rec.gyro_rad_s[a:], rec.acc_m_s2[a:], rec.t_s[a:]
     greg = leave_out_means(g, regressor_half_window(fs), midpoint=True)
@@ -287,175 +274,14 @@ def _run_reference(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.nd
                      h.nis[None], h.innovation[None], h.sd[None], h.theta[None], whitened=filt.whitened[None])
 
 
-def prior_offset(prep: Prepared, theta: np.ndarray) -> np.ndarray:
-    """x₀ = θ_prior − θ̂ over the layout's states: the prior mean seen from the linearisation point θ̂
-    (the prior is the first pass's: S, G = 0, the static gyro bias, the |f| = g fit)."""
-    x0 = np.zeros(prep.layout.n)
-    for blk in prep.layout.blocks[1:]:
-        o = prep.layout.offset(blk)
-        x0[o:o + 3] = prep.theta0[theta_slice(blk)] - theta[theta_slice(blk)]
-    return x0
-
-
-def _run(prep: Prepared, rec: Recording, theta0: np.ndarray, q0: np.ndarray, p0: np.ndarray, engine: str,
-         keep_history: bool) -> FilterRun:
-    a, fs = prep.start, rec.rate_hz
-    mask = None if prep.saturated is None else ~prep.saturated[a:]
-    x0 = prior_offset(prep, theta0)
-    if engine == "filterpy":
-        return _run_reference(prep, rec, theta0, q0, p0, mask, x0)
-    return run_filter(rec.gyro_rad_s[None, a:], rec.acc_m_s2[None, a:], rec.t_s[a:], q0[None], theta0[None], p0,
-                      prep.layout, prep.config, fs, update_mask=mask, keep_history=keep_history,
-                      rest_mask=rest_mask(prep, rec.n - a), x0=x0[None])
-
-
-def _observability(prep: Prepared, run: FilterRun, p0: np.ndarray) -> JointObservability:
-    """Gyro S, G from the filter's information; the accelerometer from the |f| = g stage's (module
-    docstring, step 7: a session whose gravity directions do not determine the accelerometer is refused,
-    whatever the filter's horizontal rows would add — the criterion of Ferraris and Tedaldi)."""
+def _session_covariance(prep: Prepared, rec: Recording, run: FilterRun, fixed: FixedParameterEffect | None
+                        ) -> tuple[np.ndarray, list[str], Inflation | None]:
+    """The reported covariance over (b_g, S, G[, b_a, S_a, G_a]): the filter's P, inflated from the innovations
+    (coloured residuals; the filter's states only), with the static bias's own variance and its effect on S, G when
+    the filter held it fixed.  Returns (covariance, its blocks, the inflation)."""
     lay = prep.layout
-    keep = np.array([blk in ("gyro_scale", "gyro_nonorth") for blk in lay.blocks for _ in range(3)])
-    gyro = joint_observability(run.p[0], p0, lay.names, keep)
-    if prep.gravity_fit is None:
-        return gyro
-    gf = prep.gravity_fit
-    names = tuple(f"{blk}_{ax}" for blk in ("ba", "Sa", "Ga") for ax in "xyz")
-    acc = joint_observability(gf.covariance, np.diag(gf.prior_sigma**2), names, np.ones(9, bool))
-    return JointObservability(gyro.names + acc.names, np.concatenate([gyro.ratio, acc.ratio]),
-                              gyro.unobservable + acc.unobservable, gyro.weak + acc.weak,
-                              gyro.directions + acc.directions)
-
-
-def _label(name: str) -> str:
-    """'Sa_x' → 'accelerometer S_x'; the gyro's names stay the paper's ('S_x', 'G_y')."""
-    block, ax = name.split("_")
-    return {"S": f"S_{ax}", "G": f"G_{ax}", "ba": f"accelerometer b_{ax}", "Sa": f"accelerometer S_{ax}",
-            "Ga": f"accelerometer G_{ax}"}[block]
-
-
-def calibrate(
-    rec: Recording,
-    method: str = "kf_session",
-    *,
-    accelerometer: str = "estimate",
-    external_acc_allowance_m_s2: float | None = None,
-    arw_rad_s_sqrt_hz: float | None = None,
-    vrw_m_s2_sqrt_hz: float | None = None,
-    gravity_m_s2: float | None = None,
-    min_rest_s: float = 2.0,
-    iterations: int = 3,
-    keep_history: bool = True,
-    engine: str = "compiled",
-    hand_check: bool = True,
-) -> Calibration:
-    """Calibrate ``rec`` (module docstring); ``rec`` is not modified.
-
-    Raises :class:`~gyrosim.errors.RecordingError` for input the method cannot use (no rest, gaps,
-    wrong units, an accelerometer the motion cannot separate from the gyro errors).  A run that fails
-    its own consistency check is returned with ``status`` "diverged" or "inconsistent".
-    ``hand_check``: an "ok" result is compared with the hand-aware estimate (``kf_hand``; with the
-    accelerometer estimated ``kf_hand_joint`` on the raw recording) and becomes "inconsistent" when they
-    differ beyond both σ (:func:`calib.session.hand.filter.hand_cross_check`: a lever arm's error hides from the
-    innovations).
-    """
-    method = resolve_method(method)
-    if engine not in ENGINES:
-        raise ValueError(f"unknown engine {engine!r}; use one of {', '.join(ENGINES)}")
-    prep = prepare(rec, accelerometer=accelerometer, external_acc_allowance_m_s2=external_acc_allowance_m_s2,
-                   arw_rad_s_sqrt_hz=arw_rad_s_sqrt_hz, vrw_m_s2_sqrt_hz=vrw_m_s2_sqrt_hz, gravity_m_s2=gravity_m_s2,
-                   min_rest_s=min_rest_s)
-    warnings = list(prep.warnings)
-    a, b = prep.bias.index_range
-    refuse_if_nothing_observed(rec, prep.bias.value_rad_s, a, b, prep.start)
-    passes = 1 if method == "kf_session" else max(1, iterations)
-    theta0, q0, p0 = prep.theta0, prep.quat0_nb, prep.p0
-    obs = None
-    for i in range(passes):
-        last = i == passes - 1
-        run = _run(prep, rec, theta0, q0, p0, engine, keep_history and last)
-        if i == 0:
-            obs = _observability(prep, run, p0)
-            _apply_observability(prep, obs, warnings)
-        if not last:
-            theta0 = run.theta[0].copy()
-            if prep.layout.estimates_accelerometer:
-                q0, f0, mi_a = _initial_attitude(rec, theta0, a, b)
-                p0 = initial_covariance(prep.layout, prep.config, q0, f0, mi_a, prep.gravity_fit.covariance,
-                                        _tilt_sigma(rec, a, b, prep.config.gravity_m_s2))
-    fixed = None
-    if not prep.layout.has("gyro_bias") and run.whitened is not None:
-        # the static bias is held fixed (the paper's 9 states): its error is part of the model, in the
-        # innovation test and in σ of S, G (calib.session.consistency, "Parameters the filter holds fixed")
-        # compiled either engine: equal to 1e-9, ×40 faster
-        def rerun(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            r = _run(prep, rec, th, q0, p0, "compiled", False)
-            return r.whitened[0], r.theta[0][0:6]
-
-        fixed = fixed_parameter_effect(rerun, theta0, theta_slice("gyro_bias"), prep.bias_std_rad_s, run.whitened[0],
-                                       run.theta[0][0:6])
-    return _result(prep, rec, run, obs, warnings, REGISTERED_NAME[method, prep.accelerometer], passes, hand_check,
-                   fixed)
-
-
-def _apply_observability(prep: Prepared, obs: JointObservability, warnings: list[str]) -> None:
-    acc_names = [n for n in obs.unobservable + obs.weak if n.split("_")[0] in ("ba", "Sa", "Ga")]
-    if acc_names:
-        poses = missing_poses(acc_names, prep.windows_f_hat)
-        raise RecordingError(
-            "this session cannot separate the accelerometer from the gyro errors: "
-            f"{', '.join(_label(n) for n in acc_names)} "
-            "stay undetermined (posterior σ above half the prior). Add rest poses of ≥ 2 s with gravity along: "
-            f"{'; '.join(poses) if poses else 'more distinct directions (Tedaldi 2014: ≥ 9, well spread)'} — or slow "
-            "rotations through them — or pass --accelerometer calibrated if the accelerometer is calibrated already"
-        )
-    gyro_unobs = [n for n in obs.unobservable if n.split("_")[0] in ("S", "G")]
-    gyro_weak = [n for n in obs.weak if n.split("_")[0] in ("S", "G")]
-    if gyro_unobs:
-        warnings.append(
-            f"unobservable: {', '.join(gyro_unobs)}: the recording's motion leaves them undetermined (posterior σ "
-            "within 90 % of the prior; Zhou 2020 §4); add rotations about horizontal axes (scale factors) and about "
-            "the vertical (non-orthogonality), Zhou 2020 Table 5")
-    if gyro_weak:
-        warnings.append(
-            f"weakly observable: {', '.join(gyro_weak)} (posterior σ > half the prior): the motion barely excited "
-            "them for this noise level; rotate longer or faster about the axes Zhou 2020 Table 5 names")
-
-
-def bias_drift_note(rec: Recording, prep: Prepared) -> str | None:
-    """Why a constant-bias filter's innovations may carry low-frequency power without any hand: the gyro
-    bias moved between the session's rests beyond their white noise (:func:`calib.session.hand.filter.bias_drift`,
-    χ² of the rests' mean differences above its 95 % quantile).  The paper's filter holds the bias at the
-    first rest's average (Zhou 2020 §3.2), so a drifting bias tilts its attitude like an unmodelled
-    disturbance — the inflation is then right to fire, and this says why."""
-    from calib.session.hand.filter import bias_drift
-
-    d = bias_drift(rec.gyro_rad_s, rec.t_s, prep.rest.index_ranges, prep.config.arw_rad_s_sqrt_hz)
-    if d.q_rad2_s3 <= 0 or len(d.rest_bias_rad_s) < 2:
-        return None
-    b = np.asarray(d.rest_bias_rad_s)
-    change = float(np.max(np.linalg.norm(b[1:] - b[:-1], axis=1)))
-    return (f"the gyro bias drifts: the rests' mean gyro readings differ by up to {change:.2e} rad/s (χ² {d.chi2:.0f} "
-            f"against its 95 % quantile {d.threshold:.1f}, {d.dof} dof; rate random walk ≈ {d.rrw_rad_s_sqrt_s:.1e} "
-            "rad/s/√s): this method holds the bias at the first rest's average, so the drift tilts its attitude like "
-            "an unmodelled disturbance and its σ cannot be trusted; the hand-aware method (kf_hand) models the "
-            "bias as a random walk fitted to the rests")
-
-
-def _result(
-    prep: Prepared,
-    rec: Recording,
-    run: FilterRun,
-    obs: JointObservability | None,
-    warnings: list[str],
-    method: str,
-    passes: int,
-    hand_check: bool = False,
-    fixed: FixedParameterEffect | None = None,
-) -> Calibration:
-    lay, cfg = prep.layout, prep.config
-    estimate = lay.estimates_accelerometer
     blocks = ["gyro_bias", "gyro_scale", "gyro_nonorth"] + (
-        ["acc_bias", "acc_scale", "acc_nonorth"] if estimate else []
+        ["acc_bias", "acc_scale", "acc_nonorth"] if lay.estimates_accelerometer else []
     )
     n = 3 * len(blocks)
     cov = np.zeros((n, n))
@@ -478,6 +304,15 @@ def _result(
             cov[3:9, 3:9] += fixed.added_covariance
             cov[3:9, 0:3] = fixed.jacobian @ fixed.cov
             cov[0:3, 3:9] = cov[3:9, 0:3].T
+    return cov, blocks, infl
+
+
+def _result(prep: Prepared, rec: Recording, run: FilterRun, obs: JointObservability | None, warnings: list[str],
+            method: str, passes: int, fixed: FixedParameterEffect | None = None) -> Calibration:
+    """The Calibration of a ``calibrate()`` run: effects, covariance, the verdict (step 8) and the diagnostics."""
+    lay, cfg = prep.layout, prep.config
+    estimate = lay.estimates_accelerometer
+    cov, blocks, infl = _session_covariance(prep, rec, run, fixed)
     th = run.theta[0]
     values = {BLOCK_LABELS[blk]: th[theta_slice(blk)] for blk in blocks}
     gyro = (Bias(value=th[theta_slice("gyro_bias")]), ScaleFactor(value=th[theta_slice("gyro_scale")]),
@@ -489,8 +324,7 @@ def _result(
                NonOrthogonality(value=_safe_nonortho(th[theta_slice("acc_nonorth")]))) + acc
     cons = check_innovations(run.nis[0], 2, rec.rate_hz)
     sanity = check_estimate(values, cov, cfg.gravity_m_s2)
-    th_a = np.concatenate([th[theta_slice("acc_bias")], th[theta_slice("acc_scale")], th[theta_slice("acc_nonorth")]])
-    f_hat = compensate_acc(rec.acc_m_s2, th_a) if estimate else rec.acc_m_s2
+    f_hat = compensate_acc(rec.acc_m_s2, acc_theta(th)) if estimate else rec.acc_m_s2
     rest_g = rest_gravity(f_hat, rec.t_s, prep.rest.index_ranges, cfg.gravity_m_s2, math.sqrt(cfg.r_var(rec.rate_hz)),
                           fitted_g=not estimate)
     status, notes = verdict(cons, sanity, rest_g, "estimate" if estimate else "calibrated")
@@ -498,24 +332,13 @@ def _result(
         status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
         if infl.factor > 1 and not lay.has("gyro_bias") and (note := bias_drift_note(rec, prep)) is not None:
             notes.append(note)
-    cross = None
-    if hand_check and status == "ok" and not prep.noise.noise_free:   # noise-free: methods differ by discretisation
-        from calib.session.hand.filter import hand_cross_check
-
-        sg = np.concatenate([th[theta_slice("gyro_scale")], th[theta_slice("gyro_nonorth")]])
-        warn, cross = hand_cross_check(rec, sg, cov[3:9, 3:9], accelerometer="estimate" if estimate else "calibrated")
-        if warn:
-            notes.extend(warn)
-            status = "inconsistent"
-    warnings = warnings + notes
     diagnostics = {
         "accelerometer_mode": "estimate" if estimate else "calibrated",
         "rest_segments": prep.rest.to_list(),
         "noise": {"arw_rad_s_sqrt_hz": cfg.arw_rad_s_sqrt_hz, "vrw_m_s2_sqrt_hz": cfg.vrw_m_s2_sqrt_hz,
                   "external_acc_allowance_m_s2": cfg.external_acc_allowance_m_s2, "gravity_m_s2": cfg.gravity_m_s2,
                   **prep.noise.to_dict()},
-        "consistency": {**cons.to_dict(), **({"sigma_inflation": infl.to_dict()} if infl is not None else {}),
-                        **({"hand_cross_check": cross} if cross is not None else {})},
+        "consistency": {**cons.to_dict(), **({"sigma_inflation": infl.to_dict()} if infl is not None else {})},
         "rest_gravity": rest_g.to_dict(),
         "filter": {"states": list(lay.names), "passes": passes, "samples": int(rec.n - prep.start),
                    "rate_hz": rec.rate_hz, "start_s": float(rec.t_s[prep.start])},
@@ -535,7 +358,7 @@ def _result(
     if run.sd_history is not None:
         history = FilterHistory(rec.t_s[prep.start + 1:], run.sd_history[0], run.theta_history[0],
                                 run.innovation[0], run.nis[0], lay.names)
-    return Calibration(gyro=gyro, accelerometer=acc, covariance=cov, status=status, warnings=tuple(warnings),
+    return Calibration(gyro=gyro, accelerometer=acc, covariance=cov, status=status, warnings=tuple(warnings + notes),
                        method=method, diagnostics=diagnostics, history=history)
 
 
@@ -558,46 +381,170 @@ def true_gyro_parameters(rec: Recording) -> dict[str, np.ndarray] | None:
             "nonorthogonality": truth.value("gyro", "nonorthogonality")}
 
 
-def refuse_if_nothing_observed(rec: Recording, bias_rad_s: np.ndarray, ra: int, rb: int, start: int) -> None:
-    """Every gyro S, G unobservable from the motion after ``start`` (:func:`motion_unobservable`, the parameter Gram of
-    Zhou §4): the filter, which starts at the rest that gave the bias (the first one ≥ 2 s), would see no rotation that
-    determines them — a session whose early rests came out shorter (a hand that never held still 2 s before turning;
-    rests cut by correlated noise, as an output low-pass did before :func:`calib.session.rest.detect_rest` scaled its
-    test) or that does not turn.  Its S, G would be the prior, 0 ± 5 %, with status "ok" (kf_hand, the last rest ending
-    the file: a crash in its low-pass): refused instead, saying where the filter starts and how much rotation comes
-    before it."""
-    names = {f"{b}_{ax}" for b in "SG" for ax in "xyz"}
-    enough = rec.n - start >= int(2.0 * rec.rate_hz) + 32
-    if enough and not names <= set(motion_unobservable(rec, bias_rad_s, start)):
-        return
-    w2 = np.sum((rec.gyro_rad_s - np.mean(rec.gyro_rad_s[ra:rb], axis=0)) ** 2, axis=1)
-    before = float(np.sum(w2[:start]) / max(float(np.sum(w2)), 1e-300))
-    raise RecordingError(
-        f"no gyro scale factor or non-orthogonality is determined by this session: the filter starts at the first rest "
-        f"of ≥ 2 s (t = {rec.t_s[ra]:.2f}–{rec.t_s[rb - 1]:.2f} s, which gives the bias) and {100 * before:.0f} % of "
-        "the "
-        "session's rotation comes before it. Hold the sensor still for ≥ 2 s before the turns, then turn about each "
-        "axis (Zhou 2020 Table 5); if the rests are there, check the rest segments calib reports"
-    )
+# ---------------------------------------------------------------------------------------------------------------------
+# the paper's 9-state filter and its variants (registry: kf, iterated, kf_session_r, kf_adaptive, kf_gated, …)
 
 
-def motion_unobservable(rec: Recording, bias_rad_s: np.ndarray, start: int) -> list[str]:
-    """Gyro filter parameters the recording's motion cannot observe, from the stripped observability
-    matrix's parameter Gram (:func:`calib.session.observability.parameter_gram`, attitude-free, Zhou §4).
+@dataclass(frozen=True)
+class PaperParams:
+    """How the paper's 9-state filter (after the static bias, the accelerometer calibrated) trusts the
+    accelerometer's gravity measurement when a hand adds external acceleration a_e (calib.session.registry's table).
 
-    Rates and accelerometer averaged over 2 s (calibration rotations live below 1 Hz), sampled at
-    ~10 Hz; null space = less excitation than a 0.01 rad/s rotation gives.
+    ``session_allowance``: R = σ_f² + the session's allowance max(rest excess, 3⟨(|f| − g)²⟩), one constant for the
+    session (``kf_session_r``); False: R = σ_f² = VRW²·f_s, the paper (only gravity is sensed).  ``adaptive``: R per
+    sample, + 3·LP₀.₂ₛ[(|f| − g)²] (``kf_adaptive``).  ``gate_nis`` > 0: skip an update whose NIS exceeds it
+    (``kf_gated``: :data:`GATE_NIS`).  ``passes``: each re-linearised at the previous pass's estimate (``iterated``).
     """
-    from calib.session.observability import parameter_gram, unobservable_parameters
 
-    step = max(1, int(round(rec.rate_hz / 10.0)))
-    win = max(1, int(round(2.0 * rec.rate_hz)))
-    kernel = np.ones(win) / win
+    session_allowance: bool = False
+    adaptive: bool = False
+    gate_nis: float = 0.0
+    passes: int = 1
 
-    def smooth(x: np.ndarray) -> np.ndarray:
-        return np.stack([np.convolve(x[:, i], kernel, mode="same") for i in range(3)], axis=1)[::step]
 
-    w = smooth(rec.gyro_rad_s[start:] - bias_rad_s)
-    f = smooth(rec.acc_m_s2[start:])
-    return unobservable_parameters(parameter_gram(w, f), float(np.median(np.linalg.norm(f, axis=1))))
+def paper_filter(rec: Recording, params: PaperParams | None = None, *, name: str = "kf",
+                 prep: Prepared | None = None, hand_check: bool = True) -> Calibration:
+    """The paper's filter on ``rec`` in the variant ``params`` (:class:`PaperParams`), its result labelled ``name``;
+    ``prep`` (from :func:`calib.session.prepare.prepare` with the matching allowance) when the caller already has it.
+    ``hand_check``: an "ok" result is compared with ``kf_hand`` (:func:`calib.session.crosscheck.hand_checked`)."""
+    params = params or PaperParams()
+    prep = prep or prepare(rec, accelerometer="calibrated",
+                           external_acc_allowance_m_s2=None if params.session_allowance else 0.0)
+    cal = _paper_filter(rec, params, name, prep)
+    return hand_checked(cal, rec, noise_free=prep.noise.noise_free) if hand_check else cal
 
+
+def _adaptive_r(rec: Recording, prep: Prepared) -> np.ndarray:
+    """R per sample (N − start,): σ_f² + a_ext² + 3·LP₀.₂ₛ[(|f| − g)²] (a one-pole low-pass over 0.2 s)."""
+    a, fs, c = prep.start, rec.rate_hz, prep.config
+    excess = (np.linalg.norm(rec.acc_m_s2[a:], axis=1) - c.gravity_m_s2) ** 2
+    alpha = math.exp(-1.0 / (0.2 * fs))
+    lp = sp_signal.lfilter([1 - alpha], [1, -alpha], excess, zi=[alpha * excess[0]])[0]
+    return c.vrw_m_s2_sqrt_hz**2 * fs + c.external_acc_allowance_m_s2**2 + 3.0 * lp
+
+
+def _paper_filter(rec: Recording, params: PaperParams, name: str, prep: Prepared) -> Calibration:
+    """:func:`paper_filter` without the hand cross-check."""
+    a, fs = prep.start, rec.rate_hz
+    acc = rec.acc_m_s2[None, a:]
+    r_var = _adaptive_r(rec, prep) if params.adaptive else None
+    theta = prep.theta0.copy()
+    p0 = initial_covariance(PAPER, prep.config)
+    mask = None if prep.saturated is None else ~prep.saturated[a:]
+    rmask = rest_mask(prep, rec.n - a)
+
+    def one_pass(th: np.ndarray, x0: np.ndarray):
+        return run_filter(rec.gyro_rad_s[None, a:], acc, rec.t_s[a:], prep.quat0_nb[None], th[None], p0, PAPER,
+                          prep.config, fs, r_var_per_sample=r_var, gate_nis=params.gate_nis, update_mask=mask,
+                          rest_mask=rmask, x0=x0[None])
+
+    for _ in range(params.passes):
+        x0 = np.zeros(PAPER.n)
+        x0[3:9] = -theta[0:6]  # the prior (S = G = 0) seen from the linearisation point
+        theta_in = theta
+        out = one_pass(theta_in, x0)
+        theta = out.theta[0].copy()
+
+    def rerun(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        o = one_pass(th, x0)
+        return o.whitened[0], o.theta[0][0:6]
+
+    # the static bias b̂ is held fixed by the paper's filter: its error is part of the model, in the
+    # innovation test and in σ of S, G (calib.session.consistency, "Parameters the filter holds fixed")
+    fx = fixed_parameter_effect(rerun, theta_in, theta_slice("gyro_bias"), prep.bias_std_rad_s, out.whitened[0],
+                                theta[0:6])
+    infl = innovation_inflation(out.whitened[0], rec.t_s[a + 1:], sensitivity=fx.sensitivity,
+                                sensitivity_cov=fx.cov)
+    cov = np.zeros((9, 9))
+    cov[:3, :3] = fx.cov
+    cov[3:, 3:] = out.p[0, 3:9, 3:9] * infl.factor + fx.added_covariance
+    cov[3:, :3] = fx.jacobian @ fx.cov
+    cov[:3, 3:] = cov[3:, :3].T
+    values = {"gyro scale factor": theta[theta_slice("gyro_scale")],
+              "gyro non-orthogonality": theta[theta_slice("gyro_nonorth")]}
+    status, notes = verdict(check_innovations(out.nis[0], 2, fs), check_estimate(values, cov, prep.config.gravity_m_s2))
+    status = apply_inflation(status, notes, infl, can_fail=not prep.noise.noise_free)
+    if infl.factor > 1 and (note := bias_drift_note(rec, prep)) is not None:
+        notes.append(note)
+    diag: dict = {"consistency": {"sigma_inflation": infl.to_dict()}}
+    # the reported bias is the first rest's mean, at its reference (calib.session.rest_bias)
+    if prep.rest_bias is not None:
+        diag["gyro_bias"] = prep.rest_bias.to_dict()
+    gyro = {"bias": prep.bias.value_rad_s, "scale_factor": theta[theta_slice("gyro_scale")],
+            "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("gyro_nonorth")]), -0.45, 0.45)}
+    return Calibration.from_linear(gyro=gyro, covariance=cov, status=status, warnings=prep.warnings + tuple(notes),
+                                   method=name, diagnostics=diag)
+
+
+def lever_arm_two_pass(rec: Recording) -> Calibration:
+    """The former ``kf_lever_arm`` (kept importable, ``calib.session.registry:lever_arm_two_pass``, to reproduce
+    docs/campaigns.md's rows; not registered: its σ is not honest with a hand —
+    :data:`calib.session.registry.LEVER_ARM_RETIRED`).
+
+    The hand turns about a pivot (wrist, elbow) away from the accelerometer, so the sensor
+    sees f = g_b + ω̇ × r + ω × (ω × r) with r the lever arm (body frame, constant): a
+    deterministic acceleration correlated with the rotation, which no choice of R removes
+    (the campaign measured a 0.23–0.28 % non-orthogonality bias from it).  It is linear in r:
+
+        f − g_b = K(ω, ω̇) r,   K = [ω̇×] + [ω×][ω×]
+
+    Pass 1 (``kf_session_r``) calibrates the gyro; its compensated rate, integrated from the
+    rest attitude, gives g_b(t); least squares over the motion gives r̂; pass 2 runs on
+    f − K r̂.  ω̇ from the compensated rate, zero-phase low-passed at 5 Hz (above the schedule,
+    below the tremor).  σ includes r̂'s own error carried into S, G (J C_r Jᵀ; without it NEES was 7.6
+    against [5.1, 7.0] with the ideal hand, G_y's error 1.9 σ RMS).  ``kf_hand`` estimates r inside the
+    filter instead and supersedes this method (docs/hand.md)."""
+    # the session-R preparation of pass 1, used again for the rest attitude
+    session_r = PaperParams(session_allowance=True)
+    prep = prepare(rec, accelerometer="calibrated")
+    first = paper_filter(rec, session_r, prep=prep, name="lever_arm_two_pass", hand_check=False)
+    a, fs = prep.start, rec.rate_hz
+    m = np.eye(3) + np.diag(first.scale_factor) + nonortho_matrix(first.nonorthogonality)
+    w = (rec.gyro_rad_s - first.bias_rad_s) @ np.linalg.inv(m).T
+    b, c = sp_signal.butter(2, min(5.0 / (fs / 2), 0.9))
+    w_s = sp_signal.filtfilt(b, c, w, axis=0)
+    dw = np.gradient(w_s, rec.t_s, axis=0)
+    q = integrate_gyro(rec.t_s[a:], w[a:], prep.quat0_nb)
+    g_b = quat_rotate(quat_conjugate(q), np.array([0.0, 0.0, prep.config.gravity_m_s2]))
+    k = skew(dw[a:]) + skew(w_s[a:]) @ skew(w_s[a:])          # (N, 3, 3)
+    f_s = sp_signal.filtfilt(b, c, rec.acc_m_s2[a:], axis=0)  # the tremor is not the lever arm
+    moving = np.linalg.norm(w_s[a:], axis=1) > 0.2
+    if moving.sum() < 10:
+        return first
+    y = f_s - g_b
+    r, *_ = np.linalg.lstsq(k[moving].reshape(-1, 3), y[moving].reshape(-1), rcond=None)
+    kk = skew(dw) + skew(w_s) @ skew(w_s)
+
+    def pass2(r_m: np.ndarray) -> Calibration:
+        corrected = rec.acc_m_s2 - np.einsum("nij,j->ni", kk, r_m)
+        return paper_filter(rec.with_signals(acc_m_s2=corrected), session_r, name="lever_arm_two_pass",
+                            hand_check=False)
+
+    second = pass2(r)
+    # r̂'s own error goes into S, G through pass 2: Cov += J C_r Jᵀ, J = ∂(S, G)/∂r by finite differences
+    # (1 mm), C_r the least squares' sandwich with block sums over 4 s (the residual — sway, the pass-1
+    # attitude error — is correlated in time; Newey & West 1987)
+    e = (y - np.einsum("nij,j->ni", k, r)) * moving[:, None]
+    g_k = np.einsum("nji,nj->ni", k, e)                                      # Kᵀ e per sample
+    blk = np.floor((rec.t_s[a:] - rec.t_s[a]) / 4.0).astype(int)
+    sums = np.stack([np.bincount(blk, g_k[:, i]) for i in range(3)], axis=1)
+    a_inv = np.linalg.inv(np.einsum("nji,njk->ik", k[moving], k[moving]))
+    c_r = a_inv @ (sums.T @ sums) @ a_inv
+    items = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
+    base = np.concatenate([second.value(t, kd) for t, kd in items])
+    jac = np.stack([(np.concatenate([pass2(r + 1e-3 * np.eye(3)[i]).value(t, kd) for t, kd in items]) - base) / 1e-3
+                    for i in range(3)], axis=1)
+    cov2 = np.array(second.covariance, float)
+    cov2[3:9, 3:9] += jac @ c_r @ jac.T
+    second = Calibration(gyro=second.gyro, accelerometer=second.accelerometer, covariance=cov2, status=second.status,
+                         method="lever_arm_two_pass", warnings=second.warnings, diagnostics=second.diagnostics)
+    second = hand_checked(second, rec, noise_free=prep.noise.noise_free)   # the check on the recording as given
+    return Calibration(
+        gyro=second.gyro,
+        accelerometer=second.accelerometer,
+        covariance=second.covariance,
+        status=second.status,
+        method="lever_arm_two_pass",
+        warnings=second.warnings + (f"lever arm r̂ = {np.array2string(r * 100, precision=1)} cm (body frame)",),
+        diagnostics={**second.diagnostics, "hand": {"lever_arm_m": r.tolist()}},
+    )

@@ -19,7 +19,7 @@ sensor, err/σ RMS 0.07–0.2).
 rate, c(t) = ∫_{t₀}^{t} (ω − ω̄) dt − ⟨·⟩, is the attitude minus its mean and minus the bridge (t/T − ½)Δθ, so
 E⟨c²⟩ = σ_θ² + Var(Δθ)/12 + N_g² T/12 (the last term: a Brownian bridge's de-meaned variance, white gyro noise
 integrated).  Hence σ_θ² = (6/7)(⟨c²⟩ − N_g² T/12) and Var(Δθ) = (12/7)(⟨c²⟩ − N_g² T/12), floored at 0.  N_g
-is the white density measured above the tremor band (:func:`calib.session.hand.filter.white_density`), never the rest's
+is the white density measured above the tremor band (:func:`calib.session.noiselevels.white_density`), never the rest's
 spread.  Sources: the mean of a derivative is the end-point difference over T; Brownian-bridge moments
 (e.g. Karatzas & Shreve, *Brownian Motion and Stochastic Calculus*, §5.6.B); the white-noise term is IEEE Std
 952-1997 Annex C's ARW.  A slow turn during the rest (a ramp in attitude over ≳ T) looks like bias to this

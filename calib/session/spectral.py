@@ -2,7 +2,7 @@
 
 A Kalman filter's P is the covariance of its estimate only when its noise model is right.  ``kf_hand`` models the hand's
 slow acceleration a_e (nav frame ENU, after the tremor low-pass) as a high-passed first-order Gauss–Markov process
-fitted to the data (:func:`calib.session.hand.filter._gm_from_residual`); a real hand's spectrum has another shape
+fitted to the data (:func:`calib.session.hand.sway.fit_gauss_markov`); a real hand's spectrum has another shape
 (gyrosim's sway is flat over 0.2–1 Hz and ~30 dB lower outside, which no first-order family follows), and then P is not
 the estimate's covariance — with gyrosim's shaky hand σ of S, G was 1.2–1.4× too large (NEES(6) 3.2 against [5.08,
 7.00]).
@@ -65,7 +65,7 @@ from calib.session.model import EXT_ACC_EXTRA_BLOCKS, StateLayout
 
 __all__ = ["update_weights", "SpectralCorrection", "spectral_correction", "gauss_markov_psd"]
 
-# e's spectrum: the segments of the a_e fit's own (calib.session.hand.filter._gm_from_residual)
+# e's spectrum: the segments of the a_e fit's own (calib.session.hand.sway.fit_gauss_markov)
 WELCH_SEGMENT_S = 40.0
 # an octave band's S_D/S_M replaces the model's there when outside Welch's own scatter at this level
 BAND_TEST = 0.95
@@ -146,7 +146,7 @@ def gauss_markov_psd(
     f_hz: np.ndarray, rms_m_s2: float, tau_s: float, highpass_tau_s: float, highpass_order: int
 ) -> np.ndarray:
     """One-sided PSD of the high-passed Gauss–Markov a_e, (m/s²)²/Hz:
-    4σ²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m (:func:`calib.session.hand.filter._gm_from_residual`)."""
+    4σ²τ/(1 + (2πfτ)²)·[(2πfτ_h)²/(1 + (2πfτ_h)²)]^m (:func:`calib.session.hand.sway.fit_gauss_markov`)."""
     w2 = (2 * np.pi * np.asarray(f_hz, float)) ** 2
     hp = 1.0
     if math.isfinite(highpass_tau_s):

@@ -36,32 +36,19 @@ else switches on effect names.  A new effect is one class, in any module (a user
 
 from __future__ import annotations
 
-# modules in vocabulary order: EFFECTS lists the kinds in the order their classes are defined
+# modules in vocabulary order: EFFECTS lists the kinds in the order their classes are defined, so the import order is
+# the vocabulary's order (the model loop proposes candidates in it): not sorted
+# isort: off
 from .base import EFFECTS, Effect, SignalContext, VectorEffect, effect_from_dict, unregister_effect, zeros_field
-from .environment import EARTH_RATE_RAD_S, EarthRate, MagneticSensitivity
-from .error_terms import (
-                    Bias,
-                    GSensitivity,
-                    GyroAccMisalignment,
-                    Misalignment,
-                    NonOrthogonality,
-                    ScaleFactor,
-                    ScaleNonlinearity,
-                    nonortho_matrix,
-)
-from .magnetometer import FrameRotation, HardIron, SoftIron, rotation_matrix
-from .noise import (
-                    BiasInstability,
-                    GaussMarkov,
-                    QuantizationNoise,
-                    RandomWalk,
-                    RateRamp,
-                    WhiteNoise,
-                    haar_gain2,
-                    spectral_noise,
-)
-from .output import Bandwidth, Jitter, Quantization, Saturation, TimeOffset
+from .error_terms import (Bias, GSensitivity, GyroAccMisalignment, Misalignment, NonOrthogonality, ScaleFactor,
+                          ScaleNonlinearity, nonortho_matrix)
 from .thermal import TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale, ThermalHysteresis
+from .environment import EARTH_RATE_RAD_S, EarthRate, MagneticSensitivity
+from .magnetometer import FrameRotation, HardIron, SoftIron, rotation_matrix
+from .noise import (BiasInstability, GaussMarkov, QuantizationNoise, RandomWalk, RateRamp, WhiteNoise, haar_gain2,
+                    spectral_noise)
+from .output import Bandwidth, Jitter, Quantization, Saturation, TimeOffset
+# isort: on
 
 __all__ = [
     "SignalContext", "Effect", "VectorEffect", "EFFECTS", "effect_from_dict", "unregister_effect", "zeros_field",

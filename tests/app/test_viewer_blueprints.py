@@ -39,7 +39,7 @@ def calibrated():
     from calib.session.paper import calibrate, true_gyro_parameters
 
     rec = apply_sensor(session("typical"), load_sensor("mpu9250"), np.random.default_rng(4))
-    return rec, calibrate(rec, "kf_session"), true_gyro_parameters(rec)
+    return rec, calibrate(rec, "kf_joint"), true_gyro_parameters(rec)
 
 
 @pytest.fixture(scope="module")

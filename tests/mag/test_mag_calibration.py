@@ -297,7 +297,9 @@ def test_cli_json_keys_status_and_exit_codes(tmp_path, capsys):
     assert d["method"] == "ellipsoid" and d["status"] == "ok" and isinstance(d["warnings"], list)
     assert set(m["std"]) >= {"hard_iron_uT", "soft_iron", "field_uT", "inclination_deg"}
     one_axis = save_hdf5(_with_mag(session("typical", schedule="vertical_only"), 1), tmp_path / "v.h5")
-    assert calib_main(["mag", str(one_axis), "--json", str(tmp_path / "v.json")]) == 3
+    # status hard_iron_only lives in the JSON; the exit code is the one table's "done, not ok"
+    assert calib_main(["mag", str(one_axis), "--json", str(tmp_path / "v.json")]) == 1
+    assert json.loads((tmp_path / "v.json").read_text())["status"] == "hard_iron_only"
     assert json.loads((tmp_path / "v.json").read_text())["magnetometer"]["soft_iron"][0][0] is None  # NaN → null
     assert calib_main(["mag", str(path), "--json", str(tmp_path / "missing" / "x.json")]) == 2
     assert "does not exist" in capsys.readouterr().err

@@ -66,7 +66,7 @@ def test_noise_free_independent_data_is_exact(steps, tmp_path):
     assert res.status == "ok", res.warnings
 
 
-# the hand cross-check's false alarms on these hand-free sessions (calib.session.hand.filter.hand_cross_check: |δ| +
+# the hand cross-check's false alarms on these hand-free sessions (calib.session.crosscheck.hand_cross_check: |δ| +
 # 2σ_peer against 3σ, the peer's σ 1.1–1.3× this one's, so a δ of ~1σ crosses): measured 1 of 60 on each schedule (seeds
 # 1000–1059: STEPS 1010 at 3.01, MULTIPOSE 1006 at 3.14, both before and after the joint's accelerometer prior became
 # its |f| = g fit's block sandwich) and, since that change, seed 110 of the STEPS set at 3.02 (2.4 median).  A flag is

@@ -21,7 +21,8 @@ from gyrosim.recording import Recording
 from calib.app.cli import main as calib_main
 from calib.session import registry as estimators
 from calib.session.consistency import apply_inflation, innovation_inflation
-from calib.session.hand.filter import CONFOUND_CORRELATION, LAYOUT, _confounding
+from calib.session.hand.checks import CONFOUND_CORRELATION, refuse_confounded
+from calib.session.model import HAND_BIAS
 
 # a typical hand (gyrosim's preset values, injected the generator's own way): wrist 7 cm behind the board
 HAND_KW = dict(lever_arm_m=(0.01, 0.07, 0.02), tremor_acc_rms_m_s2=0.07, sway_acc_rms_m_s2=0.02)
@@ -104,14 +105,14 @@ def test_innovation_inflation_measures_the_long_run_variance():
 def test_confounded_lever_arm_is_refused_with_the_motion_that_separates_it():
     """A posterior where the lever arm's r_y moves with S_x (correlation above the threshold) is refused,
     naming both and the separating motion (two speeds)."""
-    p = np.eye(LAYOUT.n)
-    o, s = LAYOUT.offset("lever_arm") + 1, LAYOUT.offset("gyro_scale")
+    p = np.eye(HAND_BIAS.n)
+    o, s = HAND_BIAS.offset("lever_arm") + 1, HAND_BIAS.offset("gyro_scale")
     c = (CONFOUND_CORRELATION + 1) / 2
     p[o, s] = p[s, o] = c
     with pytest.raises(RecordingError, match=r"lever arm r_y with S_x.*two clearly different speeds"):
-        _confounding(p, LAYOUT.offset("lever_arm"))
+        refuse_confounded(p, HAND_BIAS)
     p[o, s] = p[s, o] = 0.5
-    _confounding(p, LAYOUT.offset("lever_arm"))
+    refuse_confounded(p, HAND_BIAS)
 
 
 def test_calib_run_exit_codes_and_coaching_with_a_hand(kin, tmp_path, capsys):
@@ -162,13 +163,13 @@ NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_consumer",
              ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
              # measured 5.35, 5.79, 5.57, 6.22 (consumer); 6.32, 6.22, 6.43, 6.23 (mpu9250,
              ("mpu9250", "shaky"): "in"}
-# band [5.08, 7.00]; since the lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian) — before it 5.32,
+# band [5.08, 7.00]; since the lever arm term's Jacobian (calib.session.hand.lever.lever_jacobian) — before it 5.32,
 # 5.80, 5.63, 6.34 and 6.37, 6.23, 6.41, 6.20; since the spectral correction's reference is the a_e model as the
-# low-passed data carry it (calib.session.hand.filter.PREFILTER_REFERENCE) — before it 5.32, 5.78, 5.44, 5.51 and 6.37,
-# 6.23, 6.35, 6.11; the gyro bias's temperature coefficient a state since calib.session.hand.filter.GYRO_TEMP_BIAS —
+# low-passed data carry it (HandParams.prefilter_reference) — before it 5.32, 5.78, 5.44, 5.51 and 6.37,
+# 6.23, 6.35, 6.11; the gyro bias's temperature coefficient a state since HandParams.gyro_temp_bias —
 # before it 5.25, 5.14, 5.29, 5.03; σ from the slow residual's own spectrum since calib.session.spectral — before it
 # 4.46, 3.17 and 4.74, 3.80 with the typical and shaky hands; S scored at the rate it states since
-# calib.session.hand.filter.scale_reference_rate: typical was 5.25 "in" against the slope at 0)
+# calib.session.hand.reports.scale_reference_rate: typical was 5.25 "in" against the slope at 0)
 
 
 @pytest.mark.slow
@@ -289,12 +290,12 @@ def test_high_passed_gauss_markov_block_propagates_to_its_stationary_covariance(
 
 
 def test_hand_acceleration_fit_sees_the_missing_low_frequencies():
-    """_gm_from_residual on 180 s at 100 Hz.  A sway-like residual (sum of sines in 0.2–1 Hz, no power below:
+    """fit_gauss_markov on 180 s at 100 Hz.  A sway-like residual (sum of sines in 0.2–1 Hz, no power below:
     a bounded translation) must get a high-pass whose model PSD at 0.05 Hz is at least 10× below its PSD at
     0.5 Hz; a first-order Gauss–Markov residual (τ = 0.5 s, flat below 0.3 Hz) must keep its low band: model
     PSD at 0.05 Hz within ×2 of the true 4σ²τ (a 40-s Welch estimate's log-PSD scatters ~0.4 per bin, the
     fit averages ~100 bins)."""
-    from calib.session.hand.filter import _gm_from_residual
+    from calib.session.hand.sway import fit_gauss_markov
 
     def psd(sx, tau, th, m, f):
         w2 = (2 * np.pi * f) ** 2
@@ -305,14 +306,14 @@ def test_hand_acceleration_fit_sees_the_missing_low_frequencies():
     t = np.arange(18000) / 100.0
     white = 1e-4
     sway = ig.sum_of_sines(rng, t, (0.2, 1.0), 0.05)[:, 2] + rng.normal(size=t.size) * white
-    fit = _gm_from_residual(sway, 0.01, white**2, 2 * white**2 * 0.01)
+    fit = fit_gauss_markov(sway, 0.01, white**2, 2 * white**2 * 0.01)
     assert psd(*fit, 0.05) < 0.1 * psd(*fit, 0.5), fit
     al = np.exp(-0.01 / 0.5)
     gm = np.zeros(t.size)
     drive = rng.normal(size=t.size) * 0.03 * np.sqrt(1 - al**2)
     for k in range(1, t.size):
         gm[k] = al * gm[k - 1] + drive[k]
-    fit = _gm_from_residual(gm + rng.normal(size=t.size) * white, 0.01, white**2, 2 * white**2 * 0.01)
+    fit = fit_gauss_markov(gm + rng.normal(size=t.size) * white, 0.01, white**2, 2 * white**2 * 0.01)
     assert 0.5 < psd(*fit, 0.05) / (4 * 0.03**2 * 0.5) < 2.0, fit
 
 

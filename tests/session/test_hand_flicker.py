@@ -6,7 +6,7 @@ Two rests measure how far the bias moved, not how: the random-walk state fitted 
 with an error its σ does not count.  Measured here (60 sessions, B = 2.6e-4 rad/s, gyro 0.1 °/s per sample): NEES(6)
 of S, G 6.77 against 4.97 on the same seeds without the flicker (ratio 1.36: σ ~1.17× small), every other output
 unchanged.  kf_hand reports the mixture of the random-walk and the constant-bias models
-(:func:`calib.session.hand.filter._drift_ambiguity`): 5.26, ratio 1.06.
+(:func:`calib.session.drift.drift_ambiguity`): 5.26, ratio 1.06.
 
 Tolerances.  (1) Under an honest σ a session's NEES of 6 parameters is χ²(6): Σ over N sessions is χ²(6N), two-sided
 99.9 % interval from scipy.  (2) The paired ratio Σ NEES(flicker) / Σ NEES(none) over the same seeds (the generator's

@@ -124,14 +124,14 @@ JOINT_NEES_SIDE = {("zhou2020_sim_consumer", "ideal"): "in", ("zhou2020_sim_cons
                    ("mpu9250", "ideal"): "in", ("mpu9250", "steady"): "in", ("mpu9250", "typical"): "in",
                    # consumer 5.61, 5.54, 5.47, 6.31; MPU-9250 5.50, 5.65, 5.70, 5.81 since
                    ("mpu9250", "shaky"): "in"}
-# the lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian; before it: consumer 5.55, 5.53, 5.30, 6.42
+# the lever arm term's Jacobian (calib.session.hand.lever.lever_jacobian; before it: consumer 5.55, 5.53, 5.30, 6.42
 # and MPU-9250 5.62, 5.66, 5.68, 5.80), since the accelerometer prior is the |f| = g fit's block sandwich
-# (calib.session.hand.filter._gravity_fit_lever_free; before it: consumer 5.55, 5.52, 5.32, 7.45 "high" and MPU-9250
+# (calib.session.hand.priors.gravity_fit_lever_free; before it: consumer 5.55, 5.52, 5.32, 7.45 "high" and MPU-9250
 # 5.59, 5.63, 5.73, 6.13) and since the spectral correction's reference is the a_e model as the low-passed data carry it
 # (calib.session.spectral, prefilter_gain2; before: consumer 5.48, 5.07 "low", 6.69 and MPU-9250 5.60, 5.67, 5.88 — the
 # consumer shaky cell's G_x, G_y were ×1.35 optimistic then too, hidden by the aliased floor's caution: docs/hand.md); σ
 # follows the slow residual's own spectrum (calib.session.spectral; before it: 4.23, 4.65 and 4.93, 4.33); S scored at
-# its stated rate (calib.session.hand.filter.scale_reference_rate; typical read 5.60 "in" against the slope at 0 rad/s)
+# its stated rate (calib.session.hand.reports.scale_reference_rate; typical read 5.60 "in" against the slope at 0 rad/s)
 
 
 @pytest.mark.slow

@@ -1,6 +1,6 @@
-"""The lever arm term's Jacobian (calib.session.hand.filter.lever_jacobian, the kernel's _nb_lever_jac): kf_hand builds
-K(ω̂, ω̂̇) from the rate compensated at the pass's S, G, b, so K r̂ depends on those errors; the update's H carries
-∂(K r̂)/∂(S, G, b) (docs/hand.md, "The lever arm term's Jacobian").  Without it a session that pins S, G only
+"""The lever arm term's Jacobian (calib.session.hand.lever.lever_jacobian, the kernel's lever_jacobian_columns):
+kf_hand builds K(ω̂, ω̂̇) from the rate compensated at the pass's S, G, b, so K r̂ depends on those errors; the update's
+H carries ∂(K r̂)/∂(S, G, b) (docs/hand.md, "The lever arm term's Jacobian").  Without it a session that pins S, G only
 weakly left the regressor's error in the innovations and σ of S, G ~1.4× optimistic."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib.session.hand.filter import lever_jacobian, lever_regressor
-from calib.session.kernel import _nb_lever_jac
+from calib.session.kernel import lever_jacobian_columns
 from calib.session.model import m_matrix
 
 FS = 100.0
@@ -43,7 +43,7 @@ def test_the_lever_jacobian_matches_central_differences():
     jac = np.zeros((T.size, 3, 9))
     out = np.zeros((3, 9))
     for k in range(T.size):
-        _nb_lever_jac(lj.rate_rad_s[k], lj.d_rate[k], lj.d_rate_dot[k], R_M, out)
+        lever_jacobian_columns(lj.rate_rad_s[k], lj.d_rate[k], lj.d_rate_dot[k], R_M, out)
         jac[k] = out
     h = 1e-5
     fd = np.zeros_like(jac)

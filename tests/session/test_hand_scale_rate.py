@@ -1,4 +1,4 @@
-"""S stated at the rates it was learnt at (calib.session.hand.filter.scale_reference_rate): a gyro whose scale is not
+"""S stated at the rates it was learnt at (calib.session.hand.reports.scale_reference_rate): a gyro whose scale is not
 linear, δ_i = k_i ω_i|ω_i|, on the independent generator (tests/independent_generator.py adds k ω|ω| its own way).
 
 A linear fit over the session's rates reads S_i + k_i m_i, m_i = Σ|ω_i|³/Σω_i² — the chord slope over ±m_i.  kf_hand
@@ -81,7 +81,7 @@ def test_the_scorer_reads_k_m_for_a_nonlinearity_and_nothing_for_a_temperature_s
 
 
 def test_the_accelerometer_scale_is_stated_and_scored_at_the_force_its_updates_saw():
-    """kf_hand_joint's accelerometer counterpart (calib.session.hand.filter.acc_scale_reference_force, ``diagnostics[
+    """kf_hand_joint's accelerometer counterpart (calib.session.hand.reports.acc_scale_reference_force, ``diagnostics[
     "acc_scale_reference_force"]``): the same chord rule on the specific force — an axis that is ±g half of the time and
     0 otherwise reads g, a tilt sweep its Σ|f|³/Σf² — and the scorer
     (calib.scoring.montecarlo.truth_acc_scale_at_gravity with ``force_m_s2``) reads k m for the MPU-9250 preset's

@@ -158,7 +158,7 @@ def test_kf_hand_models_a_bias_that_follows_the_temperature(kin):
     """Four hand-held sessions on a board warming 1.5 °C whose gyro bias follows the temperature, c_b (T − T[0]) with
     c_b = 0.05, −0.04, 0.06 °/s/°C (the MPU-9250 datasheet's ZRO tolerance is ±0.24 °/s/°C), plus a 1e-5 rad/s/√s random
     walk — written by the independent generator its own way (``gyro_bias_per_c``).  kf_hand must model it
-    (``gyro_temp_bias`` states, calib.session.hand.filter.GYRO_TEMP_BIAS) and keep the σ of c_b and of S, G on the safe
+    (``gyro_temp_bias`` states, HandParams.gyro_temp_bias) and keep the σ of c_b and of S, G on the safe
     side: the 4 × 3 z² of c_b against the generator's below χ²(12)'s 99.9 % quantile 32.9, Σ NEES(6) below χ²(24)'s
     51.2, every session ``ok``.  Both σ are cautious on a pure ramp (measured: z RMS of c_b 0.23, NEES(6) 2.2 per
     session — the random walk kept at ½ q̂_b lets the bias wander where it does not; docs/hand.md "The warm-up's ramp as

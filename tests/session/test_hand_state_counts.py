@@ -1,5 +1,5 @@
 """kf_hand's state counts as its docstrings and ``calib bench`` state them, against
-:func:`calib.session.hand.filter.hand_layout` (they said "24 states" after the temperature block made it 27 on a warming
+:func:`calib.session.hand.params.hand_layout` (they said "24 states" after the temperature block made it 27 on a warming
 sensor; the accelerometer's delay δ adds three more)."""
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def test_state_counts_in_the_docstrings_are_the_layouts():
 
 def test_kf_hand_joint_state_counts_are_its_layouts():
     """kf_hand_joint: 36 states, 42 when the recording's temperature moved (s_T and the accelerometer bias's c_a:
-    :func:`calib.session.hand.filter.joint_layout`; both with the accelerometer's delay δ); calib bench's session is a
+    :func:`calib.session.hand.params.joint_layout`; both with the accelerometer's delay δ); calib bench's session is a
     warming MPU-9250, so its label says 42 (45 with the opt-in c_b)."""
     from calib.session.hand.filter import joint_layout
 

@@ -25,8 +25,16 @@ from scipy import stats
 from gyrosim.recording import Recording
 
 from calib.session.hand import filter as hk
-from calib.session.kernel import ext_acc_discrete, run_filter
-from calib.session.model import EXT_ACC_EXTRA_BLOCKS, HAND, FilterConfig, StateLayout, initial_covariance
+from calib.session.hand import sway
+from calib.session.kernel import run_filter
+from calib.session.model import (
+    EXT_ACC_EXTRA_BLOCKS,
+    HAND,
+    FilterConfig,
+    StateLayout,
+    ext_acc_discrete,
+    initial_covariance,
+)
 
 ITEMS = [("gyro", "scale_factor"), ("gyro", "nonorthogonality")]
 
@@ -43,17 +51,17 @@ def test_exact_discretisation_is_the_gauss_markov_closed_form():
 
 def test_band_model_state_space_has_the_psd_the_fit_assumes():
     """FilterConfig.ext_acc_model's band-pass (balanced modal form) has |H(f)|² = the fit's Butterworth shape
-    (calib.session.hand.filter._band_shape) to 1e-8, and the stationary RMS of a_e is √(σ₀² + σ_b²) (independent
+    (calib.session.hand.sway.band_shape) to 1e-8, and the stationary RMS of a_e is √(σ₀² + σ_b²) (independent
     components)."""
     cfg = FilterConfig(1e-3, 1e-3, ext_acc_rms_m_s2=0.004, ext_acc_tau_s=3.0, ext_acc_band_hz=(0.21, 0.93),
-                       ext_acc_band_rms_m_s2=0.02, ext_acc_band_order=hk.BAND_ORDER)
+                       ext_acc_band_rms_m_s2=0.02, ext_acc_band_order=sway.BAND_ORDER)
     a, qc, c = cfg.ext_acc_model()
     f = np.array([0.02, 0.1, 0.21, 0.45, 0.93, 2.0])
     ab, cb = a[1:, 1:], c[1:]
     lam, vec = np.linalg.eigh(qc[1:, 1:])                      # rank one: Q_c = b bᵀ
     bb = vec[:, -1:] * math.sqrt(lam[-1])
     h = np.array([cb @ np.linalg.solve(2j * np.pi * fi * np.eye(ab.shape[0]) - ab, bb)[:, 0] for fi in f])
-    shape = hk._band_shape(f, 0.21, 0.93)
+    shape = sway.band_shape(f, 0.21, 0.93)
     np.testing.assert_allclose(np.abs(h) ** 2 / np.abs(h[3]) ** 2, shape / shape[3], rtol=1e-8, atol=1e-12)
     assert cfg.ext_acc_rms_a_m_s2 == pytest.approx(math.hypot(0.004, 0.02), rel=1e-9)
 
@@ -103,14 +111,14 @@ def test_band_fit_finds_the_band_and_gives_the_outside_power_to_the_floor():
     t = np.arange(n) / fs
     e = (_coloured(rng, n, fs, sos, 0.02) + 0.002 * math.sqrt(2) * np.sin(2 * np.pi * 0.05 * t + 0.3)
          + rng.standard_normal(n) * math.sqrt(white_psd * fs / 2))
-    fit = hk._band_from_residual(e, 1 / fs, white_psd * fs / 2, white_psd)
+    fit = sway.fit_band(e, 1 / fs, white_psd * fs / 2, white_psd)
     f1, f2 = fit["band_hz"]
     assert 0.2 / 2 ** (1 / 3) < f1 < 0.2 * 2 ** (1 / 3) and 1.0 / 2 ** (1 / 3) < f2 < 1.0 * 2 ** (1 / 3), fit
     assert fit["band_rms_m_s2"] == pytest.approx(0.02, rel=0.15)
     a0 = 4 * fit["floor_rms_m_s2"] ** 2 * fit["floor_tau_s"]
     fi_all = np.geomspace(1e-4, 50, 4000)
-    ab = fit["band_rms_m_s2"] ** 2 / np.trapezoid(hk._band_shape(fi_all, f1, f2), fi_all)
-    density = a0 / (1 + (2 * np.pi * 0.05 * fit["floor_tau_s"]) ** 2) + ab * hk._band_shape(0.05, f1, f2)
+    ab = fit["band_rms_m_s2"] ** 2 / np.trapezoid(sway.band_shape(fi_all, f1, f2), fi_all)
+    density = a0 / (1 + (2 * np.pi * 0.05 * fit["floor_tau_s"]) ** 2) + ab * sway.band_shape(0.05, f1, f2)
     # × Welch's bin width (40-s segments): the power the model puts in the line's bin
     model = density * fs / int(40 * fs)
     f, pxx = sps.welch(e - e.mean(), fs=fs, nperseg=int(40 * fs))
@@ -128,8 +136,8 @@ def test_band_fit_without_excess_power_is_empty_and_deterministic():
     rng = np.random.default_rng(5)
     e = rng.standard_normal(n) * 1e-3
     w = 1e-6
-    fit = hk._band_from_residual(e, 1 / fs, w, 2 * w / fs)
-    assert fit == hk._band_from_residual(e.copy(), 1 / fs, w, 2 * w / fs)
+    fit = sway.fit_band(e, 1 / fs, w, 2 * w / fs)
+    assert fit == sway.fit_band(e.copy(), 1 / fs, w, 2 * w / fs)
     # variance in the fitted model is at most a few % of the white noise's own in 0.02–3 Hz
     assert fit["band_rms_m_s2"] ** 2 + fit["floor_rms_m_s2"] ** 2 < 0.05 * (2 * w / fs) * 3.0, fit
 

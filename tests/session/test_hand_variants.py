@@ -89,7 +89,7 @@ def test_kf_hand_joint_sigma_without_wobble():
     """kf_hand_joint (raw consumer sensor) on the shaky hand without its wobble, 50 seeds: no seed diverged, NEES(6)
     below χ²(300)/50's 99 % top 7.34 (not optimistic) and above its bottom 4.81 / 1.5² (at most ×1.5 pessimistic in σ).
     Measured 4.96 (S_y's err/σ RMS 0.88, RMS error 4.8e-5) since the accelerometer prior is the |f| = g fit's block
-    sandwich (calib.session.hand.filter._gravity_fit_lever_free); 11.3 before (S_y's err/σ RMS 2.37, 49 of 50 seeds
+    sandwich (calib.session.hand.priors.gravity_fit_lever_free); 11.3 before (S_y's err/σ RMS 2.37, 49 of 50 seeds
     `ok`: σ optimistic and not flagged — this was a strict xfail then)."""
     from scipy import stats
 

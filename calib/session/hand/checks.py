@@ -45,6 +45,11 @@ assumptions can fail without its innovations saying so (measured on the project'
    ≤ 0.011 m and the independent generator's ≤ 0.02 m.  White sensor noise of one-sided PSD W alone
    gives x_rms = 1.3 √W m (W in m²/s⁴/Hz): 0.02 m for 10 mg per sample at 100 Hz — the bound needs
    ~0.16 g per sample, far beyond any MEMS accelerometer.
+
+And one check of the result itself (:func:`refuse_confounded`): a session whose motion cannot tell the lever arm from S
+or G (posterior correlation above ``CONFOUND_CORRELATION``) is refused with the parameters named and the motion that
+separates them: the lever arm's acceleration grows with ω² (and ω̇), a scale factor's attitude error with ∫ω, so the
+same rotation at two different speeds separates them.
 """
 
 from __future__ import annotations
@@ -55,7 +60,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal as sp_signal
 
+from gyrosim.errors import RecordingError
+
+from calib.session.model import StateLayout
+
 __all__ = ["HandAssumptions", "check_hand_assumptions", "slow_displacement", "SlowDisplacement", "TREMOR_MAX_M_S2",
+           "CONFOUND_CORRELATION", "refuse_confounded",
            "LEVER_ARM_MAX_M", "SAME_POSE_DEG", "MIN_REST_S", "DISPLACEMENT_MAX_M", "SLOW_BAND_HZ"]
 
 TREMOR_MAX_M_S2 = 2.0
@@ -209,3 +219,29 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                 "without moving the arm"
             )
     return HandAssumptions(ok, tuple(notes), eps, spread, float(tremor_band_rms_m_s2), rn, details)
+
+
+CONFOUND_CORRELATION = 0.98
+
+
+def refuse_confounded(P: np.ndarray, layout: StateLayout, threshold: float = CONFOUND_CORRELATION) -> None:
+    """Refuse (RecordingError) a session whose motion cannot tell the lever arm from S, G: a posterior correlation
+    (``P`` (n, n) of ``layout``) above ``threshold`` between a lever arm state and one of S, G (module docstring)."""
+    ol = layout.offset("lever_arm")
+    sd = np.sqrt(np.clip(np.diag(P), 1e-300, None))
+    corr = P / np.outer(sd, sd)
+    names = layout.names
+    bad = []
+    for i in range(ol, ol + 3):
+        for j in range(3, 9):
+            if abs(corr[i, j]) > threshold:
+                bad.append(f"lever arm {names[i]} with {names[j]} (correlation {corr[i, j]:+.3f})")
+    if bad:
+        raise RecordingError(
+            "this session's motion cannot separate the hand's lever arm from the gyro errors: "
+            + "; ".join(bad)
+            + ". The lever arm's acceleration grows with ω² and ω̇, a scale or axis error's attitude error with the "
+            "angle turned: repeat the rotations about each axis at two clearly different speeds (one at least "
+            "twice the other), including rotations about horizontal axes — or use --method kf_session if the device "
+            "turned about its own sensor (no lever arm)"
+        )

@@ -1,0 +1,159 @@
+"""One calibration session as one library call: :func:`run_session` does what ``calib run`` does and returns
+one :class:`~gyrosim.calibration.Calibration` that carries all of it, so ``calib run --json X`` writes exactly
+what ``Calibration.save(X)`` writes.
+
+What a run holds, beyond the method's estimate:
+
+* the method, by its registered estimator name (:data:`SESSION_METHODS`; the same name in campaigns and
+  Monte Carlo): ``kf_hand_joint`` by default (the hand-aware filter with the accelerometer estimated;
+  ``kf_hand`` with it calibrated), ``kf_joint`` / ``kf_session_r`` when an external-acceleration allowance
+  is given (the hand-blind filter of :func:`calib.session.paper.calibrate`), ``iterated_joint`` /
+  ``iterated_session_r`` its three-pass form;
+* ``warnings``: the input boundary's first (:class:`calib.inputs.InputReport`), then the method's
+  (:func:`method_warnings` gives the method's alone);
+* ``report``: ``input`` (what the boundary read and did), ``coaching`` (what the hand cost,
+  :func:`calib.session.coach.coach`, on the preparation the method itself used — the recording is prepared
+  once) and, for a simulated file, ``truth`` (the device's own bias, scale factor and non-orthogonality).
+
+Former method spellings still run and warn (DeprecationWarning here; a one-line note from ``calib run``):
+``hand`` → ``kf_hand_joint`` / ``kf_hand``; ``kf_session`` → ``kf_joint`` / ``kf_session_r``;
+``iterated_session`` → ``iterated_joint`` / ``iterated_session_r``; and ``kf`` / ``iterated``, which ``calib run``
+took for ``kf_session`` / ``iterated_session``: they still run those (not the paper's filter, which the
+registered names ``kf`` / ``iterated`` mean in campaigns and Monte Carlo), and the note says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from warnings import warn
+
+from gyrosim.calibration import Calibration, truth_calibration
+from gyrosim.errors import GyrosimError
+from gyrosim.recording import Recording
+
+from calib.inputs import KF, Loaded, prepare_recording
+
+__all__ = ["RunOptions", "run_session", "resolve_run_method", "method_warnings", "SESSION_METHODS",
+           "FORMER_METHODS"]
+
+# the methods a session run takes, by registered estimator name → (algorithm, accelerometer mode)
+SESSION_METHODS = {
+    "kf_hand_joint": ("hand", "estimate"),
+    "kf_hand": ("hand", "calibrated"),
+    "kf_joint": ("kf_session", "estimate"),
+    "kf_session_r": ("kf_session", "calibrated"),
+    "iterated_joint": ("iterated_session", "estimate"),
+    "iterated_session_r": ("iterated_session", "calibrated"),
+}
+_NAME = {key: name for name, key in SESSION_METHODS.items()}
+# former spellings (calib run --method before the registered names) → the algorithm they ran
+FORMER_METHODS = {"hand": "hand", "kf_session": "kf_session", "iterated_session": "iterated_session",
+                  "kf": "kf_session", "iterated": "iterated_session"}
+ACCELEROMETER_MODES = ("estimate", "calibrated")
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """The options of one session run (``calib run``'s).
+
+    ``method``: a name of :data:`SESSION_METHODS` (None: ``kf_hand_joint``, ``kf_hand`` with the accelerometer
+    calibrated, ``kf_joint`` / ``kf_session_r`` when ``external_acc_allowance_m_s2`` is given); ``accelerometer``:
+    "estimate" or "calibrated" (None: what the method's name says, else "estimate"); ``gravity_m_s2``: local
+    gravity (None: the method's default); ``external_acc_allowance_m_s2``: the hand-blind filters' allowance for
+    the hand's acceleration, m/s² RMS (None: from the data); ``keep_history``: keep the per-step history for a
+    viewer (never saved in the JSON)."""
+
+    method: str | None = None
+    accelerometer: str | None = None
+    gravity_m_s2: float | None = None
+    external_acc_allowance_m_s2: float | None = None
+    keep_history: bool = False
+
+
+def _spell(name: str, flag: str | None) -> str:
+    return f"{flag} {name}" if flag else repr(name)
+
+
+def resolve_run_method(options: RunOptions, *, flag: str | None = None) -> tuple[str, str, str | None]:
+    """(registered name, accelerometer mode, deprecation note or None) of ``options``'s method (module
+    docstring); ``flag`` (``"--method"``) spells the names in the note and errors as a command line's option.
+    Raises :class:`~gyrosim.errors.GyrosimError` for an unknown name, a mode the name contradicts, or an
+    allowance given to a hand-aware method."""
+    method, acc, external = options.method, options.accelerometer, options.external_acc_allowance_m_s2
+    if acc is not None and acc not in ACCELEROMETER_MODES:
+        raise GyrosimError(f"accelerometer {acc!r}: use one of {', '.join(ACCELEROMETER_MODES)}")
+    note = None
+    if method is None:
+        name = _NAME["kf_session" if external is not None else "hand", acc or "estimate"]
+    elif method in SESSION_METHODS:
+        algorithm, mode = SESSION_METHODS[method]
+        if acc not in (None, mode):
+            raise GyrosimError(f"{_spell(method, flag)} is the filter with the accelerometer {mode}: leave out the "
+                               f"accelerometer mode, or use {_spell(_NAME[algorithm, acc], flag)}")
+        name = method
+    elif method in FORMER_METHODS:
+        name = _NAME[FORMER_METHODS[method], acc or "estimate"]
+        if method in ("kf", "iterated"):
+            note = (f"{_spell(method, flag)} is deprecated: it still runs {name} (calib run's hand-blind filter, as "
+                    f"before), not the paper's filter that the registered name {method!r} means in campaigns and "
+                    f"Monte Carlo; use {_spell(name, flag)}")
+        else:
+            note = (f"{_spell(method, flag)} is deprecated: use {_spell(name, flag)} (the same filter, by its "
+                    "registered name)")
+    else:
+        raise GyrosimError(f"unknown method {method!r}: use one of {', '.join(SESSION_METHODS)} (the other registered "
+                           "estimators are research baselines for Monte Carlo and campaigns)")
+    algorithm, mode = SESSION_METHODS[name]
+    if algorithm == "hand" and external is not None:
+        blind = ", ".join(n for n, (alg, _) in SESSION_METHODS.items() if alg != "hand")
+        raise GyrosimError(f"an external-acceleration allowance is for the hand-blind filters ({blind}); {name} "
+                           "models the hand's acceleration and estimates its spectrum from the data")
+    return name, mode, note
+
+
+def run_session(source: Recording | Loaded, options: RunOptions = RunOptions()) -> Calibration:
+    """Calibrate one hand-held session as ``calib run`` does (module docstring) and return the one Calibration.
+
+    ``source``: a recording that passed the input boundary (:func:`calib.inputs.open_recording`), or a
+    :class:`~gyrosim.recording.Recording`, which is passed through it here (:func:`calib.inputs.prepare_recording`
+    for the filter).  Raises the input boundary's and the method's errors for input the method cannot use; a
+    result that fails its own check comes back with its status ("inconsistent", "diverged")."""
+    from calib.session.coach import coach
+    from calib.session.hand.filter import kf_hand
+    from calib.session.paper import calibrate, prepare
+
+    loaded = source if isinstance(source, Loaded) else prepare_recording(source, KF)
+    rec = loaded.recording
+    name, mode, note = resolve_run_method(options)
+    if note:
+        warn(note, DeprecationWarning, stacklevel=2)
+    algorithm = SESSION_METHODS[name][0]
+    prep = prepare(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
+                   external_acc_allowance_m_s2=options.external_acc_allowance_m_s2)
+    if algorithm == "hand":
+        result = kf_hand(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
+                         keep_history=options.keep_history, prepared=prep)
+    else:
+        result = calibrate(rec, name, external_acc_allowance_m_s2=options.external_acc_allowance_m_s2,
+                           gravity_m_s2=options.gravity_m_s2, keep_history=options.keep_history, prepared=prep)
+    report = {"coaching": coach(rec, result, prep).to_dict(), "input": loaded.report.to_dict()}
+    truth = truth_calibration(rec)
+    if truth is not None:
+        report["truth"] = _truth_section(truth)
+    return replace(result, warnings=tuple(loaded.report.warnings) + tuple(result.warnings), report=report)
+
+
+def _truth_section(truth: Calibration) -> dict:
+    """The simulated device's linear effects, as ``calib run --json``'s ``truth`` (SI)."""
+    return {"bias_rad_s": truth.value("gyro", "bias").tolist(),
+            "scale_factor": truth.value("gyro", "scale_factor").tolist(),
+            "nonorthogonality": truth.value("gyro", "nonorthogonality").tolist(),
+            "accelerometer": {"bias_m_s2": truth.value("accelerometer", "bias").tolist(),
+                              "scale_factor": truth.value("accelerometer", "scale_factor").tolist(),
+                              "nonorthogonality": truth.value("accelerometer", "nonorthogonality").tolist()}}
+
+
+def method_warnings(cal: Calibration) -> tuple[str, ...]:
+    """The method's own warnings of a :func:`run_session` result (those after the input boundary's)."""
+    n = len((cal.report.get("input") or {}).get("warnings") or ())
+    return tuple(cal.warnings[n:])
