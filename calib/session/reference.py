@@ -67,7 +67,7 @@ class ZhouFilter:
     covariance (default :func:`calib.session.model.initial_covariance` of the layout); ``x0``: the prior mean as an
     error state (θ_prior − θ̂₀; default zero: the prior centred on the nominal), propagated (x ← Φ x) and used in the
     innovation (z − H x) until the first reset.  ``hand0`` (≤ ``HAND_NOMINALS``): the nominal lever arm and a_e's
-    shaping-filter states (i of nav axis j at 3 + 3i + j); ``sensor0`` (≤ ``SENSOR_NOMINALS``): c_b, s_T, k, c_a, δ;
+    shaping-filter states (i of nav axis j at 3 + 3i + j); ``sensor0`` (≤ ``SENSOR_NOMINALS``): c_b, s_T, k, c_a, δ, α;
     ``rows``: measurement rows (2: levelling; 3: + the vertical, |f| = g); ``gate_nis`` > 0 skips an update whose NIS
     exceeds it.
     """
@@ -115,9 +115,9 @@ class ZhouFilter:
         return self._block("gyro_nonorth").copy()
 
     def m_hat(self, dtemp_c: float = 0.0) -> np.ndarray:
-        """M̂_g = I + diag(Ŝ_g + ŝ_T ΔT) + N(Ĝ_g)."""
-        return m_matrix(self._block("gyro_scale") + self._block("gyro_temp_scale") * dtemp_c,
-                        self._block("gyro_nonorth"))
+        """M̂_g = I + diag(Ŝ_g + ŝ_T ΔT) + N(Ĝ_g) − [α̂×] (α̂: the rotation against the accelerometer, 0 without it)."""
+        m = m_matrix(self._block("gyro_scale") + self._block("gyro_temp_scale") * dtemp_c, self._block("gyro_nonorth"))
+        return m - skew(self._block("gyro_misalign")) if self.layout.models_misalignment else m
 
     def m_hat_acc(self) -> np.ndarray:
         """M̂_a = I + diag(Ŝ_a) + N(Ĝ_a) (I without the accelerometer's blocks: θ̂_a stays 0)."""
@@ -204,7 +204,8 @@ class ZhouFilter:
                    "gyro_bias": cm,                                      # bias
                    "gyro_temp_bias": cm * dtm,                           # c_b: (T − T₀)
                    "gyro_temp_scale": cm * w_bar * dtm,                  # s_T: ω_j (T − T₀)
-                   "gyro_g_sens": cm * f_mid}                            # k: column j × f_j
+                   "gyro_g_sens": cm * f_mid,                            # k: column j × f_j
+                   "gyro_misalign": cm @ skew(w_bar)}                    # α: −[δα×] ω = [ω×] δα
         for block, col in columns.items():
             o = lay.offset(block)
             if o >= 0:
@@ -289,7 +290,7 @@ class ZhouFilter:
         for b in self.layout.blocks[1:]:
             o = self.layout.offset(b)
             if b in _SENSOR_AT:
-                self.sensor[_SENSOR_AT[b]] += x[o:o + 3]                 # c_b, s_T, k, c_a, δ += their δ
+                self.sensor[_SENSOR_AT[b]] += x[o:o + 3]                 # c_b, s_T, k, c_a, δ, α += their δ
             elif b == "lever_arm":
                 self.hand[0:3] += x[o:o + 3]                             # r̂ += δr
             elif b not in EXT_ACC_BLOCKS:
@@ -411,7 +412,8 @@ def run_reference(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.
                    force=force, acc_rate=at(s.acc_rate, k), lever=at(s.lever, k), lever_jac=jac)
         runs.append(f)
     h = [f.history for f in runs]
-    extra = layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay
+    extra = (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay
+             or layout.models_misalignment)
     return FilterRun(layout, np.stack([f.theta for f in runs]), np.stack([np.asarray(f.kf.P) for f in runs]),
                      np.stack([f.quat for f in runs]), np.stack([x.nis for x in h]),
                      np.stack([x.innovation for x in h]),

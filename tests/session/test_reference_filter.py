@@ -95,7 +95,8 @@ def _args(s, layout: StateLayout, cfg: FilterConfig, *, joint_tilt: bool = False
     if batch > 1:                                              # the second run differs (batches are per run)
         g[1:] += 1e-4
     kw = dict(x0=x0[None], hand0=np.array([0.01, 0.05, 0.0, 0.01, -0.02, 0.005]),
-              sensor0=np.array([1e-4, -1e-4, 2e-4, 3e-4, -2e-4, 1e-4, 0, 0, 0, 1e-3, 0, -1e-3, 1e-3, 1e-3, 1e-3]),
+              sensor0=np.array([1e-4, -1e-4, 2e-4, 3e-4, -2e-4, 1e-4, 0, 0, 0, 1e-3, 0, -1e-3, 1e-3, 1e-3, 1e-3,
+                                0.01, -0.006, 0.002]),
               keep_history=True, rest_mask=s["rest"])
     if layout.has("lever_arm"):
         kw.update(lever_regressor=s["lever"], lever_jacobian=s["jac"])
@@ -149,6 +150,12 @@ CASES = {
                                      joint_tilt=True, rows=3, update_mask=s["upd"]),
     "kf_hand_joint_thermal": lambda s: _args(s, joint_layout(True), _hand_cfg(), joint_tilt=True, rows=3,
                                              update_mask=s["upd"], r_var_per_sample=s["r_var"]),
+    # the gyro's rotation against the accelerometer: on the joint filter (calib run) and on the paper's joint layout
+    "kf_hand_joint_misalign": lambda s: _args(s, joint_layout(False, misalignment=True), _hand_cfg(), joint_tilt=True,
+                                              rows=3, update_mask=s["upd"]),
+    "kf_hand_thermal_misalign": lambda s: _args(s, hand_layout(True, misalignment=True), _hand_cfg(),
+                                                update_mask=s["upd"]),
+    "joint_misalign": lambda s: _args(s, StateLayout(JOINT.blocks + ("gyro_misalign",)), _config(), joint_tilt=True),
     "kf_hand_joint_thermal_cb": lambda s: _args(s, joint_layout(True, gyro_temp_bias=True), _hand_cfg(),
                                                 joint_tilt=True, rows=3, update_mask=s["upd"]),
     # the hand-aware bound's nuisance layouts: s_T, k, δ without the bias state; the band on HAND
