@@ -94,8 +94,8 @@ class Signals(NamedTuple):
     acc_rate: np.ndarray        # (B, N | 1, 3) ḟ̃, body, m/s³ (the accelerometer's delay)
     lever: np.ndarray           # (B, N | 1, 3, 3) K(ω, ω̇) = [ω̇×] + [ω×]², body (the lever arm)
     jac_rate: np.ndarray        # (B, N | 1, 3) LeverJacobian.rate_rad_s
-    jac_d_rate: np.ndarray      # (B, N | 1, 3, 9) LeverJacobian.d_rate
-    jac_d_rate_dot: np.ndarray  # (B, N | 1, 3, 9) LeverJacobian.d_rate_dot
+    jac_d_rate: np.ndarray      # (B, N | 1, 3, 9 | 12) LeverJacobian.d_rate
+    jac_d_rate_dot: np.ndarray  # (B, N | 1, 3, 9 | 12) LeverJacobian.d_rate_dot
 
 
 class Start(NamedTuple):
@@ -306,13 +306,13 @@ def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
-    """out (3 × 9) = ∂(K(ω, ω̇) r)/∂(S, G, b) at ω = ``ws`` (the low-passed compensated rate), for the rate's
+    """out (3 × 9 | 12) = ∂(K(ω, ω̇) r)/∂(S, G, b[, α]) at ω = ``ws`` (the low-passed compensated rate), for the rate's
     low-passed sensitivities ``ld`` = L ∂ω/∂θ (3 × 9) and ``ldd`` = d/dt of it: with a = ω̇ × r + ω × (ω × r),
     δa = δω̇ × r + δω × (ω × r) + ω × (δω × r) (:func:`calib.session.hand.lever.lever_jacobian`)."""
     u0 = ws[1] * r[2] - ws[2] * r[1]                           # u = ω × r
     u1 = ws[2] * r[0] - ws[0] * r[2]
     u2 = ws[0] * r[1] - ws[1] * r[0]
-    for c in range(9):
+    for c in range(ld.shape[1]):
         v0, v1, v2 = ld[0, c], ld[1, c], ld[2, c]
         d0, d1, d2 = ldd[0, c], ldd[1, c], ldd[2, c]
         p0 = v1 * r[2] - v2 * r[1]                             # p = δω × r
@@ -464,9 +464,10 @@ def _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, qd, o_bg, bias_q):  #
 
 
 @njit(cache=True)
-def _lever_shift(J, dlt, th, th0, sx, temp_k, force_k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
-    """K r̂ was built at the pass's θ₀ and the nominal moved since: dlt = θ̂ − θ₀ for (S, G, b), with θ̂'s S and b at
-    this sample's temperature (and force); returns J dlt (3,), the first-order change of K r̂."""
+def _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force_k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
+    """K r̂ was built at the pass's θ₀ and the nominal moved since: dlt = θ̂ − θ₀ for (S, G, b) (and α̂ − α₀ when J has
+    the misalignment's columns), with θ̂'s S and b at this sample's temperature (and force); returns J dlt (3,), the
+    first-order change of K r̂."""
     for j in range(3):
         dlt[j] = th[j] - th0[j]
         dlt[3 + j] = th[3 + j] - th0[3 + j]
@@ -477,10 +478,12 @@ def _lever_shift(J, dlt, th, th0, sx, temp_k, force_k, o_ts, o_tb, o_gs):  # pra
             dlt[6 + j] += sx[j] * temp_k
         if o_gs >= 0:
             dlt[6 + j] += sx[6 + j] * force_k[j]
+        if J.shape[1] > 9:                                 # the misalignment α
+            dlt[9 + j] = sx[15 + j] - sx0[15 + j]
     out = np.zeros(3)
     for i in range(3):
         s = 0.0
-        for c in range(9):
+        for c in range(J.shape[1]):
             s += J[i, c] * dlt[c]
         out[i] = s
     return out
@@ -555,6 +558,8 @@ def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J
             nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * temp_k, o_tb)   # c_b: b's column × (T − T₀)
         if o_gs >= 0:
             nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * force[k], o_gs)  # k: b's column j × f_j
+        if offs_x[5] >= 0 and J.shape[1] > 9:
+            nh = _nb_put(Hc, hcols, nh, CJ[:, 9:12], offs_x[5])       # Ĉ ∂(K r̂)/∂α
     return nh
 
 
@@ -665,7 +670,7 @@ def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs, o_m
 
 
 @njit(cache=True)
-def _corrected_force(C, th, sx, th0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
+def _corrected_force(C, th, sx, th0, sx0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
                      offs_x, jac_on):  # pragma: no cover - compiled
     """The compensated specific force at sample ``k`` (body): f̂ = M̂_a⁻¹(f̃ − b̂_a − ĉ_a ΔT) + δ̂ ⊙ ḟ̃ − K r̂ − J (θ̂ − θ₀),
     and the H regressor Ĉᵀ g_up (gravity predicted in the body).  Per-run arrays (``acc_rate``, ``lever``, ``force``,
@@ -695,7 +700,7 @@ def _corrected_force(C, th, sx, th0, acc_k, temp_k, acc_rate, lever, force, jw, 
         lever_jacobian_columns(jw[k], jd[k], jdd[k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
         # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
         f_k = force[k] if o_gs >= 0 else np.zeros(3)
-        sh_k = _lever_shift(J, dlt, th, th0, sx, temp_k, f_k, o_ts, o_tb, o_gs)
+        sh_k = _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, f_k, o_ts, o_tb, o_gs)
         for i in range(3):
             fh[i] -= sh_k[i]
     return fh, fr, Mia
@@ -793,8 +798,8 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
     Hc = np.zeros((3, H_COLS))                                 # H's non-zero columns (H_COLS)
     hcols = np.zeros(H_COLS, dtype=np.int64)
     jac_on = o_lv >= 0 and sig.jac_rate.shape[1] > 1           # K r̂'s dependence on the gyro's errors (LeverJacobian)
-    J = np.zeros((3, 9))
-    dlt = np.zeros(9)
+    J = np.zeros((3, sig.jac_d_rate.shape[3]))             # (S, G, b[, α])
+    dlt = np.zeros(J.shape[1])
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -835,9 +840,10 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
             if sig.update[b, k]:
                 C = _nb_qmat(q)
                 temp_k = sig.temp_rel[b, k]
-                fh, fr, Mia = _corrected_force(C, th, sx, start.theta[b], sig.acc[b, k], temp_k, sig.acc_rate[b],
-                                               sig.lever[b], sig.force[b], sig.jac_rate[b], sig.jac_d_rate[b],
-                                               sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs, offs_x, jac_on)
+                fh, fr, Mia = _corrected_force(C, th, sx, start.theta[b], start.sensor[b], sig.acc[b, k], temp_k,
+                                               sig.acc_rate[b], sig.lever[b], sig.force[b], sig.jac_rate[b],
+                                               sig.jac_d_rate[b], sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs,
+                                               offs_x, jac_on)
                 _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, sh.d, sh.c)
                 nh = _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, sig.force[b], sig.acc_rate[b], sig.lever[b], k,
                                   J, jac_on, offs, offs_x, o_ea, o_el, o_e2, sh)
@@ -870,7 +876,7 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
 @dataclass(frozen=True)
 class LeverJacobian:
     """How the lever arm term K(ω, ω̇) r moves with the gyro's errors, per sample (body frame): ``rate_rad_s``
-    (N, 3) the low-passed compensated rate ω the regressor K was built from, ``d_rate`` (N, 3, 9) its low-passed
+    (N, 3) the low-passed compensated rate ω the regressor K was built from, ``d_rate`` (N, 3, 9 | 12) its low-passed
     sensitivity L ∂ω/∂(S, G, b) and ``d_rate_dot`` (N, 3, 9) that sensitivity's time derivative (1/s)
     (:func:`calib.session.hand.lever.lever_jacobian`).  With a = ω̇ × r + ω × (ω × r):
     ∂a/∂θ = ∂ω̇/∂θ × r + ∂ω/∂θ × (ω × r) + ω × (∂ω/∂θ × r), column by column (:func:`lever_jacobian_columns`)."""
@@ -1005,8 +1011,11 @@ def _block_signals(layout: StateLayout, B: int, N: int, *, lever_regressor, leve
         lever = np.zeros((B, 1, 3, 3))
     if lever_jacobian is not None and layout.has("lever_arm"):
         jw = _arr(np.broadcast_to(np.asarray(lever_jacobian.rate_rad_s, float), (B, N, 3)))
-        jd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate, float), (B, N, 3, 9)))
-        jdd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate_dot, float), (B, N, 3, 9)))
+        nc = np.shape(lever_jacobian.d_rate)[-1]        # 9: S, G, b; 12 with the misalignment α
+        if nc not in (9, 12) or (nc == 12) != layout.models_misalignment:
+            raise ValueError(f"lever_jacobian has {nc} columns: 9 (S, G, b), 12 with the layout's gyro_misalign")
+        jd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate, float), (B, N, 3, nc)))
+        jdd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate_dot, float), (B, N, 3, nc)))
     else:
         jw, jd, jdd = np.zeros((B, 1, 3)), np.zeros((B, 1, 3, 9)), np.zeros((B, 1, 3, 9))
     if layout.models_temperature:

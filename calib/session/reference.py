@@ -92,6 +92,7 @@ class ZhouFilter:
         self.theta_lin = self.theta.copy()     # θ₀: the lever arm regressor's linearisation point (lever_jacobian)
         self.hand = _padded(hand0, HAND_NOMINALS)
         self.sensor = _padded(sensor0, SENSOR_NOMINALS)
+        self.sensor_lin = self.sensor.copy()   # α₀: the lever arm regressor's linearisation point of the misalignment
         self.quat = quat_normalize(np.asarray(quat0_nb, dtype=float))
         self._rows = int(rows)
         self.gate_nis = float(gate_nis)
@@ -233,7 +234,7 @@ class ZhouFilter:
         f_hat = mi_a @ (f_body - b_a)                                    # f̂ = M̂_a⁻¹ (f̃ − b̂_a)
         if lay.models_acc_delay:
             f_hat = f_hat + self._block("acc_delay") * acc_rate          # f = f̃ + δ ḟ̃ (first order in δ)
-        J = np.zeros((3, 9))
+        J = np.zeros((3, 9 if lever_jac is None else np.shape(lever_jac[1])[-1]))   # (S, G, b[, α])
         if lay.has("lever_arm"):
             r = self.hand[0:3]
             f_hat = f_hat - lever @ r                                    # minus the lever arm's K r̂ (body)
@@ -263,6 +264,8 @@ class ZhouFilter:
                 self._put(H, "gyro_temp_scale", cj[:, 0:3] * dtemp_c)    # s_T: S's column × (T − T₀)
                 self._put(H, "gyro_temp_bias", cj[:, 6:9] * dtemp_c)     # c_b: b's column × (T − T₀)
                 self._put(H, "gyro_g_sens", cj[:, 6:9] * f_k)            # k: b's column j × f_j
+                if J.shape[1] > 9:
+                    self._put(H, "gyro_misalign", cj[:, 9:12])           # Ĉ ∂(K r̂)/∂α
         self._ae.measurement(H)                                          # ∂â_e/∂x on a_e's states
         return z, H
 
@@ -271,6 +274,8 @@ class ZhouFilter:
         change since it was built."""
         lay = self.layout
         d = self.theta[0:9] - self.theta_lin[0:9]                        # (S, G, b) − their θ₀
+        if lay.models_misalignment:                                      # α̂ − α₀ (J's columns 9:12)
+            d = np.concatenate([d, self._block("gyro_misalign") - self.sensor_lin[_SENSOR_AT["gyro_misalign"]]])
         if lay.has("gyro_temp_scale"):
             d[0:3] += self._block("gyro_temp_scale") * dtemp_c           # S(T) = S + s_T ΔT
         if lay.has("gyro_temp_bias"):

@@ -59,6 +59,7 @@ def _session(hand: bool) -> dict:
         "d": d, "t": t, "n": n, "theta0": theta0,
         "q0": np.array([0.9998, 0.012, -0.015, 0.0]) / np.linalg.norm([0.9998, 0.012, -0.015, 0.0]),
         "lever": lever_regressor(w, t, RATE), "jac": lever_jacobian(w, t, RATE, m),
+        "jac_misalign": lever_jacobian(w, t, RATE, m, misalignment=True),
         "temp": np.linspace(-0.4, 0.5, n), "force": d["acc_m_s2"].copy(),
         "acc_rate": np.gradient(d["acc_m_s2"], t, axis=0), "upd": upd,
         "rest": t < 0.9, "r_var": 4e-4 * (1.0 + 0.5 * np.sin(t)),
@@ -99,7 +100,8 @@ def _args(s, layout: StateLayout, cfg: FilterConfig, *, joint_tilt: bool = False
                                 0.01, -0.006, 0.002]),
               keep_history=True, rest_mask=s["rest"])
     if layout.has("lever_arm"):
-        kw.update(lever_regressor=s["lever"], lever_jacobian=s["jac"])
+        kw.update(lever_regressor=s["lever"],
+                  lever_jacobian=s["jac_misalign"] if layout.models_misalignment else s["jac"])
     if layout.models_temperature:
         kw["temperature_rel_c"] = s["temp"]
     if layout.models_g_sensitivity:
