@@ -52,7 +52,8 @@ def test_kf_hand_joint_on_an_independent_hand_with_a_raw_accelerometer(kin):
         cal = estimators.kf_hand_joint(rec)
         assert cal.status == "ok", cal.warnings
         assert cal.method == "kf_hand_joint" and cal.diagnostics["accelerometer_mode"] == "estimate"
-        assert len(cal.diagnostics["filter"]["states"]) == 36   # HAND_JOINT + the accelerometer delay δ
+        # HAND_JOINT + the accelerometer delay δ + the gyro's misalignment α (Zhou's schedule determines it)
+        assert len(cal.diagnostics["filter"]["states"]) == 39 and cal.diagnostics["gyro_misalignment"]["estimated"]
         e, c = _err_cov(cal, d)
         n6 += float(e[:6] @ np.linalg.solve(c[:6, :6], e[:6]))
         n15 += float(e @ np.linalg.solve(c, e))
