@@ -63,3 +63,21 @@ def test_without_turns_or_covariance_nothing_changes():
     bare = Calibration.from_linear(gyro={"bias": np.zeros(3), "scale_factor": np.zeros(3),
                                          "nonorthogonality": np.zeros(3)}, status="ok")
     assert apply_known_turns(bare, rec, turns, 1e-3) is bare
+
+
+def test_calib_run_refuses_turns_it_cannot_use(tmp_path, capsys):
+    """Before any filter runs: both --turns and --protocol, and a protocol whose section list is not beside the
+    recording, exit 2 with one line saying what to give instead."""
+    import independent_generator as ig
+
+    from calib.app.cli import main as calib_main
+
+    path = tmp_path / "s.csv"
+    ig.generate(path, gyro_noise_deg_s=0.05, acc_noise_g=0.001)
+    turns = tmp_path / "turns.csv"
+    turns.write_text("start_s,end_s,axis,angle_deg,sigma_deg\n10,15,z,90,1\n")
+    base = ["run", str(path), "--gyro-unit", "deg/s", "--acc-unit", "g"]
+    assert calib_main(base + ["--turns", str(turns), "--protocol", "ferraris"]) == 2
+    assert "either as --turns FILE or by --protocol" in capsys.readouterr().err
+    assert calib_main(base + ["--protocol", "ferraris"]) == 2
+    assert "s_list.json" in capsys.readouterr().err
