@@ -43,6 +43,7 @@ def test_the_rotation_is_recovered_with_an_honest_sigma(kin):
     for seed in range(2):
         rec, cal = _run(kin, seed, ALPHA)
         assert cal.status == "ok", cal.warnings
+        assert not any(w.startswith("no uncertainty") for w in cal.warnings)   # every parameter has its σ
         z, nees = _nees(cal, ALPHA)
         assert np.all(np.abs(z) < 4) and nees < q, (seed, z, nees)
         d = cal.to_dict()

@@ -850,12 +850,12 @@ def _calibration(ses: _Session, fit: _Fit, cov: np.ndarray, sig: _Sigma, tremor:
     if ses.estimate:   # the accelerometer's parameters as calib run's joint filter reports them
         acc_params = {"bias": theta[theta_slice("acc_bias")], "scale_factor": theta[theta_slice("acc_scale")],
                       "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("acc_nonorth")]), -0.45, 0.45)}
-    cal = Calibration.from_linear(
-        gyro=gyro, accelerometer=acc_params, covariance=cov if alpha is None else None, status=status,
+    effects = Calibration.from_linear(gyro=gyro, accelerometer=acc_params)   # the linear model's effects
+    extra = () if alpha is None else (GyroAccMisalignment(value=alpha.copy()),)   # after G: _covariance's order
+    cal = Calibration(
+        gyro=effects.gyro + extra, accelerometer=effects.accelerometer, covariance=cov, status=status,
         warnings=prep.warnings + fit.obs_notes + tuple(notes), method=REGISTERED_NAME[ses.accelerometer],
         diagnostics=_diagnostics(ses, fit, sig, checks, hand, assumptions, dly, rate_ref, force_ref))
-    if alpha is not None:   # after G: the covariance's order (_covariance)
-        cal = replace(cal, gyro=cal.gyro + (GyroAccMisalignment(value=alpha.copy()),), covariance=cov)
     if keep_history:   # the last pass's √P, θ̂, innovations and NIS per step (calib run --rrd shows P converge)
         out = fit.out
         cal = replace(cal, history=FilterHistory(rec.t_s[ses.a + 1:], out.sd_history[0], out.theta_history[0],
