@@ -102,7 +102,9 @@ def test_calib_run_method_hand_estimates_the_accelerometer(kin, tmp_path):
     assert [e["effect"] for e in blind["effects"]["accelerometer"]] == [
         e["effect"] for e in out["effects"]["accelerometer"]
     ]
-    assert np.shape(out["covariance"]) == np.shape(blind["covariance"]) == (18, 18)
+    # the hand-aware filter's gyro carries its misalignment α too (Zhou's schedule determines it): 3 rows more
+    assert np.shape(out["covariance"]) == (21, 21) and np.shape(blind["covariance"]) == (18, 18)
+    assert "misalignment_rad" in out["gyro"] and "misalignment_rad" not in blind["gyro"]
 
 
 def test_montecarlo_with_a_raw_accelerometer_gives_the_joint_hand_bound():
