@@ -164,8 +164,11 @@ __all__ = [
 
 __getattr__ = moved_attribute(__name__)   # hand_cross_check, CROSS_CHECK_TAIL: calib.session.crosscheck
 
-# the gyro's misalignment α is estimated when the motion takes its σ below this share of its prior (2° → 0.4°)
-MISALIGNMENT_OBSERVED = 0.2
+# the gyro's misalignment α is estimated when the motion takes its σ below this on every axis: a fifth of an
+# assembly's typical 0.5° (measured: imu_tk's Xsens 0.026°, the independent hand 0.005°; BROAD's slow rotation, trial
+# 02, 0.09–0.17°, where the α it fitted, −0.4° about z, made the orientation filters' heading worse: Madgwick 0.63° →
+# 0.84°)
+MISALIGNMENT_OBSERVED_RAD = math.radians(0.1)
 LAYOUT = HAND_BIAS         # kf_hand's base layout (accelerometer calibrated); kf_hand_joint's: HAND_JOINT
 # the registered estimator each accelerometer mode of :func:`kf_hand` is (the label its result carries)
 REGISTERED_NAME = {"calibrated": "kf_hand", "estimate": "kf_hand_joint"}
@@ -306,7 +309,7 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
 
 def _misalignment_seen(ses: _Session, fit: _Fit) -> dict | None:
     """Whether the session's motion determines the gyro's rotation against the accelerometer (None: not modelled):
-    its σ in the filter's P at most ``MISALIGNMENT_OBSERVED`` × its prior σ on every axis.  A motion that does not
+    its σ in the filter's P at most ``MISALIGNMENT_OBSERVED_RAD`` on every axis.  A motion that does not
     (turns about one axis only) would leave α at its prior, where it trades with G (the same column of the gyro's axis
     matrix): the model without α is run instead, and the JSON says so."""
     o = ses.layout.offset("gyro_misalign")
@@ -314,8 +317,8 @@ def _misalignment_seen(ses: _Session, fit: _Fit) -> dict | None:
         return None
     prior = ses.cfg0.prior_sigma("gyro_misalign")
     post = np.sqrt(np.diag(fit.out.p[0])[o:o + 3])
-    return {"estimated": bool(np.all(post <= MISALIGNMENT_OBSERVED * prior)), "prior_std_rad": prior.tolist(),
-            "filter_std_rad": post.tolist(), "observed_ratio": MISALIGNMENT_OBSERVED}
+    return {"estimated": bool(np.all(post <= MISALIGNMENT_OBSERVED_RAD)), "prior_std_rad": prior.tolist(),
+            "filter_std_rad": post.tolist(), "observed_below_rad": MISALIGNMENT_OBSERVED_RAD}
 
 
 def kf_hand_band(rec: Recording) -> Calibration:

@@ -65,11 +65,11 @@ class HandParams:
     (:func:`calib.session.drift.bias_drift`).
     ``misalignment``: the gyro triad's rotation against the accelerometer's, α (rad), is a state (three angles,
     prior σ :attr:`calib.session.model.FilterConfig.prior_gyro_misalign_rad`): ω̃ = (I + diag(S) + N(G) − [α×]) ω + b,
-    kept when the motion determines it (:data:`calib.session.hand.filter.MISALIGNMENT_OBSERVED`).  None (default): on
-    with the accelerometer estimated (kf_hand_joint, ``calib run``'s default: the accelerometer's frame is then the
-    body's, and the independent generator's hand cells hold α's σ honest — NEES(3) 6.9 over 4 seeds), except on
-    noise-free input (its floor lets α take the discretisation error), off with it calibrated (kf_hand: its NEES cells
-    are not yet measured with α).
+    kept when the motion determines it (:data:`calib.session.hand.filter.MISALIGNMENT_OBSERVED_RAD`).  None
+    (default): on with the accelerometer estimated (kf_hand_joint, ``calib run``'s default: the accelerometer's frame
+    is then the body's, and the independent generator's hand cells hold α's σ honest — NEES(3) 6.9 over 4 seeds),
+    except on noise-free input (its floor lets α take the discretisation error); off with it calibrated (kf_hand: its
+    NEES cells are not yet measured with α).
     """
 
     cutoff_hz: float = CUTOFF_HZ
