@@ -296,29 +296,32 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     ses = _session(rec, accelerometer, gravity_m_s2, p, prepared)
     sway0, tremor = _first_sway(ses)
     fit = _passes(ses, sway0, keep_history)
-    seen = _misalignment_seen(ses, fit)
-    if seen is not None and not seen["estimated"]:   # the motion leaves α at its prior: the model without it
+    cov, cov_parts = _covariance(ses, fit)
+    seen = _misalignment_seen(ses, fit, cov)
+    if seen is not None and not seen["estimated"]:   # the motion does not determine α: the model without it
         ses = replace(ses, layout=StateLayout(tuple(b for b in ses.layout.blocks if b not in MISALIGN_BLOCKS)))
         fit = _passes(ses, sway0, keep_history)
-    cov, cov_parts = _covariance(ses, fit)
+        cov, cov_parts = _covariance(ses, fit)
     cal = _calibration(ses, fit, cov, cov_parts, tremor, keep_history)
     if seen is not None:
         cal = replace(cal, diagnostics={**cal.diagnostics, "gyro_misalignment": seen})
     return cal if turns is None else apply_known_turns(cal, rec, turns, ses.cfg0.arw_rad_s_sqrt_hz)
 
 
-def _misalignment_seen(ses: _Session, fit: _Fit) -> dict | None:
+def _misalignment_seen(ses: _Session, fit: _Fit, cov: np.ndarray) -> dict | None:
     """Whether the session's motion determines the gyro's rotation against the accelerometer (None: not modelled):
-    its σ in the filter's P at most ``MISALIGNMENT_OBSERVED_RAD`` on every axis.  A motion that does not
-    (turns about one axis only) would leave α at its prior, where it trades with G (the same column of the gyro's axis
-    matrix): the model without α is run instead, and the JSON says so."""
+    its reported σ (``cov``, :func:`_covariance`: the slow residual's spectrum and the innovations' inflation applied;
+    α's rows follow the bias's, S's and G's) at most ``MISALIGNMENT_OBSERVED_RAD`` on every axis.  A motion that does
+    not (turns about one axis only; a slow rotation) would leave α near its prior, where it trades with G (the same
+    column of the gyro's axis matrix): the model without α is run instead, and the JSON says so."""
     o = ses.layout.offset("gyro_misalign")
     if o < 0:
         return None
     prior = ses.cfg0.prior_sigma("gyro_misalign")
-    post = np.sqrt(np.diag(fit.out.p[0])[o:o + 3])
-    return {"estimated": bool(np.all(post <= MISALIGNMENT_OBSERVED_RAD)), "prior_std_rad": prior.tolist(),
-            "filter_std_rad": post.tolist(), "observed_below_rad": MISALIGNMENT_OBSERVED_RAD}
+    reported = np.sqrt(np.diag(cov)[9:12])
+    return {"estimated": bool(np.all(reported <= MISALIGNMENT_OBSERVED_RAD)), "prior_std_rad": prior.tolist(),
+            "filter_std_rad": np.sqrt(np.diag(fit.out.p[0])[o:o + 3]).tolist(), "reported_std_rad": reported.tolist(),
+            "observed_below_rad": MISALIGNMENT_OBSERVED_RAD}
 
 
 def kf_hand_band(rec: Recording) -> Calibration:
