@@ -41,7 +41,15 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .effects import Bias, Effect, NonOrthogonality, ScaleFactor, SignalContext, effect_from_dict
+from .effects import (
+    Bias,
+    Effect,
+    GyroAccMisalignment,
+    NonOrthogonality,
+    ScaleFactor,
+    SignalContext,
+    effect_from_dict,
+)
 from .errors import GyrosimError
 from .recording import FRAMES, Recording
 
@@ -60,6 +68,9 @@ _SUMMARY = {"gyro": ((Bias.kind, "bias_rad_s"), (ScaleFactor.kind, "scale_factor
                      (NonOrthogonality.kind, "nonorthogonality")),
             "accelerometer": ((Bias.kind, "bias_m_s2"), (ScaleFactor.kind, "scale_factor"),
                               (NonOrthogonality.kind, "nonorthogonality"))}
+# further summary keys, written only when the calibration has the effect: the gyro triad's rotation against the
+# accelerometer's (rad about x, y, z; gyrosim.effects.GyroAccMisalignment)
+_EXTRA_SUMMARY = {"gyro": {GyroAccMisalignment.kind: "misalignment_rad"}}
 # the linear model ω̃ = (I + S + N) ω + b (Zhou 2020 eq. 1): its effect classes, by kind
 _LINEAR = {cls.kind: cls for cls in (Bias, ScaleFactor, NonOrthogonality)}
 LINEAR_KINDS = tuple(_LINEAR)  # ("bias", "scale_factor", "nonorthogonality"), the vector order
@@ -294,6 +305,10 @@ class Calibration:
             for kind, key in _SUMMARY[triad]:
                 block[key] = self.value(triad, kind)
                 std[key] = self.std(triad, kind)
+            for e in getattr(self, triad):   # the gyro's rotation against the accelerometer, when estimated
+                if e.kind in _EXTRA_SUMMARY.get(triad, {}):
+                    key = _EXTRA_SUMMARY[triad][e.kind]
+                    block[key], std[key] = self.value(triad, e.kind), self.std(triad, e.kind)
             block["std"] = std
             d[triad] = block
         d.update({k: v for k, v in self.diagnostics.items() if k not in d})

@@ -18,12 +18,17 @@ the same IMU, ``calib export --noise``), from the calibration's own ``white_nois
 effects; a number none of them has is refused, saying where to get it.
 Kalibr's own advice is to inflate the values for real-world use; nothing is inflated here.  Kalibr's
 imu.yaml has no place for scale factor or axis errors (its camera–IMU calibration estimates its own);
-they are written as comments so the file stays one a Kalibr run accepts.
+they are written as comments so the file stays one a Kalibr run accepts — with the gyro's rotation against the
+accelerometer (``gyro_acc_misalignment`` α) in the form Kalibr's scale-misalignment model reports it, ``C_gyro_i``
+(Rehder et al., "Extending Kalibr", ICRA 2016: ω_gyro = C_gyro_i ω_imu, the accelerometer's frame being the IMU's),
+here R(α)ᵀ.
 
 **imucal** (mad-lab-fau/imucal 2.x, ``FerrarisCalibrationInfo.to_json``): raw = K R x + b per triad
-(K diagonal, R with unit-norm rows), gyro also + K_ga a, gyro in °/s.  Our M = I + diag(S) + N(G) is
-written as K = diag(‖row_i(M)‖), R = K⁻¹ M; b_g in °/s; K_ga = 0 (not estimated).  The file loads
-with ``imucal.management.load_calibration_info`` and ``calibrate()`` gives our compensation.
+(K diagonal, R with unit-norm rows), gyro also + K_ga a, gyro in °/s.  Our axis matrix M (every linear term of
+the triad: I + diag(S) + N(G), and the gyro's −[α×] when the calibration has its rotation against the
+accelerometer) is written as K = diag(‖row_i(M)‖), R = K⁻¹ M; b_g in °/s; K_ga = 0 (not estimated).  imucal has
+no term of its own for the gyro–accelerometer misalignment: its R_g is a general matrix, so the rotation is in it.
+The file loads with ``imucal.management.load_calibration_info`` and ``calibrate()`` gives our compensation.
 """
 
 from __future__ import annotations
@@ -109,6 +114,15 @@ def kalibr_imu_yaml(cal: Calibration, update_rate_hz: float, *, rostopic: str = 
             if cal.has(triad, kind):
                 lines.append(f"#   {triad} {label}: "
                              f"{np.array2string(cal.value(triad, kind), precision=6, separator=', ')}")
+    rot = next((e for e in cal.gyro if e.axis_rotation and e.triads == ("gyro",) and e.params().size == 3), None)
+    if rot is not None:   # the gyro's rotation against the accelerometer, Kalibr's C_gyro_i = R(α)ᵀ
+        from .effects import rotation_matrix
+
+        c = rotation_matrix(rot.params()).T
+        lines.append(f"#   gyro rotation against the accelerometer alpha (rad, about x, y, z): "
+                     f"{np.array2string(rot.params(), precision=6, separator=', ')}")
+        lines.append("#   C_gyro_i (Kalibr scale-misalignment model, omega_gyro = C_gyro_i omega_imu, row-major): "
+                     + np.array2string(c.ravel(), precision=8, separator=", ", max_line_width=400))
     return "\n".join(lines) + "\n"
 
 
@@ -165,12 +179,13 @@ def imucal_json(cal: Calibration, comment: str = "") -> str:
         if not any(cal.has(triad, k) for k in LINEAR_KINDS):
             raise GyrosimError(f"imucal's format needs both triads; this calibration has no {triad} intrinsics "
                                "(calibrate with --accelerometer estimate)")
-    def m(triad: str) -> np.ndarray:
-        return (
-            np.eye(3)
-            + np.diag(cal.value(triad, "scale_factor"))
-            + nonortho_matrix(cal.value(triad, "nonorthogonality"))
-        )
+    def m(triad: str) -> np.ndarray:   # I + diag(S) + N(G), and every other axis term (the gyro's −[α×])
+        out = np.eye(3) + np.diag(cal.value(triad, "scale_factor"))
+        out = out + nonortho_matrix(cal.value(triad, "nonorthogonality"))
+        for e in getattr(cal, triad):
+            if e.axis_rotation and not e.stochastic and e.affine() is not None:
+                out = out + e.affine()[0]
+        return out
 
     k_a, r_a = _k_r(m("accelerometer"))
     k_g, r_g = _k_r(m("gyro"))

@@ -6,7 +6,8 @@ simulator for the calibrator.  Kinematic, numpy only, written independently:
   ω(t) = (A/T)(1 − cos 2πt/T) — a different profile from gyrosim's quintic, on purpose;
 * attitude in closed form: each step turns about one fixed body axis by
   θ(t) = (A/T)(t − (T/2π) sin 2πt/T), so q(t) = q_start ⊗ (cos θ/2, sin θ/2 · axis);
-* gyro = (I + S + N(G)) ω + b + white noise;
+* gyro = (I + S + N(G) − [α×]) ω + b + white noise (α: the gyro triad's rotation against the
+  accelerometer's, zero unless given);
   accelerometer = (I + S_a + N(G_a)) Cᵀ (0, 0, g) + b_a + white noise (a raw accelerometer when
   S_a, G_a, b_a are given; N(G) = [[0, Gz, Gy], [Gz, 0, Gx], [Gy, Gx, 0]] for both triads);
 * noise-free when both noise levels are 0 (the CSV then carries 9 significant digits);
@@ -108,6 +109,25 @@ def kinematics(rate_hz: float = 100.0, steps=STEPS, q0=None) -> tuple[np.ndarray
     return np.arange(omega.shape[0]) / rate_hz, omega, quat
 
 
+def held_rate(rate_hz: float = 100.0, steps=STEPS) -> np.ndarray:
+    """(N, 3) rad/s: each sample the mean body rate over its own step [t_k, t_k + Δt] — what a gyro that integrates
+    over the sample interval outputs (an angle increment divided by Δt), so that holding sample k constant over
+    the step turns the attitude exactly to sample k + 1's.  Closed form: each schedule step turns about one fixed
+    body axis, so the mean rate is (θ(t + Δt) − θ(t))/Δt with θ of :func:`kinematics`.  It represents the rate at
+    t_k + Δt/2: against accelerometer samples taken at t_k the gyro leads by half a sample."""
+    out = []
+    dt = 1.0 / rate_hz
+    for kind, axis, angle, dur in steps:
+        t = np.arange(int(round(dur * rate_hz))) / rate_hz
+        w = np.zeros((t.size, 3))
+        if kind == "rot":
+            def theta(x):
+                return angle / dur * (x - dur / (2 * np.pi) * np.sin(2 * np.pi * x / dur))
+            w[:, axis] = (theta(np.minimum(t + dt, dur)) - theta(t)) / dt
+        out.append(w)
+    return np.concatenate(out)
+
+
 def angular_acceleration(rate_hz: float = 100.0, steps=STEPS) -> np.ndarray:
     """ω̇ (N, 3) rad/s² of a schedule in closed form: d/dt of (A/T)(1 − cos 2πt/T) = (2πA/T²) sin 2πt/T."""
     out = []
@@ -187,6 +207,8 @@ def generate_arrays(
     wobble_bands=(),
     output_lowpass_hz: float | None = None,
     output_lowpass_order: int = 2,
+    gyro_rotation_rad=(0.0, 0.0, 0.0),
+    gyro_held: bool = False,
 ) -> dict:
     """Samples (SI) and the true parameters; ``kin`` = a precomputed :func:`kinematics` (reused across seeds).
 
@@ -227,10 +249,20 @@ def generate_arrays(
     A sensor with an output low-pass (a MEMS DLPF, an AHRS's decimation filter): ``output_lowpass_hz`` f_c filters
     both triads' outputs, noise included, with a causal digital Butterworth low-pass of ``output_lowpass_order``
     poles (scipy's bilinear design; gain 1 at 0 Hz, its state started at the first sample) — white noise then keeps
-    its density only below f_c.  The true parameters are unchanged (the filter is linear with unit DC gain)."""
+    its density only below f_c.  The true parameters are unchanged (the filter is linear with unit DC gain).
+
+    The gyro triad turned against the accelerometer's: ``gyro_rotation_rad`` α (3,) adds ω × α = −[α×] ω to the
+    gyro (the linear term of its axes' rotation; ``gyro_rotation_rad`` in the result).
+
+    A gyro that integrates over its sample interval: ``gyro_held`` replaces the rate the gyro measures by
+    :func:`held_rate` (each sample the mean rate over its own step, the value a consumer holds over that step) —
+    the gyro then leads the accelerometer by half a sample (+Δt/2 in the accelerometer-delay convention
+    f̃(t) = f(t − δ), 5 ms at 100 Hz).  A schedule's closed form only: not with ``wobble_bands``."""
     rng = np.random.default_rng(seed)
     t, omega, quat = kin if kin is not None else kinematics(rate_hz, steps)
     n = omega.shape[0]
+    if gyro_held and wobble_bands:
+        raise ValueError("gyro_held needs the schedule's closed form: not with wobble_bands")
     bias = np.radians(np.asarray(bias_deg_s, float))
     if wobble_bands:
         phi, dphi = attitude_wobble(np.random.default_rng([seed, 23]), t, wobble_bands)
@@ -263,15 +295,19 @@ def generate_arrays(
         from independent_noise import flicker
         fl = flicker(n, bias_flicker_rad_s, np.random.default_rng([seed, 29]))
         bias_path = bias_path + fl - fl[0]
+    sensed = held_rate(rate_hz, steps) if gyro_held else omega   # what the gyro's samples stand for
+    alpha = np.asarray(gyro_rotation_rad, float)
+    m_gyro = _m(scale, nonortho) - np.array([[0.0, -alpha[2], alpha[1]], [alpha[2], 0.0, -alpha[0]],
+                                             [-alpha[1], alpha[0], 0.0]])
     clean = (
-        omega @ _m(scale, nonortho).T
+        sensed @ m_gyro.T
         + bias_path
-        + np.asarray(scale_nonlinearity_per_rad_s, float) * omega * np.abs(omega)
+        + np.asarray(scale_nonlinearity_per_rad_s, float) * sensed * np.abs(sensed)
     )
     temp = None
     if temperature_c is not None:
         temp = np.asarray(temperature_c, float)
-        clean = clean + omega * (temp - temp[0])[:, None] * np.asarray(scale_per_c, float)[None, :]
+        clean = clean + sensed * (temp - temp[0])[:, None] * np.asarray(scale_per_c, float)[None, :]
         clean = clean + np.multiply.outer(temp - temp[0], np.asarray(gyro_bias_per_c, float))
     if g_sensitivity is not None:
         clean = clean + gravity_body @ np.asarray(g_sensitivity, float).T
@@ -303,6 +339,7 @@ def generate_arrays(
         "bias_path_rad_s": bias_path,
         "scale_factor": np.asarray(scale, float),
         "nonorthogonality": np.asarray(nonortho, float),
+        "gyro_rotation_rad": alpha,
         "acc_bias_m_s2": acc_bias,
         "acc_scale_factor": np.asarray(acc_scale, float),
         "acc_nonorthogonality": np.asarray(acc_nonortho, float),

@@ -12,6 +12,7 @@ fitted value beyond it by more than 3σ is refused as a proxy (:meth:`CandidateF
 |---|---|---|
 | bias | 5 °/s | turn-on bias 1–3 °/s |
 | scale factor, non-orthogonality, misalignment | 0.05 (5 %, 50 mrad) | 1–3 %, 1–2 % cross-axis |
+| gyro-to-accelerometer misalignment | 3° per axis | not on datasheets: 0.3–1° measured (imucal, imu_tk) |
 | scale nonlinearity | 5e-3 /(rad/s) (0.5 % at 1 rad/s) | 0.1–0.5 % FS |
 | time offset | 50 ms | 1–10 ms filter/bus latency, up to 20 ms over a bus |
 | g-sensitivity | 0.5 °/s/g | 0.1 °/s/g (MPU-9250) |
@@ -37,6 +38,7 @@ from gyrosim.effects import (
     EarthRate,
     Effect,
     GSensitivity,
+    GyroAccMisalignment,
     MagneticSensitivity,
     Misalignment,
     NonOrthogonality,
@@ -158,6 +160,29 @@ class MisalignmentFamily(_AxisMatrix):
         sig_tot = np.hypot(nonortho_matrix(n_sig), Misalignment(value=sig).matrix())
         off = ~np.eye(3, dtype=bool)
         return tot_hat[off], tot_true[off], sig_tot[off]
+
+
+@register_family
+class GyroAccMisalignmentFamily(_AxisMatrix):
+    """The gyro triad turned against the accelerometer's by small angles α: the antisymmetric part of the gyro's axis
+    matrix (regressor [ω×]), three parameters where the general misalignment has six — its symmetric half trades with
+    the declared non-orthogonality, this one with nothing the linear model holds.  Against the gravity reference the
+    body frame is the accelerometer's (gravity's direction at each pose), so α is what a filter needs to carry the
+    accelerometer's gravity with the gyro."""
+
+    effects = (GyroAccMisalignment,)
+    driver = "the rate on the other axes (antisymmetric)"
+    follows_text = "the rate on the other axes, antisymmetric (the gyro's axes turned against the accelerometer's)"
+    bound = GyroAccMisalignment.max_rad
+
+    def plausible_max(self, kind, ctx):
+        return math.radians(3.0)
+
+    def caveat(self, kind, reference_kind):
+        if reference_kind == "optical":
+            return ("a rotation between the IMU and the optical body frame (the reference's alignment) looks exactly "
+                    "like this")
+        return None
 
 
 @register_family

@@ -58,6 +58,7 @@ from calib.inputs.errors import (
                        TemperatureTrendError,
                        TimeBaseError,
                        TooShortError,
+                       TurnsError,
                        UnitError,
 )
 from calib.inputs.plausibility import MAX_PLAUSIBLE_RATE_RAD_S
@@ -120,4 +121,5 @@ __all__ = [
     "MotionError",
     "TooShortError",
     "TemperatureTrendError",
+    "TurnsError",
 ]

@@ -9,7 +9,7 @@ from __future__ import annotations
 from gyrosim.errors import RecordingError
 
 __all__ = ["InputError", "FormatError", "FieldError", "TimeBaseError", "GapError", "RateError", "UnitError",
-           "SpikeError", "DegenerateError", "MotionError", "TooShortError"]
+           "SpikeError", "DegenerateError", "MotionError", "TooShortError", "TemperatureTrendError", "TurnsError"]
 
 
 class InputError(RecordingError):
@@ -44,3 +44,5 @@ TooShortError = _input_error("TooShortError", "short", "Too few samples or too s
 TemperatureTrendError = _input_error(
     "TemperatureTrendError", "temperature", "A temperature trend over a static record that a random-walk (or "
     "rate-ramp) estimate would absorb: the bias follows the temperature, and the drift looks like a random walk.")
+TurnsError = _input_error("TurnsError", "turns", "A turns file or a protocol's section list that cannot be used: a "
+                          "missing column or key, an unknown axis, a stretch outside the recording.")

@@ -64,7 +64,7 @@ def imucal_ferraris(folder: Path) -> ImucalResult | str:
     sections = pd.DataFrame(json.loads((folder / "example_ferraris_session_list.json").read_text())).T
     info = FerrarisCalibration(grav=G0).compute(ferraris_regions_from_section_list(df, sections), RATE_HZ,
                                                      "m/s^2", "deg/s")
-    p, u = polar(info.K_a @ info.R_a, side="left")  # A = P U
+    u, p = polar(info.K_a @ info.R_a, side="left")  # A = P U (scipy returns the rotation first, whatever the side)
     g_ours = info.K_g @ info.R_g @ u.T
     sym, anti = 0.5 * (g_ours + g_ours.T), 0.5 * (g_ours - g_ours.T)
     gs, gg = _sym_parts(sym)

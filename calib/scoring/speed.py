@@ -57,7 +57,7 @@ def run_bench(batch: int = 50, repeats: int = 3, seed: int = 0) -> list[tuple[st
         "kf (paper, 9 states, compiled, no hand check)": lambda: paper_filter(rec, PaperParams(), name="kf",
                                                                              hand_check=False),
         "kf_hand (33 states: + c_b, s_T, δ, 3 passes, compiled)": lambda: kf_hand(rec),
-        "kf_hand_joint (42 states: + s_T, c_a, δ, 3 passes)": lambda: kf_hand(rec, accelerometer="estimate"),
+        "kf_hand_joint (45 states: + s_T, c_a, δ, α, 3 passes)": lambda: kf_hand(rec, accelerometer="estimate"),
     }
     best = {k: float("inf") for k in cases}
     for _ in range(max(1, repeats)):

@@ -9,9 +9,14 @@ parameter leaves it at its prior instead of making the normal equations singular
 
     r_k = |f̂_k| − g,   ∂r_k/∂θ = −u_kᵀ M̂⁻¹ [I, diag(f̂_k), J_G(f̂_k)],   u_k = f̂_k/|f̂_k|
 
-(f̃ − b = M f̂ ⇒ df̂ = −M⁻¹(db + dM f̂)).  The windows: 0.1 s means every 0.1 s; a window's weight
-is the inverse of its own scatter plus the noise of its mean, so windows with motion or hand
-acceleration count less; two passes with Huber weights (k = 3σ) on the residuals.
+(f̃ − b = M f̂ ⇒ df̂ = −M⁻¹(db + dM f̂)).  Every sample from the first rest on is a row; its weight is
+the inverse of the variance |f̂| − g has there (:func:`sample_variance`): at a detected rest the rest's
+own scatter of |f̃| (the white noise, or a hand-held rest's sway — measured, never assumed), elsewhere the
+white noise plus the hand's allowance.  A still pose is where |f| = g holds to the noise, so it is the
+multi-position calibration's information (Ferraris 1995, Tedaldi 2014); one allowance for every sample
+drowned it under the moves' hand acceleration — on imu_tk's Xsens session (38 still poses between hand
+rotations, allowance 0.52 m/s²) the fit's |f| − g at the poses was 2.1× imu_tk's own, 1.0× with the rests
+weighed by their scatter.  Huber weights (k = 3σ) on the residuals against transient motion.
 
 Why only as the *start* of the filter (:func:`calib.session.paper.calibrate`): |f| = g says nothing
 about the horizontal components of an accelerometer error, and a session such as Zhou's Table 6
@@ -33,7 +38,10 @@ import numpy as np
 
 from calib.session.model import jacobian_nonorthogonality, m_matrix
 
-__all__ = ["GravityFit", "quasi_static_windows", "fit_gravity", "gravity_regressor", "compensate_acc"]
+__all__ = ["GravityFit", "quasi_static_windows", "fit_gravity", "gravity_regressor", "compensate_acc",
+           "sample_variance"]
+
+REST_BLOCKS = 8   # a rest's block means that measure its slow part (a hand's sway)
 
 
 def compensate_acc(f: np.ndarray, theta_a: np.ndarray) -> np.ndarray:
@@ -62,6 +70,36 @@ def quasi_static_windows(acc_m_s2: np.ndarray, rate_hz: float, window_s: float =
     mean = blocks.mean(axis=1)
     spread = np.sqrt(np.sum(blocks.var(axis=1), axis=1))
     return mean, np.sqrt(spread**2 + noise_sigma_m_s2**2 / w + 1e-18)
+
+
+def sample_variance(f: np.ndarray, rests: tuple[tuple[int, int], ...] | list[tuple[int, int]], noise_var: float,
+                    moving_var: float) -> np.ndarray:
+    """(N,) variance of |f̂| − g per sample of ``f`` (raw, m/s²; sample 0 of ``f`` is sample 0 of the rest ranges'
+    indexing): inside each rest [a, b) what that rest's own |f̃| shows — the white noise's radial part, or more
+    where a hand held the pose — never below ``noise_var``; ``moving_var`` (white noise + the hand's allowance)
+    everywhere else.  A rest's |f̃| is attitude-free, so its scatter is the sensor's and the hand's, not the pose's;
+    its slow part does not average out (:func:`_rest_sample_variance`)."""
+    n = np.asarray(f).shape[0]
+    var = np.full(n, float(moving_var))
+    norm = np.linalg.norm(np.asarray(f, float), axis=1)
+    for a, b in rests:
+        a, b = max(int(a), 0), min(int(b), n)
+        if b - a >= 2 * REST_BLOCKS:
+            var[a:b] = _rest_sample_variance(norm[a:b], float(noise_var))
+    return var
+
+
+def _rest_sample_variance(norm: np.ndarray, noise_var: float) -> float:
+    """Per-sample variance that gives a rest of n samples the information it has about |f| = g: its fast part
+    (white noise, tremor — the differences' variance, ≥ ``noise_var``) averages over the rest, its slow part (a
+    hand's sway: the excess variance of ``REST_BLOCKS`` block means over what the fast part gives them) does not,
+    so the rest's mean has variance fast/n + slow and each sample weighs 1/(fast + n·slow)."""
+    n = norm.size
+    fast = max(float(np.var(np.diff(norm))) / 2.0, noise_var)
+    size = n // REST_BLOCKS
+    means = norm[: size * REST_BLOCKS].reshape(REST_BLOCKS, size).mean(axis=1)
+    slow = max(float(np.var(means, ddof=1)) - fast / size, 0.0)
+    return fast + n * slow
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,7 @@ from calib.session.model import (
 # the update's H, its non-zero columns at most: φ 2 + accelerometer 9 + c_a 3 + δ 3 + lever arm 3 + a_e ≤ 27 + the lever
 # arm term's gyro columns (S, G, b, c_b, s_T, k) 18
 H_COLS = 65
+E_COLS = 21   # Φ's φ rows: S, G, b, c_b, s_T, k, α
 HAND_NOMINALS = 3 + 3 * len(EXT_ACC_BLOCKS)   # the lever arm, then a_e's shaping-filter states (3 per component)
 SENSOR_NOMINALS = 3 * len(SENSOR_EXTRA_BLOCKS)  # c_b, s_T, k, c_a, δ (calib.session.model.SENSOR_EXTRA_BLOCKS)
 
@@ -93,8 +94,8 @@ class Signals(NamedTuple):
     acc_rate: np.ndarray        # (B, N | 1, 3) ḟ̃, body, m/s³ (the accelerometer's delay)
     lever: np.ndarray           # (B, N | 1, 3, 3) K(ω, ω̇) = [ω̇×] + [ω×]², body (the lever arm)
     jac_rate: np.ndarray        # (B, N | 1, 3) LeverJacobian.rate_rad_s
-    jac_d_rate: np.ndarray      # (B, N | 1, 3, 9) LeverJacobian.d_rate
-    jac_d_rate_dot: np.ndarray  # (B, N | 1, 3, 9) LeverJacobian.d_rate_dot
+    jac_d_rate: np.ndarray      # (B, N | 1, 3, 9 | 12) LeverJacobian.d_rate
+    jac_d_rate_dot: np.ndarray  # (B, N | 1, 3, 9 | 12) LeverJacobian.d_rate_dot
 
 
 class Start(NamedTuple):
@@ -105,14 +106,14 @@ class Start(NamedTuple):
     x: np.ndarray               # (B, n) the prior's mean as an error state, θ_prior − θ̂₀
     P: np.ndarray               # (B, n, n)
     hand: np.ndarray            # (B, HAND_NOMINALS) lever arm, then a_e's shaping-filter states (i, axis j: 3 + 3i + j)
-    sensor: np.ndarray          # (B, SENSOR_NOMINALS) c_b, s_T, k, c_a, δ
+    sensor: np.ndarray          # (B, SENSOR_NOMINALS) c_b, s_T, k, c_a, δ, α
 
 
 class Settings(NamedTuple):
     """The layout's offsets and the noise model's numbers (scalars of :class:`calib.session.model.FilterConfig`)."""
 
     offsets: np.ndarray         # (len(BLOCKS),) first state of each block, −1 where absent (StateLayout.offsets)
-    sensor_offsets: np.ndarray  # (5,) offsets of SENSOR_EXTRA_BLOCKS
+    sensor_offsets: np.ndarray  # (6,) offsets of SENSOR_EXTRA_BLOCKS
     arw2: float                 # N_g², (rad/s)²/Hz: Q_φφ = N_g² Δt
     bias_rw2: float             # q_b, rad²/s³: Q_bb = q_b Δt
     gravity: float              # g, m/s²
@@ -211,6 +212,35 @@ def _nb_minv(s, g):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _nb_minv_rot(s, g, a):  # pragma: no cover - compiled
+    """(I + diag(s) + N(g) − [a×])⁻¹ (the gyro's axis matrix with its rotation against the accelerometer)."""
+    m00, m01, m02 = 1.0 + s[0], g[2] + a[2], g[1] - a[1]
+    m10, m11, m12 = g[2] - a[2], 1.0 + s[1], g[0] + a[0]
+    m20, m21, m22 = g[1] + a[1], g[0] - a[0], 1.0 + s[2]
+    c00, c01, c02 = m11 * m22 - m12 * m21, m12 * m20 - m10 * m22, m10 * m21 - m11 * m20   # cofactors
+    det = m00 * c00 + m01 * c01 + m02 * c02
+    mi = np.empty((3, 3))                                  # the adjugate over the determinant (C order, as _nb_minv)
+    mi[0, 0], mi[1, 0], mi[2, 0] = c00 / det, c01 / det, c02 / det
+    mi[0, 1] = (m02 * m21 - m01 * m22) / det
+    mi[1, 1] = (m00 * m22 - m02 * m20) / det
+    mi[2, 1] = (m01 * m20 - m00 * m21) / det
+    mi[0, 2] = (m01 * m12 - m02 * m11) / det
+    mi[1, 2] = (m02 * m10 - m00 * m12) / det
+    mi[2, 2] = (m00 * m11 - m01 * m10) / det
+    return mi
+
+
+@njit(cache=True)
+def _nb_cross_matrix(w):  # pragma: no cover - compiled
+    """[ω×]: ∂(ω × α)/∂α, the misalignment's column of δω."""
+    j = np.empty((3, 3))
+    j[0, 0], j[0, 1], j[0, 2] = 0.0, -w[2], w[1]
+    j[1, 0], j[1, 1], j[1, 2] = w[2], 0.0, -w[0]
+    j[2, 0], j[2, 1], j[2, 2] = -w[1], w[0], 0.0
+    return j
+
+
+@njit(cache=True)
 def _nb_jg(w):  # pragma: no cover - compiled
     """J_G(ω) = ∂(N(G) ω)/∂G (calib.session.model.jacobian_nonorthogonality)."""
     j = np.empty((3, 3))
@@ -276,13 +306,13 @@ def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
-    """out (3 × 9) = ∂(K(ω, ω̇) r)/∂(S, G, b) at ω = ``ws`` (the low-passed compensated rate), for the rate's
+    """out (3 × 9 | 12) = ∂(K(ω, ω̇) r)/∂(S, G, b[, α]) at ω = ``ws`` (the low-passed compensated rate), for the rate's
     low-passed sensitivities ``ld`` = L ∂ω/∂θ (3 × 9) and ``ldd`` = d/dt of it: with a = ω̇ × r + ω × (ω × r),
     δa = δω̇ × r + δω × (ω × r) + ω × (δω × r) (:func:`calib.session.hand.lever.lever_jacobian`)."""
     u0 = ws[1] * r[2] - ws[2] * r[1]                           # u = ω × r
     u1 = ws[2] * r[0] - ws[0] * r[2]
     u2 = ws[0] * r[1] - ws[1] * r[0]
-    for c in range(9):
+    for c in range(ld.shape[1]):
         v0, v1, v2 = ld[0, c], ld[1, c], ld[2, c]
         d0, d1, d2 = ldd[0, c], ldd[1, c], ldd[2, c]
         p0 = v1 * r[2] - v2 * r[1]                             # p = δω × r
@@ -376,7 +406,7 @@ def _propagate_shaping(Pb, xs, hd, d, offs_ae, phi, q, lrow, lv):  # pragma: no 
 
 
 @njit(cache=True)
-def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs):  # pragma: no cover - compiled
+def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o_ma):  # pragma: no cover - compiled
     """The φ rows of Φ − I, E (3 × ne) in the columns ``ecols``, with CM = −Ĉ M̂⁻¹ Δt: the gyro error δω = M̂⁻¹ (X(ω)
     [δS; δG] + δb + …) turns the attitude by −Ĉ δω Δt.  Returns ne."""
     ne = _nb_put(E, ecols, 0, CM * wr, o_sg)               # scale: column j × ω_j
@@ -389,6 +419,8 @@ def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs): 
         ne = _nb_put(E, ecols, ne, CM * wr * dtm, o_ts)    # scale temperature coefficient: ω_j (T − T₀)
     if o_gs >= 0:
         ne = _nb_put(E, ecols, ne, CM * fm, o_gs)          # g-sensitivity: column j × f_j
+    if o_ma >= 0:
+        ne = _nb_put(E, ecols, ne, CM @ _nb_cross_matrix(wr), o_ma)   # misalignment: −[δα×] ω = [ω×] δα
     return ne
 
 
@@ -432,9 +464,10 @@ def _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, qd, o_bg, bias_q):  #
 
 
 @njit(cache=True)
-def _lever_shift(J, dlt, th, th0, sx, temp_k, force_k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
-    """K r̂ was built at the pass's θ₀ and the nominal moved since: dlt = θ̂ − θ₀ for (S, G, b), with θ̂'s S and b at
-    this sample's temperature (and force); returns J dlt (3,), the first-order change of K r̂."""
+def _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force_k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
+    """K r̂ was built at the pass's θ₀ and the nominal moved since: dlt = θ̂ − θ₀ for (S, G, b) (and α̂ − α₀ when J has
+    the misalignment's columns), with θ̂'s S and b at this sample's temperature (and force); returns J dlt (3,), the
+    first-order change of K r̂."""
     for j in range(3):
         dlt[j] = th[j] - th0[j]
         dlt[3 + j] = th[3 + j] - th0[3 + j]
@@ -445,10 +478,12 @@ def _lever_shift(J, dlt, th, th0, sx, temp_k, force_k, o_ts, o_tb, o_gs):  # pra
             dlt[6 + j] += sx[j] * temp_k
         if o_gs >= 0:
             dlt[6 + j] += sx[6 + j] * force_k[j]
+        if J.shape[1] > 9:                                 # the misalignment α
+            dlt[9 + j] = sx[15 + j] - sx0[15 + j]
     out = np.zeros(3)
     for i in range(3):
         s = 0.0
-        for c in range(9):
+        for c in range(J.shape[1]):
             s += J[i, c] * dlt[c]
         out[i] = s
     return out
@@ -523,6 +558,8 @@ def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J
             nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * temp_k, o_tb)   # c_b: b's column × (T − T₀)
         if o_gs >= 0:
             nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * force[k], o_gs)  # k: b's column j × f_j
+        if offs_x[5] >= 0 and J.shape[1] > 9:
+            nh = _nb_put(Hc, hcols, nh, CJ[:, 9:12], offs_x[5])       # Ĉ ∂(K r̂)/∂α
     return nh
 
 
@@ -599,15 +636,20 @@ def _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh):  # 
             sx[9 + j] += x[o_ta + j]
         if o_dl >= 0:
             sx[12 + j] += x[o_dl + j]
+        if offs_x[5] >= 0:
+            sx[15 + j] += x[offs_x[5] + j]
 
 
 @njit(cache=True)
-def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs):  # pragma: no cover - compiled
+def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs, o_ma):  # pragma: no cover - compiled
     """The nominal's step k−1 → k (one run's arrays, sample index ``k``): M̂⁻¹ and b̂ at the step's mid temperature
     (ΔT = ``dtm``; and mid specific force with the g-sensitivity: b_g,i += k_i f_i), the compensated rates at both
     ends, q̂ ← q̂ ⊗ Exp(φ) (trapezoid + coning).  Returns (q̂, −Ĉ M̂⁻¹ Δt at the step's middle, the rate regressor ω
     — zero at rest, else the leave-out mean at t_{k−½} —, f at the step's middle)."""
-    Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
+    if o_ma >= 0:                                          # with the rotation against the accelerometer, α̂
+        Mi = _nb_minv_rot(th[0:3] + sx[3:6] * dtm, th[3:6], sx[15:18])
+    else:
+        Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
     bg = th[6:9] + sx[0:3] * dtm
     fm = np.zeros(3)
     if o_gs >= 0:
@@ -628,7 +670,7 @@ def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs):  #
 
 
 @njit(cache=True)
-def _corrected_force(C, th, sx, th0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
+def _corrected_force(C, th, sx, th0, sx0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
                      offs_x, jac_on):  # pragma: no cover - compiled
     """The compensated specific force at sample ``k`` (body): f̂ = M̂_a⁻¹(f̃ − b̂_a − ĉ_a ΔT) + δ̂ ⊙ ḟ̃ − K r̂ − J (θ̂ − θ₀),
     and the H regressor Ĉᵀ g_up (gravity predicted in the body).  Per-run arrays (``acc_rate``, ``lever``, ``force``,
@@ -658,7 +700,7 @@ def _corrected_force(C, th, sx, th0, acc_k, temp_k, acc_rate, lever, force, jw, 
         lever_jacobian_columns(jw[k], jd[k], jdd[k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
         # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
         f_k = force[k] if o_gs >= 0 else np.zeros(3)
-        sh_k = _lever_shift(J, dlt, th, th0, sx, temp_k, f_k, o_ts, o_tb, o_gs)
+        sh_k = _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, f_k, o_ts, o_tb, o_gs)
         for i in range(3):
             fh[i] -= sh_k[i]
     return fh, fr, Mia
@@ -728,8 +770,8 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
     # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
     # (general shaping filter, sh.d > 0: component i of axis j at 3 + 3i + j)
     hand = start.hand.copy()
-    # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15):
-    # calib.session.model.SENSOR_EXTRA_BLOCKS
+    # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15),
+    # the gyro's misalignment α (15:18): calib.session.model.SENSOR_EXTRA_BLOCKS
     sens = start.sensor.copy()
     P = start.P.copy()
     qout = np.zeros((B, 4))
@@ -745,19 +787,19 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
     o_e2 = offs[10] if st.hp_order >= 2 else -1
     if sh.d > 0:                                               # the general shaping filter replaces the x, z, z₂ code
         o_ea, o_el, o_e2 = -1, -1, -1
-    o_tb, o_ts, o_gs = offs_x[0], offs_x[1], offs_x[2]
+    o_tb, o_ts, o_gs, o_ma = offs_x[0], offs_x[1], offs_x[2], offs_x[5]
     gz, m = st.gravity, st.rows
     lrow = np.zeros((9, n))
     lv = np.zeros(9)
-    E = np.zeros((3, 18))
-    ecols = np.zeros(18, dtype=np.int64)
+    E = np.zeros((3, E_COLS))
+    ecols = np.zeros(E_COLS, dtype=np.int64)
     A = np.zeros((3, n))
     EPE = np.zeros((3, 3))
     Hc = np.zeros((3, H_COLS))                                 # H's non-zero columns (H_COLS)
     hcols = np.zeros(H_COLS, dtype=np.int64)
     jac_on = o_lv >= 0 and sig.jac_rate.shape[1] > 1           # K r̂'s dependence on the gyro's errors (LeverJacobian)
-    J = np.zeros((3, 9))
-    dlt = np.zeros(9)
+    J = np.zeros((3, sig.jac_d_rate.shape[3]))             # (S, G, b[, α])
+    dlt = np.zeros(J.shape[1])
     PHt = np.zeros((n, 3))
     THt = np.zeros((n, 3))
     K = np.zeros((n, 3))
@@ -782,8 +824,8 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
             # step's mid temperature (T − T₀; zero without them)
             dtm = 0.5 * (sig.temp_rel[b, k - 1] + sig.temp_rel[b, k])
             q, CM, wr, fm = _step_nominal(q, th, sx, sig.gyro[b], sig.gyro_reg[b], sig.still[b], sig.force[b], k, dt,
-                                          dtm, o_gs)
-            ne = _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs)
+                                          dtm, o_gs, o_ma)
+            ne = _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o_ma)
             if o_ea >= 0:                                      # Gauss–Markov a_e: Φ = diag(e^{−Δt/τ}), Q = σ²(1 − Φ²)
                 al = math.exp(-dt / st.gm_tau)
                 be = math.exp(-dt / st.hp_tau)                 # z ← β z + (1 − β) x: z the low-pass of x (τ_h)
@@ -798,9 +840,10 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
             if sig.update[b, k]:
                 C = _nb_qmat(q)
                 temp_k = sig.temp_rel[b, k]
-                fh, fr, Mia = _corrected_force(C, th, sx, start.theta[b], sig.acc[b, k], temp_k, sig.acc_rate[b],
-                                               sig.lever[b], sig.force[b], sig.jac_rate[b], sig.jac_d_rate[b],
-                                               sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs, offs_x, jac_on)
+                fh, fr, Mia = _corrected_force(C, th, sx, start.theta[b], start.sensor[b], sig.acc[b, k], temp_k,
+                                               sig.acc_rate[b], sig.lever[b], sig.force[b], sig.jac_rate[b],
+                                               sig.jac_d_rate[b], sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs,
+                                               offs_x, jac_on)
                 _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, sh.d, sh.c)
                 nh = _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, sig.force[b], sig.acc_rate[b], sig.lever[b], k,
                                   J, jac_on, offs, offs_x, o_ea, o_el, o_e2, sh)
@@ -833,7 +876,7 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
 @dataclass(frozen=True)
 class LeverJacobian:
     """How the lever arm term K(ω, ω̇) r moves with the gyro's errors, per sample (body frame): ``rate_rad_s``
-    (N, 3) the low-passed compensated rate ω the regressor K was built from, ``d_rate`` (N, 3, 9) its low-passed
+    (N, 3) the low-passed compensated rate ω the regressor K was built from, ``d_rate`` (N, 3, 9 | 12) its low-passed
     sensitivity L ∂ω/∂(S, G, b) and ``d_rate_dot`` (N, 3, 9) that sensitivity's time derivative (1/s)
     (:func:`calib.session.hand.lever.lever_jacobian`).  With a = ω̇ × r + ω × (ω × r):
     ∂a/∂θ = ∂ω̇/∂θ × r + ∂ω/∂θ × (ω × r) + ω × (∂ω/∂θ × r), column by column (:func:`lever_jacobian_columns`)."""
@@ -871,9 +914,10 @@ class FilterRun:
     asked the history of √diag P (B, N−1, n) and θ̂ (B, N−1, 18); the hand's nominals (B, ``HAND_NOMINALS``: lever
     arm r (m, body), last external acceleration x and its low-passes z, z₂ (m/s², nav; a_e = x − z − z₂) — with a
     general shaping filter its state i of nav axis j at 3 + 3i + j) and the whitened innovations L⁻¹ν of the two
-    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 15): the gyro's
+    levelling rows (B, N−1, 3; S = L Lᵀ, unit white under the model); ``sensor_extra`` (B, 18): the gyro's
     temperature coefficients c_b (rad/s/°C), s_T (1/°C) and g-sensitivity k (rad/s per m/s²), the
-    accelerometer bias's temperature coefficient c_a (m/s²/°C) and its delay behind the gyro δ (s), with a layout
+    accelerometer bias's temperature coefficient c_a (m/s²/°C) and its delay behind the gyro δ (s), the gyro's
+    misalignment against the accelerometer α (rad), with a layout
     that has those blocks (:data:`calib.session.model.SENSOR_EXTRA_BLOCKS`)."""
 
     layout: StateLayout
@@ -967,8 +1011,11 @@ def _block_signals(layout: StateLayout, B: int, N: int, *, lever_regressor, leve
         lever = np.zeros((B, 1, 3, 3))
     if lever_jacobian is not None and layout.has("lever_arm"):
         jw = _arr(np.broadcast_to(np.asarray(lever_jacobian.rate_rad_s, float), (B, N, 3)))
-        jd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate, float), (B, N, 3, 9)))
-        jdd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate_dot, float), (B, N, 3, 9)))
+        nc = np.shape(lever_jacobian.d_rate)[-1]        # 9: S, G, b; 12 with the misalignment α
+        if nc not in (9, 12) or (nc == 12) != layout.models_misalignment:
+            raise ValueError(f"lever_jacobian has {nc} columns: 9 (S, G, b), 12 with the layout's gyro_misalign")
+        jd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate, float), (B, N, 3, nc)))
+        jdd = _arr(np.broadcast_to(np.asarray(lever_jacobian.d_rate_dot, float), (B, N, 3, nc)))
     else:
         jw, jd, jdd = np.zeros((B, 1, 3)), np.zeros((B, 1, 3, 9)), np.zeros((B, 1, 3, 9))
     if layout.models_temperature:
@@ -1029,7 +1076,7 @@ def _record_arrays(n: int, N: int, on: bool) -> RecordArrays:
     """Room for the first run's linear error model (one row per step when ``on``, else placeholders)."""
     nr = N if on else 1
     return RecordArrays(np.zeros((nr, n, 3)), np.zeros((nr, 3, H_COLS)), np.zeros((nr, H_COLS), np.int64),
-                        np.zeros(nr, np.int64), np.zeros((nr, 3, 18)), np.zeros((nr, 18), np.int64),
+                        np.zeros(nr, np.int64), np.zeros((nr, 3, E_COLS)), np.zeros((nr, E_COLS), np.int64),
                         np.zeros(nr, np.int64), np.zeros((nr, 2)), np.zeros(nr, np.bool_))
 
 
@@ -1054,8 +1101,10 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
       high-pass τ_h from ``config``).  A layout with ``ext_acc_s3`` … (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`)
       runs a_e as the general shaping filter of :meth:`calib.session.model.FilterConfig.ext_acc_model` (the
       band-limited sway, or the same Gauss–Markov family), discretised exactly per step;
-    * ``sensor0`` (≤ 15,) or (B, ≤ 15): the nominal c_b, s_T, k of the gyro's extra blocks and c_a, δ of the
-      accelerometer's (default 0; missing ones 0); ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), needed by a
+    * ``sensor0`` (≤ 18,) or (B, ≤ 18): the nominal c_b, s_T, k of the gyro's extra blocks and c_a, δ of the
+      accelerometer's, then the gyro's misalignment α (default 0; missing ones 0): a layout with ``gyro_misalign``
+      runs the gyro model ω̃ = (M_g − [α×]) ω + b_g (``MISALIGN_BLOCKS``; the lever arm's Jacobian J leaves α out:
+      α K r̂ is second order); ``temperature_rel_c`` (N,) or (B, N): T − T₀ (°C), needed by a
       layout with ``gyro_temp_bias`` / ``gyro_temp_scale``: the gyro model is then ω̃ = (M_g + diag(s_T)(T − T₀)) ω +
       b_g + c_b (T − T₀) + ε (``THERMAL_BLOCKS``), and with ``acc_temp_bias`` f̃ = M_a f + b_a + c_a (T − T₀) + v
       (``ACC_THERMAL_BLOCKS``; T at the update's sample); ``specific_force_m_s2`` (N, 3) or (B, N, 3): f (body, m/s²),
@@ -1083,7 +1132,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
         hth if st.keep else None,
         hand if layout.models_hand else None,
         wht,
-        sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay) else None,
+        sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay
+                 or layout.models_misalignment) else None,
         FilterRecord(*rec, rows=st.rows) if st.record else None,
     )
 

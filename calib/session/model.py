@@ -98,6 +98,8 @@ __all__ = [
     "EXT_ACC_EXTRA_BLOCKS",
     "HAND_BIAS_TS",
     "ACC_DELAY_BLOCKS",
+    "MISALIGN_BLOCKS",
+    "gyro_axis_matrix",
     "HAND_BIAS_THERMAL",
     "BLOCKS",
     "THETA",
@@ -135,7 +137,7 @@ STATE_NAMES = ("phi_x", "phi_y", "phi_z", "S_x", "S_y", "S_z", "G_x", "G_y", "G_
 BLOCKS = ("phi", "gyro_scale", "gyro_nonorth", "gyro_bias", "acc_bias", "acc_scale", "acc_nonorth",
           "lever_arm", "ext_acc", "ext_acc_lp", "ext_acc_lp2", "gyro_temp_bias", "gyro_temp_scale",
           "gyro_g_sens", "ext_acc_s3", "ext_acc_s4", "ext_acc_s5", "ext_acc_s6", "ext_acc_s7", "ext_acc_s8",
-          "acc_temp_bias", "acc_delay")
+          "acc_temp_bias", "acc_delay", "gyro_misalign")
 THETA = BLOCKS[1:7]
 HAND_BLOCKS = BLOCKS[7:11]
 THERMAL_BLOCKS = BLOCKS[11:13]
@@ -154,8 +156,14 @@ assert all(b in BLOCKS for b in ACC_THERMAL_BLOCKS)
 # (calib.session.hand.priors.common_delay_prior)
 ACC_DELAY_BLOCKS = ("acc_delay",)
 assert all(b in BLOCKS for b in ACC_DELAY_BLOCKS)
-# their nominals: calib.session.kernel.FilterRun.sensor_extra (c_b, s_T, k, c_a, δ)
-SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS + ACC_THERMAL_BLOCKS + ACC_DELAY_BLOCKS
+# the gyro triad's rotation against the accelerometer's, α (rad, about the body axes; gyrosim.effects.
+# GyroAccMisalignment): ω̃ = (M_g − [α×]) ω + b_g — the antisymmetric part of the gyro's axis matrix that the symmetric
+# S, N(G) cannot hold.  The body frame is the accelerometer's (gravity fixes it), so α is observable once the session
+# turns about two axes that gravity does not hide; δω = M̂⁻¹ [ω×] δα (−[δα×] ω = ω × δα)
+MISALIGN_BLOCKS = ("gyro_misalign",)
+assert all(b in BLOCKS for b in MISALIGN_BLOCKS)
+# their nominals: calib.session.kernel.FilterRun.sensor_extra (c_b, s_T, k, c_a, δ, α)
+SENSOR_EXTRA_BLOCKS = THERMAL_BLOCKS + G_SENS_BLOCKS + ACC_THERMAL_BLOCKS + ACC_DELAY_BLOCKS + MISALIGN_BLOCKS
 _SHORT = {
     "phi": "phi",
     "gyro_scale": "S",
@@ -174,6 +182,7 @@ _SHORT = {
     **{f"ext_acc_s{i}": f"ae{i}" for i in range(3, 9)},
     "acc_temp_bias": "ca",
     "acc_delay": "dt",
+    "gyro_misalign": "al",
 }
 BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyro_nonorth": "gyro non-orthogonality",
                 "gyro_bias": "gyro bias", "acc_bias": "accelerometer bias", "acc_scale": "accelerometer scale factor",
@@ -185,7 +194,8 @@ BLOCK_LABELS = {"phi": "attitude error", "gyro_scale": "gyro scale factor", "gyr
                 "gyro_g_sens": "gyro g-sensitivity (diagonal)",
                 **{f"ext_acc_s{i}": f"external acceleration's band-pass state {i}" for i in range(3, 9)},
                 "acc_temp_bias": "accelerometer bias temperature coefficient",
-                "acc_delay": "accelerometer delay behind the gyro"}
+                "acc_delay": "accelerometer delay behind the gyro",
+                "gyro_misalign": "gyro-to-accelerometer misalignment"}
 # (triad, vocabulary effect kind) of each parameter block
 BLOCK_EFFECT = {"gyro_scale": ("gyro", "scale_factor"), "gyro_nonorth": ("gyro", "nonorthogonality"),
                 "gyro_bias": ("gyro", "bias"), "acc_bias": ("accelerometer", "bias"),
@@ -243,6 +253,10 @@ class StateLayout:
     @property
     def models_acc_delay(self) -> bool:
         return self.has("acc_delay")
+
+    @property
+    def models_misalignment(self) -> bool:
+        return self.has("gyro_misalign")
 
 
 PAPER = StateLayout(BLOCKS[:3])          # Zhou 2020's 9 states (calibrated accelerometer, static bias)
@@ -320,6 +334,12 @@ def m_matrix(scale: np.ndarray, nonortho: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.diag(scale) + nonortho_matrix(np.asarray(nonortho, float))
 
 
+def gyro_axis_matrix(scale: np.ndarray, nonortho: np.ndarray, misalign_rad: np.ndarray | None = None) -> np.ndarray:
+    """The gyro's axis matrix M_g = I + diag(S) + N(G) − [α×] (α: the gyro-to-accelerometer misalignment, rad)."""
+    m = m_matrix(scale, nonortho)
+    return m if misalign_rad is None else m - skew(np.asarray(misalign_rad, float))
+
+
 def leave_out_means(x: np.ndarray, half_window: int, midpoint: bool) -> np.ndarray:
     """Regressors without the samples' own noise (module docstring), (N, 3).
 
@@ -390,6 +410,7 @@ class FilterConfig:
     prior_gyro_g_sens_rad_s_per_m_s2: float = 1e-3
     prior_acc_temp_bias_m_s2_c: float = 0.1
     prior_acc_delay_s: float = 0.01
+    prior_gyro_misalign_rad: float = 0.035   # 2°: an assembly's rotation between two dies or chips (1° typical)
     ext_acc_band_hz: tuple[float, float] | None = None
     ext_acc_band_rms_m_s2: float = 0.0
     ext_acc_band_order: int = 2
@@ -454,7 +475,8 @@ class FilterConfig:
                 "gyro_temp_scale": np.full(3, self.prior_gyro_temp_scale_per_c),
                 "gyro_g_sens": np.full(3, self.prior_gyro_g_sens_rad_s_per_m_s2),
                 "acc_temp_bias": np.full(3, self.prior_acc_temp_bias_m_s2_c),
-                "acc_delay": np.full(3, self.prior_acc_delay_s)}[block]   # with ext_acc: ext_acc_stationary
+                "acc_delay": np.full(3, self.prior_acc_delay_s),
+                "gyro_misalign": np.full(3, self.prior_gyro_misalign_rad)}[block]   # with ext_acc: ext_acc_stationary
 
     def ext_acc_stationary(self) -> np.ndarray:
         """Stationary covariance (k, k) of one nav axis's (x, z[, z₂]) (k = 1 + high-pass order; k = 1 for

@@ -101,6 +101,7 @@ from calib.session.prepare import (  # noqa: F401 (re-exported: their old home)
     tilt_sigma,
 )
 from calib.session.reference import ZhouFilter
+from calib.session.skew import refuse_skew_at_floor
 
 __all__ = ["calibrate", "prepare", "Prepared", "METHODS", "ACCELEROMETER_MODES", "REGISTERED_NAME", "resolve_method",
            "true_gyro_parameters", "PaperParams", "paper_filter", "session_filter_run", "prior_offset",
@@ -251,6 +252,8 @@ def _calibrate_session(prep: Prepared, rec: Recording, method: str, iterations: 
     warnings = list(prep.warnings)
     a, b = prep.bias.index_range
     refuse_if_nothing_observed(rec, prep.bias.value_rad_s, a, b, prep.start)
+    if prep.noise.noise_free:   # a timing skew the numerical floor cannot absorb diverges a filter without its state
+        refuse_skew_at_floor(rec, prep.noise.acc_floor_m_s2, prep.config.gravity_m_s2, f"--method {method}")
     passes = 1 if method == "kf_session" else max(1, iterations)
     theta0, q0, p0 = prep.theta0, prep.quat0_nb, prep.p0
     obs = None

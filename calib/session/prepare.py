@@ -32,7 +32,7 @@ from gyrosim.rotations import quat_from_two_vectors
 from gyrosim.units import G0
 
 from calib.inputs import KF, check_recording
-from calib.session.gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows
+from calib.session.gravityfit import GravityFit, compensate_acc, fit_gravity, quasi_static_windows, sample_variance
 from calib.session.kernel import regressor_half_window
 from calib.session.model import (
     JOINT,
@@ -162,8 +162,11 @@ def prepare(
         gfit = fit_gravity(f, f_reg, sigma_f2, sigma_f2, g, prior)
         if external_acc_allowance_m_s2 is None:
             external_acc_allowance_m_s2 = session_allowance(rec, gfit.theta, a, b, g, sigma_f2)
-        if external_acc_allowance_m_s2 > 0:  # refit with the hand's allowance in the weights (honest P_a)
-            gfit = fit_gravity(f, f_reg, sigma_f2 + external_acc_allowance_m_s2**2, sigma_f2, g, prior, gfit.theta)
+        if external_acc_allowance_m_s2 > 0:  # refit with the hand's allowance in the weights (honest P_a), the
+            # rests weighed by their own scatter (calib.session.gravityfit.sample_variance)
+            r_var = sample_variance(f, [(ra - a, rb - a) for ra, rb in rest.index_ranges], sigma_f2,
+                                    sigma_f2 + external_acc_allowance_m_s2**2)
+            gfit = fit_gravity(f, f_reg, r_var, sigma_f2, g, prior, gfit.theta)
         theta0[theta_slice("acc_bias")] = gfit.bias_m_s2
         theta0[theta_slice("acc_scale")] = gfit.scale_factor
         theta0[theta_slice("acc_nonorth")] = gfit.nonorthogonality

@@ -32,6 +32,7 @@ from gyrosim.errors import GyrosimError
 from gyrosim.recording import Recording
 
 from calib.inputs import KF, Loaded, prepare_recording
+from calib.inputs.turns import Turns
 from calib.session.defaults import default_method
 
 __all__ = ["RunOptions", "run_session", "resolve_run_method", "method_warnings", "SESSION_METHODS",
@@ -62,13 +63,15 @@ class RunOptions:
     "estimate" or "calibrated" (None: what the method's name says, else "estimate"); ``gravity_m_s2``: local
     gravity (None: the method's default); ``external_acc_allowance_m_s2``: the hand-blind filters' allowance for
     the hand's acceleration, m/s² RMS (None: from the data); ``keep_history``: keep the per-step history for a
-    viewer (never saved in the JSON)."""
+    viewer (never saved in the JSON); ``turns``: turns of a known angle (:mod:`calib.inputs.turns`; the hand-aware
+    methods take them as measurements, :mod:`calib.session.known_turns`)."""
 
     method: str | None = None
     accelerometer: str | None = None
     gravity_m_s2: float | None = None
     external_acc_allowance_m_s2: float | None = None
     keep_history: bool = False
+    turns: Turns | None = None
 
 
 def _spell(name: str, flag: str | None) -> str:
@@ -133,7 +136,10 @@ def run_session(source: Recording | Loaded, options: RunOptions = RunOptions()) 
                    external_acc_allowance_m_s2=options.external_acc_allowance_m_s2)
     if algorithm == "hand":
         result = kf_hand(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
-                         keep_history=options.keep_history, prepared=prep)
+                         keep_history=options.keep_history, prepared=prep, turns=options.turns)
+    elif options.turns is not None:
+        raise GyrosimError(f"turns of a known angle enter the hand-aware filter only, not {name}: leave out "
+                           "--method (or give kf_hand_joint / kf_hand)")
     else:
         result = calibrate(rec, name, external_acc_allowance_m_s2=options.external_acc_allowance_m_s2,
                            gravity_m_s2=options.gravity_m_s2, keep_history=options.keep_history, prepared=prep)

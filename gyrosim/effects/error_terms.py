@@ -1,8 +1,8 @@
 """Error terms of the classic linear model and its extensions, δ computed from the true input x
 (rate or specific force) and the other triad's truth (Zhou 2020 eq. 1–2):
 
-    ω̃ = (I + S + N) ω + b + ε,   plus a general misalignment M, a quadratic nonlinearity
-    k x|x| and the gyro's g-sensitivity K f.
+    ω̃ = (I + S + N) ω + b + ε,   plus a general misalignment M, the gyro triad's rotation against the
+    accelerometer's (−[α×]), a quadratic nonlinearity k x|x| and the gyro's g-sensitivity K f.
 """
 
 from __future__ import annotations
@@ -14,14 +14,15 @@ import numpy as np
 
 from ..errors import GyrosimError
 from ..lazy import lazy_module
+from ..rotations import skew
 from ..units import G0, RAD2DEG
 from .base import Effect, VectorEffect, _check_invertible, zeros_field
 
 # heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
 kern = lazy_module("gyrosim._kernels")
 
-__all__ = ["Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "ScaleNonlinearity", "GSensitivity",
-           "nonortho_matrix"]
+__all__ = ["Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "GyroAccMisalignment", "ScaleNonlinearity",
+           "GSensitivity", "nonortho_matrix"]
 
 
 @dataclass(frozen=True)
@@ -161,6 +162,54 @@ class Misalignment(VectorEffect):
         out = np.zeros(x.shape + (6,))
         for k, (i, j) in enumerate(_MISALIGN_IDX):
             out[:, i, k] = x[:, j]
+        return out
+
+
+@dataclass(frozen=True)
+class GyroAccMisalignment(VectorEffect):
+    """The gyro triad rotated against the accelerometer triad by the small angles α = (α_x, α_y, α_z) (rad, about
+    the body axes): δ = −[α×] ω = ω × α, so ω̃ = (I + diag(S) + N(G) − [α×]) ω + b.  Gyrosim's body frame is the
+    accelerometer's (gravity fixes it, :mod:`calib.session.model`), so a gyro whose axes are turned by α reads a
+    body rate ω in its own axes as R(α)ᵀ ω = ω − α × ω + O(α²): the antisymmetric part of the gyro's axis matrix,
+    which the symmetric S, N(G) cannot hold (Kalibr's ``C_gyro_i``, imu_tk's gyro misalignment against its
+    accelerometer, Tedaldi et al. 2014 eq. 3).  The term is linear in α on purpose: the rotation's second-order part,
+    (R(α)ᵀ − I + [α×]) ≈ ½[α×]² (1.5e-4 at 1°), is symmetric and belongs to S and G, so S, G, α are together the
+    nine parameters of a general matrix and nothing trades between them.  Gyro only; datasheets do not state it
+    (a die's or a board's assembly: imu_tk's Xsens session 0.95°, imucal's NilsPod 0.3–0.7°)."""
+
+    kind: ClassVar[str] = "gyro_acc_misalignment"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (RAD2DEG, "°")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "angle"}
+    pointwise: ClassVar[bool] = True
+    labels: ClassVar[tuple[str, str]] = ("gyro-to-accelerometer misalignment", "misalignment sigma")
+    axis_rotation: ClassVar[bool] = True   # a rotation of the reference's body frame looks exactly like it
+
+    max_rad: ClassVar[float] = 0.2   # ~11°: a linear small-angle term, and far beyond any assembly's error
+
+    def check(self) -> None:
+        if np.any(np.abs(self.value) > self.max_rad):
+            raise GyrosimError(f"{self.kind} {np.round(self.value, 6).tolist()} rad exceeds {self.max_rad} rad per "
+                               "axis: it is a small-angle term (a real one is below 2°); check units (° vs rad)")
+
+    def matrix(self) -> np.ndarray:
+        """−[α×], the term's share of the gyro's axis matrix."""
+        return -skew(self.value)
+
+    def delta(self, x, ctx, rng=None):
+        return np.cross(x, self.value)
+
+    def affine(self):
+        return self.matrix(), np.zeros(3)
+
+    def delta_dx(self, x, ctx):
+        return np.broadcast_to(self.matrix(), x.shape + (3,))
+
+    def sensitivity(self, x, ctx):
+        """∂(ω × α)/∂α = [ω×] (N, 3, 3)."""
+        out = np.zeros(x.shape + (3,))
+        out[:, 0, 1], out[:, 0, 2] = -x[:, 2], x[:, 1]
+        out[:, 1, 0], out[:, 1, 2] = x[:, 2], -x[:, 0]
+        out[:, 2, 0], out[:, 2, 1] = -x[:, 1], x[:, 0]
         return out
 
 

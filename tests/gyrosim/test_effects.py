@@ -58,6 +58,7 @@ def deterministic_effects():
         ("gyro", ScaleFactor(value=[0.05, 0.04, -0.03])),
         ("gyro", NonOrthogonality(value=[0.025, 0.02, 0.01])),
         ("gyro", Misalignment(value=[0.01, -0.02, 0.005, 0.01, -0.01, 0.02])),
+        ("gyro", E.GyroAccMisalignment(value=[0.015, -0.0075, 0.004])),
         ("gyro", ScaleNonlinearity(value=[2e-3, -1e-3, 1.5e-3])),
         ("gyro", GSensitivity(value=np.arange(9).reshape(3, 3) * 1e-4)),
         ("gyro", TemperatureBias(coefficients=[[1e-3, 2e-5], [-2e-3, 0.0], [5e-4, -1e-5]])),
@@ -287,6 +288,7 @@ def test_nothing_mutates_its_inputs(ctx):
         (lambda: WhiteNoise(density=[-1.0, 0, 0]), ">= 0"),
         (lambda: NonOrthogonality(value=[0.9, 0.9, 0.9]), "singular"),  # det(I + N) = 0.028
         (lambda: Misalignment(value=[1, 1, 1, 1, 1, 1]), "singular"),
+        (lambda: E.GyroAccMisalignment(value=[3.0, 0.0, 0.0]), "small-angle"),
         (lambda: ScaleFactor(value=[np.inf, 0, 0]), "NaN/inf"),
     ],
 )
@@ -368,3 +370,22 @@ def test_fast_kernels_equal_the_numpy_reference(ctx):
     y = np.zeros_like(x)
     wn.add_delta(y, x, ctx, np.random.default_rng(4))
     np.testing.assert_allclose(y, wn.delta(x, ctx, np.random.default_rng(4)), rtol=1e-15)
+
+
+def test_gyro_acc_misalignment_is_the_rotation_of_the_gyro_axes_to_first_order():
+    """The gyro's axes turned by α against the body (accelerometer) frame read R(α)ᵀ ω; the effect is its linear
+    part ω × α, and what it leaves out is symmetric (½[α×]², the share of S and G) and second order: at 1° per axis
+    |½[α×]²| ≤ α² = 3e-4 (the bound below, with room for the cubic term)."""
+    alpha = np.radians([1.0, -0.5, 0.8])
+    e = E.GyroAccMisalignment(value=alpha)
+    rest = E.rotation_matrix(alpha).T - (np.eye(3) + e.matrix())
+    a = float(np.linalg.norm(alpha))
+    assert np.abs(rest - rest.T).max() < a**3             # antisymmetric parts agree to third order: 2(a − sin a)/a·|α|
+    assert np.abs(rest).max() < float(alpha @ alpha)
+    w = np.array([[0.3, -1.2, 0.7]])
+    ctx = SignalContext(np.zeros(1), w, np.zeros((1, 3)), dt_s=0.01)
+    np.testing.assert_allclose(e.delta(w, ctx), np.cross(w, alpha), atol=1e-15)
+    # a preset in degrees reads as radians
+    raw = E.GyroAccMisalignment.preset_to_si({"value": [1.0, 0.0, 0.0], "value_sigma": [0.5, 0.5, 0.5]}, "deg", "angle")
+    np.testing.assert_allclose(raw["value"], [DEG, 0, 0])
+    np.testing.assert_allclose(raw["value_sigma"], [DEG / 2] * 3)

@@ -228,3 +228,26 @@ def test_every_recording_and_broads_published_numbers():
     for r in v.recordings:
         for key, values in r.figures.items():
             assert math.isfinite(values["raw"]) or r.kind == "xio", (r.name, key)
+
+
+@pytest.mark.skipif(not (DATA / "imucal_ferraris").is_dir(), reason="imucal's session is not in the data folder")
+def test_imucal_in_our_parameters_splits_its_accelerometer_matrix_into_symmetric_and_rotation():
+    """A = K_a R_a = P U with P symmetric (ours to compare) and U a rotation.  scipy's polar returns (U, P) whatever
+    the side: read the other way round, the comparison had S_a ≈ 0 (the rotation's diagonal) and its gyro S_z off by
+    the accelerometer's 2.4 % z scale.  The gyro S then is imucal's own K_g diagonal up to the second-order share
+    of R_g and U (|K_g R_g Uᵀ − K_g|'s diagonal, < 1e-3 here)."""
+    pytest.importorskip("imucal", reason="imucal is the optional 'peers' extra")
+    import pandas as pd
+    from imucal import FerrarisCalibration, ferraris_regions_from_section_list
+
+    from calib.scoring.measured_imucal import imucal_ferraris
+
+    folder = DATA / "imucal_ferraris"
+    res = imucal_ferraris(folder)
+    df = pd.read_csv(folder / "example_ferraris_session.csv")
+    sections = pd.DataFrame(json.loads((folder / "example_ferraris_session_list.json").read_text())).T
+    info = FerrarisCalibration(grav=G0).compute(ferraris_regions_from_section_list(df, sections), 102.4, "m/s^2",
+                                                "deg/s")
+    np.testing.assert_allclose(res.parameters["gyro_scale_factor"], np.diag(info.K_g) - 1, atol=1e-3)
+    np.testing.assert_allclose(res.parameters["acc_scale_factor"], np.diag(info.K_a) - 1, atol=1e-3)
+    assert np.linalg.norm(res.gyro_rotation_deg) > 0.3    # the gyro triad turned against the accelerometer's

@@ -52,7 +52,8 @@ def test_kf_hand_joint_on_an_independent_hand_with_a_raw_accelerometer(kin):
         cal = estimators.kf_hand_joint(rec)
         assert cal.status == "ok", cal.warnings
         assert cal.method == "kf_hand_joint" and cal.diagnostics["accelerometer_mode"] == "estimate"
-        assert len(cal.diagnostics["filter"]["states"]) == 36   # HAND_JOINT + the accelerometer delay δ
+        # HAND_JOINT + the accelerometer delay δ + the gyro's misalignment α (Zhou's schedule determines it)
+        assert len(cal.diagnostics["filter"]["states"]) == 39 and cal.diagnostics["gyro_misalignment"]["estimated"]
         e, c = _err_cov(cal, d)
         n6 += float(e[:6] @ np.linalg.solve(c[:6, :6], e[:6]))
         n15 += float(e @ np.linalg.solve(c, e))
@@ -101,7 +102,9 @@ def test_calib_run_method_hand_estimates_the_accelerometer(kin, tmp_path):
     assert [e["effect"] for e in blind["effects"]["accelerometer"]] == [
         e["effect"] for e in out["effects"]["accelerometer"]
     ]
-    assert np.shape(out["covariance"]) == np.shape(blind["covariance"]) == (18, 18)
+    # the hand-aware filter's gyro carries its misalignment α too (Zhou's schedule determines it): 3 rows more
+    assert np.shape(out["covariance"]) == (21, 21) and np.shape(blind["covariance"]) == (18, 18)
+    assert "misalignment_rad" in out["gyro"] and "misalignment_rad" not in blind["gyro"]
 
 
 def test_montecarlo_with_a_raw_accelerometer_gives_the_joint_hand_bound():

@@ -28,7 +28,8 @@ def test_state_counts_in_the_docstrings_are_the_layouts():
 def test_kf_hand_joint_state_counts_are_its_layouts():
     """kf_hand_joint: 36 states, 42 when the recording's temperature moved (s_T and the accelerometer bias's c_a:
     :func:`calib.session.hand.params.joint_layout`; both with the accelerometer's delay δ); calib bench's session is a
-    warming MPU-9250, so its label says 42 (45 with the opt-in c_b)."""
+    warming MPU-9250, so its label says 45 with the gyro's misalignment α that its motion determines (48 with the
+    opt-in c_b)."""
     from calib.session.hand.filter import joint_layout
 
     assert (
@@ -39,4 +40,4 @@ def test_kf_hand_joint_state_counts_are_its_layouts():
     assert "36 states, 42 when the recording's temperature moved" in doc
     src = open(bench.__file__, encoding="utf-8").read()
     (label,) = re.findall(r'"kf_hand_joint \((\d+) states', src)
-    assert int(label) == joint_layout(True).n
+    assert int(label) == joint_layout(True, misalignment=True).n   # + the gyro's misalignment α (the motion sees it)

@@ -59,6 +59,7 @@ def _session(hand: bool) -> dict:
         "d": d, "t": t, "n": n, "theta0": theta0,
         "q0": np.array([0.9998, 0.012, -0.015, 0.0]) / np.linalg.norm([0.9998, 0.012, -0.015, 0.0]),
         "lever": lever_regressor(w, t, RATE), "jac": lever_jacobian(w, t, RATE, m),
+        "jac_misalign": lever_jacobian(w, t, RATE, m, misalignment=True),
         "temp": np.linspace(-0.4, 0.5, n), "force": d["acc_m_s2"].copy(),
         "acc_rate": np.gradient(d["acc_m_s2"], t, axis=0), "upd": upd,
         "rest": t < 0.9, "r_var": 4e-4 * (1.0 + 0.5 * np.sin(t)),
@@ -95,10 +96,12 @@ def _args(s, layout: StateLayout, cfg: FilterConfig, *, joint_tilt: bool = False
     if batch > 1:                                              # the second run differs (batches are per run)
         g[1:] += 1e-4
     kw = dict(x0=x0[None], hand0=np.array([0.01, 0.05, 0.0, 0.01, -0.02, 0.005]),
-              sensor0=np.array([1e-4, -1e-4, 2e-4, 3e-4, -2e-4, 1e-4, 0, 0, 0, 1e-3, 0, -1e-3, 1e-3, 1e-3, 1e-3]),
+              sensor0=np.array([1e-4, -1e-4, 2e-4, 3e-4, -2e-4, 1e-4, 0, 0, 0, 1e-3, 0, -1e-3, 1e-3, 1e-3, 1e-3,
+                                0.01, -0.006, 0.002]),
               keep_history=True, rest_mask=s["rest"])
     if layout.has("lever_arm"):
-        kw.update(lever_regressor=s["lever"], lever_jacobian=s["jac"])
+        kw.update(lever_regressor=s["lever"],
+                  lever_jacobian=s["jac_misalign"] if layout.models_misalignment else s["jac"])
     if layout.models_temperature:
         kw["temperature_rel_c"] = s["temp"]
     if layout.models_g_sensitivity:
@@ -149,6 +152,12 @@ CASES = {
                                      joint_tilt=True, rows=3, update_mask=s["upd"]),
     "kf_hand_joint_thermal": lambda s: _args(s, joint_layout(True), _hand_cfg(), joint_tilt=True, rows=3,
                                              update_mask=s["upd"], r_var_per_sample=s["r_var"]),
+    # the gyro's rotation against the accelerometer: on the joint filter (calib run) and on the paper's joint layout
+    "kf_hand_joint_misalign": lambda s: _args(s, joint_layout(False, misalignment=True), _hand_cfg(), joint_tilt=True,
+                                              rows=3, update_mask=s["upd"]),
+    "kf_hand_thermal_misalign": lambda s: _args(s, hand_layout(True, misalignment=True), _hand_cfg(),
+                                                update_mask=s["upd"]),
+    "joint_misalign": lambda s: _args(s, StateLayout(JOINT.blocks + ("gyro_misalign",)), _config(), joint_tilt=True),
     "kf_hand_joint_thermal_cb": lambda s: _args(s, joint_layout(True, gyro_temp_bias=True), _hand_cfg(),
                                                 joint_tilt=True, rows=3, update_mask=s["upd"]),
     # the hand-aware bound's nuisance layouts: s_T, k, δ without the bias state; the band on HAND

@@ -121,14 +121,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     from calib.inputs import KF
     from calib.session.run import RunOptions, method_warnings, resolve_run_method, run_session
 
-    check_output_paths({"--json": args.json, "--rrd": args.rrd}, input_files(args.recording))
+    check_output_paths({"--json": args.json, "--rrd": args.rrd}, input_files(args.recording, args.turns))
     options = RunOptions(method=args.method, accelerometer=args.accelerometer, gravity_m_s2=args.gravity,
                          external_acc_allowance_m_s2=args.external_acc, keep_history=args.rrd is not None)
     name, mode, note = resolve_run_method(options, flag="--method")
     if note:  # a former spelling: still runs, with a note
         print(f"warning: {note}", file=sys.stderr)
     loaded = open_input(args, KF)
-    cal = run_session(loaded, replace(options, method=name, accelerometer=mode))
+    turns = _turns(args, loaded.recording)
+    cal = run_session(loaded, replace(options, method=name, accelerometer=mode, turns=turns))
     _print_run(args.recording, cal, mode)
     if args.json:
         cal.save(args.json)
@@ -143,6 +144,19 @@ def cmd_run(args: argparse.Namespace) -> int:
             save_calibration_rrd(tmp, loaded.recording, replace(cal, warnings=method_warnings(cal)), truth)
         print(f"wrote {args.rrd}; open it with:  rerun {args.rrd}")
     return status_exit(cal.status == "ok", f"calibration {cal.status}: see the warnings above for what to try")
+
+
+def _turns(args: argparse.Namespace, rec):
+    """The turns of a known angle ``--turns`` / ``--protocol`` name (None without either; both: refused)."""
+    from calib.inputs.turns import TurnsError, read_turns, turns_for_protocol
+
+    if args.turns and args.protocol:
+        raise TurnsError("give the turns either as --turns FILE or by --protocol, not both")
+    if args.turns:
+        return read_turns(args.turns)
+    if args.protocol:
+        return turns_for_protocol(args.protocol, rec.meta, rec.t_s, args.recording)
+    return None
 
 
 def cmd_apply(args: argparse.Namespace) -> int:
@@ -273,6 +287,13 @@ def _add_run(sub) -> None:
         help="allowance for the hand's external acceleration, m/s² RMS, in [0, 100] (default: from the rest data; "
         "the hand-blind methods only)",
     )
+    r.add_argument("--turns", metavar="FILE", default=None,
+                   help="turns of a known angle (CSV/JSON rows start_s, end_s, axis, angle_deg, sigma_deg): each "
+                   "enters the filter as a measurement, so a turn about a vertical axis determines that axis's scale "
+                   "factor")
+    r.add_argument("--protocol", choices=("ferraris",), default=None,
+                   help="ferraris: the turns from imucal's section list beside the recording (<name>_list.json; "
+                   "x_rot, y_rot, z_rot, each −360° ± 0.5°)")
     r.set_defaults(func=cmd_run)
 
 

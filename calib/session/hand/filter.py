@@ -52,12 +52,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gyrosim.calibration import Calibration
-from gyrosim.effects import WhiteNoise
+from gyrosim.effects import GyroAccMisalignment, WhiteNoise
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_rotate
 from gyrosim.strapdown import integrate_gyro
 
 from calib.compat import moved_attribute
+from calib.inputs.turns import Turns
 from calib.session.consistency import (
     Inflation,
     apply_inflation,
@@ -112,14 +113,17 @@ from calib.session.hand.thermal import (  # noqa: F401 (THERMAL_SMOOTH_S re-expo
     temperature_report,
 )
 from calib.session.kernel import SENSOR_NOMINALS, FilterRun, LeverJacobian, run_filter
+from calib.session.known_turns import apply_known_turns
 from calib.session.model import (
     BLOCK_LABELS,
     EXT_ACC_EXTRA_BLOCKS,
     HAND_BIAS,
+    MISALIGN_BLOCKS,
     FilterConfig,
     FilterHistory,
     StateLayout,
     acc_theta,
+    gyro_axis_matrix,
     initial_covariance,
     m_matrix,
     theta_slice,
@@ -160,6 +164,11 @@ __all__ = [
 
 __getattr__ = moved_attribute(__name__)   # hand_cross_check, CROSS_CHECK_TAIL: calib.session.crosscheck
 
+# the gyro's misalignment α is estimated when the motion takes its σ below this on every axis: a fifth of an
+# assembly's typical 0.5° (measured: imu_tk's Xsens 0.026°, the independent hand 0.005°; BROAD's slow rotation, trial
+# 02, 0.09–0.17°, where the α it fitted, −0.4° about z, made the orientation filters' heading worse: Madgwick 0.63° →
+# 0.84°)
+MISALIGNMENT_OBSERVED_RAD = math.radians(0.1)
 LAYOUT = HAND_BIAS         # kf_hand's base layout (accelerometer calibrated); kf_hand_joint's: HAND_JOINT
 # the registered estimator each accelerometer mode of :func:`kf_hand` is (the label its result carries)
 REGISTERED_NAME = {"calibrated": "kf_hand", "estimate": "kf_hand_joint"}
@@ -256,14 +265,16 @@ class _Fit:
 
 def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: float | None = None, *,
             params: HandParams | None = None, keep_history: bool = False, g_sensitivity: bool | None = None,
-            sway: str | None = None, delay: bool | None = None, prepared: Prepared | None = None) -> Calibration:
+            sway: str | None = None, delay: bool | None = None, prepared: Prepared | None = None,
+            turns: Turns | None = None) -> Calibration:
     """The hand-aware gyro calibration (module docstring).  ``accelerometer``: "calibrated" (Zhou §3.3.2,
     the registered ``kf_hand``: 27 states, 33 when the recording's temperature moved (c_b, s_T), 36 with the opt-in
     ``g_sensitivity`` too — :func:`~calib.session.hand.params.hand_layout`) or "estimate" (the registered
     ``kf_hand_joint``: + the accelerometer's bias, scale factor and non-orthogonality, 36 states, 42 when the
     recording's temperature moved (s_T and the accelerometer bias's c_a —
-    :func:`~calib.session.hand.params.joint_layout`) — what ``calib run`` estimates by default).  ``params``: the
-    method's parameters (:class:`~calib.session.hand.params.HandParams`; default the validated method);
+    :func:`~calib.session.hand.params.joint_layout`) — what ``calib run`` estimates by default), each 3 more with the
+    gyro's misalignment α against the accelerometer when the motion determines it (``HandParams.misalignment``).
+    ``params``: the method's parameters (:class:`~calib.session.hand.params.HandParams`; default the validated method);
     ``g_sensitivity``, ``sway``, ``delay``: shorthands for those fields of ``params``.  With the accelerometer
     estimated, every pass applies its error model at the current estimate, f̂ = M̂_a⁻¹(f̃ − b̂_a), *before* the
     nav-frame tremor low-pass (the low-pass of a rotated body-frame bias is not the bias), and hands the kernel the
@@ -272,7 +283,9 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     the initial tilt's dependence on them in P₀ (:func:`calib.session.model.initial_covariance`), re-linearised each
     pass as ``iterated_session`` does.  ``keep_history``: the last pass's √P, θ̂, innovations and NIS per step.
     ``prepared``: :func:`calib.session.prepare.prepare` of ``rec`` with the same ``accelerometer`` and
-    ``gravity_m_s2``, when the caller has it already (``calib run`` uses it again for the coaching)."""
+    ``gravity_m_s2``, when the caller has it already (``calib run`` uses it again for the coaching).  ``turns``: turns
+    of a known angle (:mod:`calib.inputs.turns`), measurements of the gyro's parameters after the last pass
+    (:func:`calib.session.known_turns.apply_known_turns`: what gravity cannot see, a turn about the vertical)."""
     p = params or HandParams()
     p = replace(p, **{k: v for k, v in (("g_sensitivity", g_sensitivity), ("sway", sway), ("delay", delay))
                       if v is not None})
@@ -284,7 +297,31 @@ def kf_hand(rec: Recording, accelerometer: str = "calibrated", gravity_m_s2: flo
     sway0, tremor = _first_sway(ses)
     fit = _passes(ses, sway0, keep_history)
     cov, cov_parts = _covariance(ses, fit)
-    return _calibration(ses, fit, cov, cov_parts, tremor, keep_history)
+    seen = _misalignment_seen(ses, fit, cov)
+    if seen is not None and not seen["estimated"]:   # the motion does not determine α: the model without it
+        ses = replace(ses, layout=StateLayout(tuple(b for b in ses.layout.blocks if b not in MISALIGN_BLOCKS)))
+        fit = _passes(ses, sway0, keep_history)
+        cov, cov_parts = _covariance(ses, fit)
+    cal = _calibration(ses, fit, cov, cov_parts, tremor, keep_history)
+    if seen is not None:
+        cal = replace(cal, diagnostics={**cal.diagnostics, "gyro_misalignment": seen})
+    return cal if turns is None else apply_known_turns(cal, rec, turns, ses.cfg0.arw_rad_s_sqrt_hz)
+
+
+def _misalignment_seen(ses: _Session, fit: _Fit, cov: np.ndarray) -> dict | None:
+    """Whether the session's motion determines the gyro's rotation against the accelerometer (None: not modelled):
+    its reported σ (``cov``, :func:`_covariance`: the slow residual's spectrum and the innovations' inflation applied;
+    α's rows follow the bias's, S's and G's) at most ``MISALIGNMENT_OBSERVED_RAD`` on every axis.  A motion that does
+    not (turns about one axis only; a slow rotation) would leave α near its prior, where it trades with G (the same
+    column of the gyro's axis matrix): the model without α is run instead, and the JSON says so."""
+    o = ses.layout.offset("gyro_misalign")
+    if o < 0:
+        return None
+    prior = ses.cfg0.prior_sigma("gyro_misalign")
+    reported = np.sqrt(np.diag(cov)[9:12])
+    return {"estimated": bool(np.all(reported <= MISALIGNMENT_OBSERVED_RAD)), "prior_std_rad": prior.tolist(),
+            "filter_std_rad": np.sqrt(np.diag(fit.out.p[0])[o:o + 3]).tolist(), "reported_std_rad": reported.tolist(),
+            "observed_below_rad": MISALIGNMENT_OBSERVED_RAD}
 
 
 def kf_hand_band(rec: Recording) -> Calibration:
@@ -346,9 +383,14 @@ def _session(rec: Recording, accelerometer: str, gravity_m_s2: float | None, par
     # (and the gyro scale's s_T, HandParams.joint_gyro_thermal)
     thermal = session_temperature(None if rec.temp_c is None else rec.temp_c[a:], fs)
     warming = thermal is not None
-    layout = (joint_layout(warming, params.joint_gyro_thermal, params.delay, params.joint_gyro_temp_bias) if estimate
+    # the gyro's misalignment α by default with the accelerometer estimated — not on noise-free input, where the noise
+    # floor lets α take the rate integration's discretisation error (measured on the independent generator's held
+    # gyro: α̂ 0.7° with σ 1e-7 rad, S off by 1e-2, against 5e-6 without α)
+    misalign = (estimate and not prep.noise.noise_free) if params.misalignment is None else params.misalignment
+    layout = (joint_layout(warming, params.joint_gyro_thermal, params.delay, params.joint_gyro_temp_bias,
+                           misalignment=misalign) if estimate
               else hand_layout(warming, params.g_sensitivity, band=params.sway == "band", delay=params.delay,
-                               gyro_temp_bias=params.gyro_temp_bias))
+                               gyro_temp_bias=params.gyro_temp_bias, misalignment=misalign))
     # the rest's mean temperature − T₀: its accelerometer mean levels the initial attitude (c_a) and its gyro mean is
     # the bias's prior (c_b)
     dt_rest = rest_temperature(rec.temp_c, fs, ra, rb) - thermal[1] if thermal is not None else 0.0
@@ -460,7 +502,8 @@ def _pass_inputs(ses: _Session, p: int, theta: np.ndarray, hand0: np.ndarray, se
     whitening pre-filter (nav low-pass) of the compensated specific force, and the lever arm's regressors."""
     rec, a, t, layout = ses.rec, ses.a, ses.t, ses.layout
     ra, rb = ses.prep.rest_range
-    m = m_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")])
+    m = gyro_axis_matrix(theta[theta_slice("gyro_scale")], theta[theta_slice("gyro_nonorth")],
+                         sens0[15:18] if layout.models_misalignment else None)
     w = (rec.gyro_rad_s[a:] - theta[theta_slice("gyro_bias")]) @ np.linalg.inv(m).T
     # the accelerometer bias's temperature part at its nominal, c_a (T − T₀) (N, 3); zero without the block
     acc_temp = (np.outer(ses.thermal[0], sens0[9:12]) if layout.has("acc_temp_bias") else np.zeros((t.size, 3)))
@@ -476,7 +519,7 @@ def _pass_inputs(ses: _Session, p: int, theta: np.ndarray, hand0: np.ndarray, se
     f_lp = quat_rotate(quat_conjugate(q), ses.lowpass(f_nav))       # whitening pre-filter (nav low-pass)
     pr = ses.params
     kreg = lever_regressor(w, t, ses.fs, pr.cutoff_hz, pr.order)
-    ljac = lever_jacobian(w, t, ses.fs, m, pr.cutoff_hz, pr.order)
+    ljac = lever_jacobian(w, t, ses.fs, m, pr.cutoff_hz, pr.order, misalignment=layout.models_misalignment)
     # the kernel compensates at θ̂_a again
     f_kernel = f_lp @ m_matrix(th_a[3:6], th_a[6:9]).T + th_a[0:3] + acc_temp if ses.estimate else f_lp
     return _PassInputs(q0, f0, mi_a, f_lp, f_kernel, kreg, ljac, np.zeros(0), np.zeros(0), None)
@@ -584,7 +627,9 @@ def _covariance(ses: _Session, fit: _Fit) -> tuple[np.ndarray, _Sigma]:
     # session, κ̂ = 0.027 shrank σ ×0.16 and left an "ok" G_y 19 σ from the factory calibration (3.2 σ one-sided)
     infl = innovation_inflation(out.whitened[0], ses.t[1:])
     blocks = ("gyro_scale", "gyro_nonorth") + (("acc_bias", "acc_scale", "acc_nonorth") if ses.estimate else ())
-    idx = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in blocks])
+    # the covariance's order is the result's effects': the gyro's S, G (and its misalignment α), then the accelerometer
+    rows = blocks[:2] + MISALIGN_BLOCKS * layout.models_misalignment + blocks[2:]
+    idx = np.concatenate([np.arange(layout.offset(b), layout.offset(b) + 3) for b in rows])
     cov = np.zeros((3 + idx.size, 3 + idx.size))
     # the first rest's mean at its stated reference (time, temperature, specific force), σ without the hand's
     # rotation that cancels in the mean (calib.session.rest_bias); uncorrelated with the filter's states
@@ -606,7 +651,8 @@ def _covariance(ses: _Session, fit: _Fit) -> tuple[np.ndarray, _Sigma]:
     # the accelerometer's bias likewise at the temperatures T_a,i where b_a and c_a decouple (acc_temp_bias)
     t_ref_a, ja = acc_bias_at_temperature(p_model, layout, t0)
     if layout.has("acc_temp_bias"):
-        jsel[6:9] = ja
+        ia = rows.index("acc_bias") * 3
+        jsel[ia:ia + 3] = ja
     cov[3:, 3:] = (jsel @ P @ jsel.T) * infl.factor
     ambiguity = None
     if fit.out_const is not None:
@@ -797,7 +843,8 @@ def _calibration(ses: _Session, fit: _Fit, cov: np.ndarray, sig: _Sigma, tremor:
                  keep_history: bool) -> Calibration:
     """The result (module docstring, step 4)."""
     rec, layout, cfg0, prep = ses.rec, ses.layout, ses.cfg0, ses.prep
-    m_final = m_matrix(fit.theta[theta_slice("gyro_scale")], fit.theta[theta_slice("gyro_nonorth")])
+    alpha = fit.sens0[15:18] if layout.models_misalignment else None   # the gyro's rotation against the accelerometer
+    m_final = gyro_axis_matrix(fit.theta[theta_slice("gyro_scale")], fit.theta[theta_slice("gyro_nonorth")], alpha)
     rate_ref = scale_reference_rate((rec.gyro_rad_s[ses.a:] - fit.theta[theta_slice("gyro_bias")])
                                     @ np.linalg.inv(m_final).T)
     # the accelerometer's S likewise at the specific force its updates saw (the compensated, low-passed f̂ there)
@@ -810,8 +857,10 @@ def _calibration(ses: _Session, fit: _Fit, cov: np.ndarray, sig: _Sigma, tremor:
     if ses.estimate:   # the accelerometer's parameters as calib run's joint filter reports them
         acc_params = {"bias": theta[theta_slice("acc_bias")], "scale_factor": theta[theta_slice("acc_scale")],
                       "nonorthogonality": np.clip(np.nan_to_num(theta[theta_slice("acc_nonorth")]), -0.45, 0.45)}
-    cal = Calibration.from_linear(
-        gyro=gyro, accelerometer=acc_params, covariance=cov, status=status,
+    effects = Calibration.from_linear(gyro=gyro, accelerometer=acc_params)   # the linear model's effects
+    extra = () if alpha is None else (GyroAccMisalignment(value=alpha.copy()),)   # after G: _covariance's order
+    cal = Calibration(
+        gyro=effects.gyro + extra, accelerometer=effects.accelerometer, covariance=cov, status=status,
         warnings=prep.warnings + fit.obs_notes + tuple(notes), method=REGISTERED_NAME[ses.accelerometer],
         diagnostics=_diagnostics(ses, fit, sig, checks, hand, assumptions, dly, rate_ref, force_ref))
     if keep_history:   # the last pass's √P, θ̂, innovations and NIS per step (calib run --rrd shows P converge)

@@ -38,18 +38,22 @@ def lever_regressor(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float, cutoff
 
 
 def lever_jacobian(w_rad_s: np.ndarray, t_s: np.ndarray, rate_hz: float, m: np.ndarray,
-                   cutoff_hz: float = CUTOFF_HZ, order: int = ORDER) -> LeverJacobian:
+                   cutoff_hz: float = CUTOFF_HZ, order: int = ORDER, misalignment: bool = False) -> LeverJacobian:
     """How :func:`lever_regressor`'s K r moves with the gyro's errors, for the rate ``w_rad_s`` (N, 3, body)
     compensated with M = ``m`` (3, 3): ω = M⁻¹ (ω̃ − b) gives ∂ω/∂S = −M⁻¹ diag(ω), ∂ω/∂G = −M⁻¹ J_G(ω),
     ∂ω/∂b = −M⁻¹ (the first-order error model of Zhou 2020 eq. 9, as the attitude's propagation uses it); the
     regressor low-passes ω and differentiates it, and so are these sensitivities (the low-pass and the central
     difference are linear).  Returns :class:`calib.session.kernel.LeverJacobian`; the kernel forms ∂(K r̂)/∂θ for the
-    current r̂ from it at each update."""
+    current r̂ from it at each update.  ``misalignment``: also ∂ω/∂α = −M⁻¹ [ω×] (the gyro's rotation against the
+    accelerometer, M = I + diag(S) + N(G) − [α×]: 12 columns)."""
     n = w_rad_s.shape[0]
     mi = np.linalg.inv(m)
-    d = np.empty((n, 3, 9))
+    nc = 12 if misalignment else 9
+    d = np.empty((n, 3, nc))
     d[:, :, 0:3] = -mi[None, :, :] * w_rad_s[:, None, :]                         # −M⁻¹ diag(ω)
     d[:, :, 3:6] = -np.einsum("ij,njk->nik", mi, nonorthogonality_jacobians(w_rad_s))   # −M⁻¹ J_G(ω): N(G)ω = J_G(ω)G
     d[:, :, 6:9] = -mi[None]                                                      # −M⁻¹
-    ld = lowpass(d.reshape(n, 27), rate_hz, cutoff_hz, order).reshape(n, 3, 9)
+    if misalignment:
+        d[:, :, 9:12] = -np.einsum("ij,njk->nik", mi, skew(w_rad_s))               # −M⁻¹ [ω×]: −[α×]ω = [ω×]α
+    ld = lowpass(d.reshape(n, 3 * nc), rate_hz, cutoff_hz, order).reshape(n, 3, nc)
     return LeverJacobian(lowpass(w_rad_s, rate_hz, cutoff_hz, order), ld, np.gradient(ld, t_s, axis=0))

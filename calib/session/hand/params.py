@@ -18,6 +18,7 @@ from calib.session.model import (
     G_SENS_BLOCKS,
     HAND_BIAS,
     HAND_JOINT,
+    MISALIGN_BLOCKS,
     StateLayout,
 )
 
@@ -62,6 +63,13 @@ class HandParams:
     1.21 on x), so c_b stays off there until that is stated too.
     ``drift_quantile``: the rests' bias differences must exceed their white-noise χ² quantile to be modelled as drift
     (:func:`calib.session.drift.bias_drift`).
+    ``misalignment``: the gyro triad's rotation against the accelerometer's, α (rad), is a state (three angles,
+    prior σ :attr:`calib.session.model.FilterConfig.prior_gyro_misalign_rad`): ω̃ = (I + diag(S) + N(G) − [α×]) ω + b,
+    kept when the motion determines it (:data:`calib.session.hand.filter.MISALIGNMENT_OBSERVED_RAD`).  None
+    (default): on with the accelerometer estimated (kf_hand_joint, ``calib run``'s default: the accelerometer's frame
+    is then the body's, and the independent generator's hand cells hold α's σ honest — NEES(3) 6.9 over 4 seeds),
+    except on noise-free input (its floor lets α take the discretisation error); off with it calibrated (kf_hand: its
+    NEES cells are not yet measured with α).
     """
 
     cutoff_hz: float = CUTOFF_HZ
@@ -77,6 +85,7 @@ class HandParams:
     joint_gyro_thermal: bool = True
     joint_gyro_temp_bias: bool = False
     drift_quantile: float = DRIFT_QUANTILE
+    misalignment: bool | None = None
 
     def __post_init__(self) -> None:
         if self.sway not in SWAY_MODELS:
@@ -88,7 +97,7 @@ class HandParams:
 
 
 def hand_layout(temperature: bool, g_sensitivity: bool = False, band: bool = False, delay: bool = True,
-                gyro_temp_bias: bool = True) -> StateLayout:
+                gyro_temp_bias: bool = True, misalignment: bool = False) -> StateLayout:
     """kf_hand's states: :data:`calib.session.model.HAND_BIAS` (attitude, S, G, gyro bias, lever arm, x, z, z₂), then
     the bias's and the scale factor's temperature coefficients c_b (``gyro_temp_bias``, :class:`HandParams`) and s_T
     when the session's temperature moved (``temperature``), then with ``g_sensitivity`` the gyro's g-sensitivity
@@ -96,7 +105,8 @@ def hand_layout(temperature: bool, g_sensitivity: bool = False, band: bool = Fal
     behind the gyro (``acc_delay``: one δ, :func:`calib.session.hand.priors.common_delay_prior`) — 27 to 36 states
     (24 to 33 without δ).  ``band``: the band-limited sway's extra shaping-filter states
     (:data:`calib.session.model.EXT_ACC_EXTRA_BLOCKS`; with x, z, z₂ they hold the floor and the band-pass's
-    2·``BAND_ORDER`` states per nav axis)."""
+    2·``BAND_ORDER`` states per nav axis).  ``misalignment``: the gyro triad's rotation against the accelerometer's
+    (``gyro_misalign``, 3 states; :data:`calib.session.model.MISALIGN_BLOCKS`)."""
     return StateLayout(
         HAND_BIAS.blocks
         + (("gyro_temp_bias",) if temperature and gyro_temp_bias else ())
@@ -104,18 +114,19 @@ def hand_layout(temperature: bool, g_sensitivity: bool = False, band: bool = Fal
         + (G_SENS_BLOCKS if g_sensitivity else ())
         + (EXT_ACC_EXTRA_BLOCKS[: 2 * BAND_ORDER - 2] if band else ())
         + (ACC_DELAY_BLOCKS if delay else ())
+        + (MISALIGN_BLOCKS if misalignment else ())
     )
 
 
 def joint_layout(temperature: bool, gyro_thermal: bool | None = None, delay: bool = True,
-                 gyro_temp_bias: bool | None = None) -> StateLayout:
+                 gyro_temp_bias: bool | None = None, misalignment: bool = False) -> StateLayout:
     """kf_hand_joint's states: :data:`calib.session.model.HAND_JOINT` (33), and when the session's temperature moved
     (``temperature``) the accelerometer bias's temperature coefficient c_a (``acc_temp_bias``, 3 states) and —
     ``gyro_thermal``, default :class:`HandParams`'s ``joint_gyro_thermal`` (on) — the gyro scale's s_T
     (``gyro_temp_scale``, as kf_hand), and with ``gyro_temp_bias`` (default ``joint_gyro_temp_bias``, off) the gyro
     bias's c_b as kf_hand, and with ``delay`` (default) the accelerometer's delay δ (as kf_hand): 36, 39 or 42 states
-    (33, 36 or 39 without δ; 3 more with c_b)."""
-    dl = ACC_DELAY_BLOCKS if delay else ()
+    (33, 36 or 39 without δ; 3 more with c_b; 3 more with the gyro's ``misalignment`` against the accelerometer)."""
+    dl = (ACC_DELAY_BLOCKS if delay else ()) + (MISALIGN_BLOCKS if misalignment else ())
     if not temperature:
         return StateLayout(HAND_JOINT.blocks + dl)
     defaults = HandParams()

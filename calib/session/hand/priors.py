@@ -29,7 +29,7 @@ from gyrosim.recording import Recording
 from gyrosim.rotations import skew
 
 from calib.session.consistency import INFLATION_BLOCK_S
-from calib.session.gravityfit import GravityFit, fit_gravity
+from calib.session.gravityfit import GravityFit, fit_gravity, sample_variance
 from calib.session.kernel import regressor_half_window
 from calib.session.model import SENSOR_EXTRA_BLOCKS, StateLayout, leave_out_means, q_matrix
 from calib.session.prepare import Prepared
@@ -143,6 +143,8 @@ def gravity_fit_lever_free(rec: Recording, prep: Prepared, start: int, kreg: np.
     f_reg = leave_out_means(f, regressor_half_window(fs), midpoint=False)
     prior = np.concatenate([cfg.prior_sigma("acc_bias"), cfg.prior_sigma("acc_scale"), cfg.prior_sigma("acc_nonorth")])
     sigma_f2 = cfg.vrw_m_s2_sqrt_hz**2 * fs
-    return fit_gravity(f, f_reg, sigma_f2 + cfg.external_acc_allowance_m_s2**2, sigma_f2, cfg.gravity_m_s2, prior,
-                       theta_a, block_samples=max(1, int(round(INFLATION_BLOCK_S * fs))))
+    r_var = sample_variance(f, [(a - ra, b - ra) for a, b in prep.rest.index_ranges], sigma_f2,
+                            sigma_f2 + cfg.external_acc_allowance_m_s2**2)     # the rests by their own scatter
+    return fit_gravity(f, f_reg, r_var, sigma_f2, cfg.gravity_m_s2, prior, theta_a,
+                       block_samples=max(1, int(round(INFLATION_BLOCK_S * fs))))
 

@@ -239,7 +239,7 @@ def band_report(band: dict | None) -> dict:
 # 0.03–0.5 Hz; not the attitude, the bias's random walk, a_e's own states or the temperature coefficients, whose
 # information lies at the session's own scale, below what a 40-s Welch segment resolves
 SPECTRAL_BLOCKS = ("gyro_scale", "gyro_nonorth", "lever_arm", "acc_bias", "acc_scale", "acc_nonorth", "acc_delay",
-                   "gyro_g_sens")
+                   "gyro_g_sens", "gyro_misalign")
 
 
 def spectral_sigma(P: np.ndarray, out: FilterRun, layout: StateLayout, cfg: FilterConfig, f_lp: np.ndarray,
