@@ -145,7 +145,8 @@ class Applied:
     def to_dict(self) -> dict[str, Any]:
         """``applied`` in the JSON: per triad the values under the summary blocks' keys, ``std`` and
         ``from_session`` (both the same keys), then ``prior`` and ``summary``."""
-        values, sigma = _triad_blocks(self.values), _triad_blocks(self.sigma)
+        values = _triad_blocks(self.values)
+        sigma = _triad_blocks(np.where(np.isfinite(self.sigma), self.sigma, None))  # ∞ (no prior): null
         session = _triad_blocks(self.from_session)
         out: dict[str, Any] = {}
         for triad in TRIADS:

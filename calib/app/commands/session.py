@@ -90,13 +90,15 @@ def _print_calibration(cal) -> None:
             )
 
 
-def _print_run(recording: str, cal, accelerometer: str) -> None:
-    """What ``calib run`` prints of a :func:`~calib.session.run.run_session` result."""
+def _print_run(recording: str, cal) -> None:
+    """What ``calib run`` prints of a :func:`~calib.session.run.run_session` result: the estimate, the coaching, the
+    warnings, then what is applied and why (the motion, the held-out check), and the status."""
     from calib.session.coach import Coaching
-    from calib.session.run import method_warnings
+    from calib.session.run import SESSION_METHODS, method_warnings
 
     rest = cal.to_dict()["rest_segments"]
-    print(f"{recording}: method {cal.method}, accelerometer {accelerometer}, rest "
+    mode = SESSION_METHODS.get(cal.method, (None, "estimate"))[1]
+    print(f"{recording}: method {cal.method}, accelerometer {mode}, rest "
           f"{rest[:3]}{' …' if len(rest) > 3 else ''}")
     _print_calibration(cal)
     print_input_warnings(cal.report["input"]["warnings"])
@@ -104,6 +106,8 @@ def _print_run(recording: str, cal, accelerometer: str) -> None:
         print(f"  {line}")
     for w in method_warnings(cal):
         print(f"  warning: {w}")
+    for line in (cal.applied.notes if cal.applied is not None else ()):
+        print(f"  {line}")
     print(f"  status: {cal.status}")
 
 
@@ -115,15 +119,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     from calib.inputs import KF
     from calib.session.run import RunOptions, method_warnings, resolve_run_method, run_session
 
-    check_output_paths({"--json": args.json, "--rrd": args.rrd}, input_files(args.recording))
+    check_output_paths({"--json": args.json, "--rrd": args.rrd}, input_files(args.recording, args.prior))
     options = RunOptions(method=args.method, accelerometer=args.accelerometer, gravity_m_s2=args.gravity,
-                         external_acc_allowance_m_s2=args.external_acc, keep_history=args.rrd is not None)
+                         external_acc_allowance_m_s2=args.external_acc, keep_history=args.rrd is not None,
+                         prior=_prior(args))
     name, mode, note = resolve_run_method(options, flag="--method")
-    if note:  # a former spelling: still runs, with a note
+    if note:  # a former spelling: still runs, with a note; the run gets the registered name
         print(f"warning: {note}", file=sys.stderr)
+        options = replace(options, method=name, accelerometer=mode)
     loaded = open_input(args, KF)
-    cal = run_session(loaded, replace(options, method=name, accelerometer=mode))
-    _print_run(args.recording, cal, mode)
+    cal = run_session(loaded, options)
+    _print_run(args.recording, cal)
     if args.json:
         cal.save(args.json)
         print(f"wrote {args.json}")
@@ -139,6 +145,25 @@ def cmd_run(args: argparse.Namespace) -> int:
     return status_exit(cal.status == "ok", f"calibration {cal.status}: see the warnings above for what to try")
 
 
+def _prior(args: argparse.Namespace):
+    """``--prior FILE`` (a previous calibration) and ``--prior-tolerance`` as a
+    :class:`~calib.session.decision.prior.Prior` (None: the maker-calibrated default)."""
+    from gyrosim.calibration import Calibration
+
+    from calib.session.decision.prior import Prior
+
+    if args.prior_tolerance is None and args.prior is None:
+        return None
+    try:
+        base = Prior.maker() if args.prior_tolerance is None else Prior.from_tolerance(args.prior_tolerance)
+    except ValueError as exc:
+        raise GyrosimError(f"--prior-tolerance: {exc}") from None
+    if args.prior is None:
+        return base
+    return Prior.from_calibration(Calibration.load(args.prior), f"previous calibration {Path(args.prior).name}",
+                                  fallback=base)
+
+
 def cmd_apply(args: argparse.Namespace) -> int:
     """Compensate a recording with a calibration file and write the result (HDF5 or CSV by suffix)."""
     from gyrosim.calibration import Calibration
@@ -151,22 +176,26 @@ def cmd_apply(args: argparse.Namespace) -> int:
         raise GyrosimError(f"--out {out}: use a .h5/.hdf5 (HDF5, keeps truth and metadata) or .csv (SI units) name")
     check_output_paths({"--out": out}, input_files(args.recording, args.calibration))
     cal = Calibration.load(args.calibration)
-    if cal.status == "diverged" and not args.force:
+    if cal.status == "diverged" and cal.applied is None and not args.force:
         raise GyrosimError(
             f"{args.calibration} has status 'diverged': its numbers are no calibration; re-run calib run "
             "(see its warnings) or pass --force to apply it anyway"
         )
     if cal.status != "ok":
-        print(
-            f"warning: {args.calibration} has status '{cal.status}': its σ does not describe its error", file=sys.stderr
-        )
+        what = ("its σ does not describe its error" if cal.applied is None else
+                "only what this file says it applies is applied")
+        print(f"warning: {args.calibration} has status '{cal.status}': {what}", file=sys.stderr)
     loaded = open_input(args, GENERIC)
     print_input_warnings(loaded.report)
     comp = cal.compensate(loaded.recording)
     rec = loaded.recording
     (save_csv if out.suffix.lower() == ".csv" else save_hdf5)(comp, out)
-    print(f"wrote {out}: {rec.n} samples, gyro{' and accelerometer' if cal.has('accelerometer', 'bias') else ''} "
-          f"compensated with {args.calibration} ({cal.method}, status {cal.status})")
+    if cal.applied is not None:   # the parameters the session determined, the prior's for the rest
+        print(f"wrote {out}: {rec.n} samples compensated with {args.calibration} ({cal.method}, status {cal.status})")
+        print(f"  applied {cal.applied.summary}")
+    else:
+        print(f"wrote {out}: {rec.n} samples, gyro{' and accelerometer' if cal.has('accelerometer', 'bias') else ''} "
+              f"compensated with {args.calibration} ({cal.method}, status {cal.status})")
     return 0
 
 
@@ -256,6 +285,13 @@ def _add_run(sub) -> None:
         help="write the result as JSON (a Calibration file: calib apply / export read it; never an input file)",
     )
     r.add_argument("--rrd", help="write a rerun recording (P converging, estimates, signals; never an input file)")
+    r.add_argument("--prior", metavar="CAL_JSON", default=None,
+                   help="a previous calibration of this sensor (calib run --json) as the prior: this session starts "
+                        "from its values and σ, and what it does not determine stays at them (calibrations accumulate)")
+    r.add_argument("--prior-tolerance", metavar="SPEC", default=None,
+                   help="the maker-calibrated prior's 1σ: S=0.01,G=0.01,acc_bias=0.25,acc_S=0.01,acc_G=0.01 (the "
+                        "defaults; acc_bias in m/s²; any subset, or one number for S, G, acc_S, acc_G) — a parameter "
+                        "is applied when this session's σ is at most half of it")
     input_options(r, decimate=True)
     r.add_argument(
         "--external-acc",
