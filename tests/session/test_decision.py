@@ -82,7 +82,7 @@ def test_motion_a_hand_turning_and_a_board_carried():
     # threshold (gyrosim's hands turning: below a few cm)
     assert not carried.model_holds and carried.kind == "carried along a path"
     assert carried.moving_fraction("carried") > 0.8
-    assert "carried along a path" in carried.reason and "S and G need" in carried.advice
+    assert "carried along a path" in carried.reason and "turning it in the hand" in carried.advice
 
 
 # ----------------------------------------------------------------------------------------------- run and apply
@@ -154,3 +154,25 @@ def test_calib_run_prior_options(tmp_path, capsys):
     out = tmp_path / "c.csv"
     assert calib_main(["apply", str(second), str(src), "--out", str(out)]) == 0
     assert "applied from this session" in capsys.readouterr().out
+
+
+# ----------------------------------------------------------------------------------------------- a real recording
+def test_broad_translation_trial_bias_only_and_a_message_on_one_screen(capsys):
+    """BROAD trial 12 (translation without rotation, trials.json): the default runs (no refusal), S and G are not
+    determined and not applied, the status is not ok (exit 1), and what it prints fits on one screen with each
+    line at most about two terminal lines and no internal identifiers."""
+    import re
+
+    from gyrosim.loaders import data_root
+
+    path = data_root() / "broad" / "12_undisturbed_slow_translation_C.hdf5"
+    if not path.is_file():
+        pytest.skip("measured data not found (set GYROSIM_DATA)")
+    assert calib_main(["run", str(path)]) == 1
+    out = capsys.readouterr().out
+    lines = out.splitlines()[1:]   # the first names the file
+    assert len(lines) <= 25, out
+    assert all(len(line) <= 2 * 120 for line in lines), max(lines, key=len)
+    assert not re.search(r"\bcalib\.[a-z]|\bdiagnostics\.|\b[a-z]+_[a-z]+\.[a-z]", out), out
+    assert "S, G cannot be read from it" in out and "applied: from this session: gyro bias;" in out
+    assert "status: inconsistent" in out

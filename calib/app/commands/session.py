@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -52,8 +53,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_calibration(cal) -> None:
-    """The estimate with its 1σ, where the scale factor holds, and the error against a simulated file's truth."""
+def _print_calibration(cal, where_s_holds: bool = True) -> None:
+    """The estimate with its 1σ, where the scale factor holds (unless ``where_s_holds`` is False: S is not
+    applied), and the error against a simulated file's truth."""
     blocks = [("gyro", "bias", "bias", 180 / math.pi, "°/s"), ("gyro", "scale_factor", "scale factor", 1, ""),
               ("gyro", "nonorthogonality", "non-orthogonality", 1, "")]
     if cal.has("accelerometer", "bias"):
@@ -65,7 +67,7 @@ def _print_calibration(cal) -> None:
         sd = cal.std(triad, kind) * scale
         print(f"  {name:<18} " + "  ".join(f"{a:+.5f}±{b:.5f}" for a, b in zip(v, sd)) + f" {unit}")
     ref = (cal.diagnostics or {}).get("scale_reference_rate")
-    if ref:   # where S holds (calib.session.hand.filter.scale_reference_rate): the user applies it at other rates
+    if ref and where_s_holds:   # where S holds (calib.session.hand.filter.scale_reference_rate)
         m = np.degrees(ref["rate_rad_s"])
         top = np.degrees(ref["max_abs_rate_rad_s"])
         print(
@@ -90,25 +92,76 @@ def _print_calibration(cal) -> None:
             )
 
 
-def _print_run(recording: str, cal) -> None:
-    """What ``calib run`` prints of a :func:`~calib.session.run.run_session` result: the estimate, the coaching, the
-    warnings, then what is applied and why (the motion, the held-out check), and the status."""
+# warnings that describe the fit rather than call for something to do: shown under --verbose (and in the JSON)
+_DETAIL_HEADS = ("hand:", "timing:", "σ of S, G follows", "temperature:", "cautious:", "σ inflated")
+# warnings about S, G's own σ: moot when S, G are not applied (the decision's lines say why)
+_SG_HEADS = ("unobservable", "weakly observable", "gyro bias drift and no temperature")
+# a parenthesis that names internals (a module path, a variable or key name): dropped on the terminal
+_IDENTIFIER = re.compile(r"\s*\([^()]*(?:\b[a-z]+_[a-z_]+\b|\b[a-z]+\.[a-z_]+\.[a-z_.]+)[^()]*\)")
+_WIDTH = 210   # with "  warning: ", about two lines of a terminal
+
+
+def _terminal_warning(w: str) -> str:
+    """A warning for the terminal (the JSON and --verbose keep it whole): parentheses that name internals
+    dropped, and at most ~two lines — its first clause (what was found) and its last (what to do)."""
+    w = _IDENTIFIER.sub("", w)
+    if len(w) <= _WIDTH:
+        return w
+    clauses = re.split(r"(?<=[;.]) ", w)
+    first, last = clauses[0].rstrip(";."), clauses[-1]
+    if len(clauses) > 1 and len(first) + len(last) + 3 <= _WIDTH:
+        return f"{first} … {last}"
+    return w[:_WIDTH].rsplit(" ", 1)[0] + " …"
+
+
+def _decision_warning(w: str) -> bool:
+    """One of the warnings the decision layer adds (its lines and the status line say it)."""
+    from calib.session.decision.decide import CHECK_WARNING, MOTION_WARNING
+
+    return w.startswith((MOTION_WARNING, CHECK_WARNING))
+
+
+def _shown_warnings(cal, verbose: bool) -> tuple[list[str], int]:
+    """The method's warnings as ``calib run`` prints them, and how many it left to --verbose."""
+    from calib.session.run import method_warnings
+
+    warnings = list(method_warnings(cal))
+    if verbose:
+        return warnings, 0
+    sg_applied = cal.applied is None or bool(cal.applied.from_session[3:9].any())
+    shown = [_terminal_warning(w) for w in warnings
+             if not w.startswith(_DETAIL_HEADS) and (sg_applied or not w.startswith(_SG_HEADS))
+             and not _decision_warning(w)]
+    return shown, len(warnings) - len(shown) - sum(_decision_warning(w) for w in warnings)
+
+
+def _print_run(recording: str, cal, verbose: bool = False) -> None:
+    """What ``calib run`` prints of a :func:`~calib.session.run.run_session` result: the estimate, the input's
+    lines, the coaching (when S, G are applied), the warnings (each in one or two lines; the descriptive ones
+    and the whole text under ``verbose``), what is applied and why (the motion, the held-out check), and the
+    status."""
     from calib.session.coach import Coaching
     from calib.session.run import SESSION_METHODS, method_warnings
 
     rest = cal.to_dict()["rest_segments"]
     mode = SESSION_METHODS.get(cal.method, (None, "estimate"))[1]
     print(f"{recording}: method {cal.method}, accelerometer {mode}, rest "
-          f"{rest[:3]}{' …' if len(rest) > 3 else ''}")
-    _print_calibration(cal)
+          + ", ".join(f"{a:.0f}–{b:.0f} s" for a, b in rest[:3]) + (" …" if len(rest) > 3 else ""))
+    sg_applied = cal.applied is None or bool(cal.applied.from_session[3:9].any())
+    _print_calibration(cal, verbose or sg_applied)
     print_input_warnings(cal.report["input"]["warnings"])
-    for line in Coaching.from_dict(cal.report["coaching"]).lines():
-        print(f"  {line}")
-    for w in method_warnings(cal):
+    if verbose or sg_applied:
+        for line in Coaching.from_dict(cal.report["coaching"]).lines():
+            print(f"  {line}")
+    warnings, hidden = _shown_warnings(cal, verbose)
+    for w in warnings:
         print(f"  warning: {w}")
     for line in (cal.applied.notes if cal.applied is not None else ()):
         print(f"  {line}")
-    print(f"  status: {cal.status}")
+    if hidden:
+        print(f"  ({hidden} more findings: calib run --verbose, or the JSON's warnings)")
+    why = next((w for w in method_warnings(cal) if _decision_warning(w)), "")
+    print(f"  status: {cal.status}" + (f" — {why.partition(': ')[2]}" if why and not verbose else ""))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -129,7 +182,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         options = replace(options, method=name, accelerometer=mode)
     loaded = open_input(args, KF)
     cal = run_session(loaded, options)
-    _print_run(args.recording, cal)
+    _print_run(args.recording, cal, args.verbose)
     if args.json:
         cal.save(args.json)
         print(f"wrote {args.json}")
@@ -285,6 +338,9 @@ def _add_run(sub) -> None:
         help="write the result as JSON (a Calibration file: calib apply / export read it; never an input file)",
     )
     r.add_argument("--rrd", help="write a rerun recording (P converging, estimates, signals; never an input file)")
+    r.add_argument("--verbose", action="store_true",
+                   help="print every finding in full (by default the descriptive ones are left to the JSON and the "
+                        "rest kept to two lines each)")
     r.add_argument("--prior", metavar="CAL_JSON", default=None,
                    help="a previous calibration of this sensor (calib run --json) as the prior: this session starts "
                         "from its values and σ, and what it does not determine stays at them (calibrations accumulate)")

@@ -55,7 +55,12 @@ from calib.session.decision.prior import (
     determine,
 )
 
-__all__ = ["DecisionParams", "Decision", "decide", "estimate_vector", "rest_pose_accelerometer", "compensate_prior"]
+# the beginnings of the warnings this layer adds (the terminal shows their reason on the status line)
+MOTION_WARNING = "inconsistent: the motion is not a hand turning the device"
+CHECK_WARNING = "inconsistent: calibrated on one half,"
+
+__all__ = ["MOTION_WARNING", "CHECK_WARNING", "DecisionParams", "Decision", "decide", "estimate_vector",
+           "rest_pose_accelerometer", "compensate_prior"]
 
 
 @dataclass(frozen=True)
@@ -198,11 +203,12 @@ def _variants(theta: np.ndarray, sigma: np.ndarray, prior: Prior, det: Determina
 def _parameters(rec: Recording, cal: Calibration, prior: Prior, motion: MotionClassification, gravity_m_s2: float,
                 rests: list | None = None) -> tuple[np.ndarray, np.ndarray, tuple[Gate, ...]]:
     """θ, σ (18,) and the gates of a method's result on ``rec``: with a motion that breaks the model, the
-    accelerometer from the rests' |f| = g instead of the method's (module docstring, step 1); ``rests``: ``rec``'s
-    rests ((t0, t1), s), default the result's own."""
+    accelerometer from the rests' |f| = g instead of the method's estimate (module docstring, step 1; an
+    accelerometer the method took as calibrated stays so); ``rests``: ``rec``'s rests ((t0, t1), s), default the
+    result's own."""
     theta, sigma = estimate_vector(cal)
     acc_from_rests = False
-    if not motion.model_holds:
+    if not motion.model_holds and cal.has("accelerometer", "bias"):   # taken as calibrated: it stays so
         rests = (cal.diagnostics or {}).get("rest_segments") or [] if rests is None else rests
         fit = rest_pose_accelerometer(rec, rests, prior, gravity_m_s2)
         if fit is not None:
@@ -323,46 +329,45 @@ def _status(method_status: str, motion: MotionClassification, det: Determination
     if method_status != "ok":
         return method_status, ""
     if not motion.model_holds:
-        return "inconsistent", ("inconsistent: the motion is not a hand turning the device, so the method's model "
-                                "does not hold; only the bias (and what the rests determine) is applied")
+        return "inconsistent", (f"{MOTION_WARNING}, so the method's model does not hold; only the bias (and what "
+                                "the rests determine) is applied")
     if rejected.any():
-        return "inconsistent", ("inconsistent: calibrated on one half, the result did not predict the other half "
-                                f"better than the bias alone ({', '.join(det.names(rejected))} not applied)")
+        return "inconsistent", (f"{CHECK_WARNING} the result did not predict the other half better than the bias "
+                                f"alone ({det.grouped(rejected)} not applied)")
     return "ok", ""
 
 
 def _summary(det: Determination, session: np.ndarray, prior: Prior) -> str:
-    parts = []
-    gyro_sg = det.names(session & np.r_[np.zeros(3), np.ones(6), np.zeros(9)].astype(bool))
-    acc = det.names(session & np.r_[np.zeros(9), np.ones(9)].astype(bool))
-    parts.append("gyro bias" + (f", {', '.join(gyro_sg)}" if gyro_sg else ""))
-    if acc:
-        parts.append("accelerometer " + ", ".join(n.replace("acc ", "") for n in acc))
-    rest = 18 - 3 - len(gyro_sg) - len(acc)
-    tail = f"; the other {rest} at the prior ({prior.source})" if rest else ""
-    return "from this session: " + "; ".join(parts) + tail
+    """One line: what comes from this session and what stays at the prior."""
+    rest = np.ones(18, bool) & ~session
+    rest[0:3] &= False   # the bias is always the session's
+    tail = f"; at the prior ({prior.source}): {det.grouped(rest)}" if rest.any() else ""
+    return f"from this session: gyro {det.grouped(session)}" + tail
 
 
 def _lines(motion: MotionClassification, motion_note: str, det: Determination, rejected: np.ndarray,
            untested: np.ndarray, check: CrossCheck | None, prior: Prior, summary: str) -> list[str]:
-    out = motion.lines() if not motion_note else motion.lines() + [motion_note]
+    """The terminal's lines of the decision, one each: the motion, the check, what is applied, and why the rest
+    is not."""
+    out = motion.lines() + ([motion_note] if motion_note else [])
     if check is not None:
         out.append(_check_line(check))
     out.append(f"applied: {summary}")
     if rejected.any():
-        out.append(f"not applied: {', '.join(det.names(rejected))} — the held-out check did not agree with them; "
-                   "this file leaves them at the prior")
+        out.append(f"not applied: {det.grouped(rejected)} — calibrated on one half, they predicted the other half "
+                   "worse than the bias alone; this file leaves them at the prior")
     if untested.any():
-        out.append(f"not applied: {', '.join(det.names(untested))} — the held-out check could not test them (half "
-                   "the recording does not determine them); this file leaves them at the prior")
+        out.append(f"not applied: {det.grouped(untested)} — no half of the recording determines them, so the held-out "
+                   "check could not test them; this file leaves them at the prior")
     undet = ~det.determined & np.r_[np.zeros(3), np.ones(15)].astype(bool)
-    reasons = sorted({r for i, r in enumerate(det.reasons) if undet[i] and r and not r.startswith("σ ")})
     sigma_only = undet & np.array([r.startswith("σ ") for r in det.reasons])
     if sigma_only.any():
-        out.append(f"not determined by this recording: {', '.join(det.names(sigma_only))} (σ above half the prior's); "
-                   "turning longer or faster about the axes concerned determines them")
-    for r in reasons:
-        if "motion" not in r:   # the motion's own line says it
+        out.append(f"not determined by this recording: {det.grouped(sigma_only)} (σ above half the prior's): they "
+                   "stay at the prior; a session turning longer or faster about the axes concerned would determine "
+                   "them")
+    reasons = sorted({r for i, r in enumerate(det.reasons) if undet[i] and r and not r.startswith("σ ")})
+    for r in reasons:   # the motion's line and the accelerometer's warning say theirs
+        if "motion" not in r and "taken as calibrated" not in r:
             out.append(f"left at the prior: {r}")
     return out
 
@@ -377,7 +382,10 @@ def _check_line(check: CrossCheck) -> str:
     best = next((s for s in check.sources if s.name.startswith("reference") and s.informative(check.params)), None)
     best = best or next((s for s in check.sources if s.informative(check.params)), check.sources[0])
     shown = next((v for v in ("full", "gyro", "accelerometer") if v in best.rms), "bias")
-    return (f"held-out check ({spans}): S, G {check.verdict('gyro')}, accelerometer "
-            f"{check.verdict('accelerometer')}; {best.name.replace('_', ' ')} RMS raw {best.rms['raw']:.2f}, bias only "
-            f"{best.rms['bias']:.2f}, calibrated {best.rms[shown]:.2f} {best.unit}"
+    verdicts = ", ".join(f"{name} {check.verdict(v)}" for name, v in (("S, G", "gyro"), ("accelerometer",
+                                                                                         "accelerometer"))
+                         if check.verdict(v) != "inconclusive" or v in best.rms)
+    return (f"held-out check ({spans}): {verdicts or 'nothing to test'}; {best.name.replace('_', ' ')} RMS raw "
+            f"{best.rms['raw']:.2f}, bias only {best.rms['bias']:.2f}"
+            + (f", calibrated {best.rms[shown]:.2f}" if shown != "bias" else "") + f" {best.unit}"
             + (f" ({'; '.join(notes)})" if notes else ""))

@@ -142,9 +142,9 @@ class MotionClassification:
             return "the device stayed at rest: nothing turned it"
         carried, tapped = self.moving_fraction("carried"), self.moving_fraction("tapping")
         if carried > self.params.max_carried_fraction:
-            parts.append(f"the device was carried along a path in {carried:.0%} of the moving time (it travelled "
+            parts.append(f"carried along a path in {carried:.0%} of the moving time ("
                          f"{np.median(self.displacement_m[self._is('carried')]) * 100:.0f} cm per "
-                         f"{self.window_s:.0f} s, a hand turning it moves it by a few cm)")
+                         f"{self.window_s:.0f} s, a hand turning it: a few cm)")
         if tapped > self.params.max_tapping_fraction:
             parts.append(f"taps or vibration in {tapped:.0%} of the moving time")
         return "; ".join(parts)
@@ -154,8 +154,7 @@ class MotionClassification:
         """What motion would determine S and G ('' when this one does)."""
         if self.model_holds:
             return ""
-        return ("S and G need the device turned in the hand about each of its axes (wrist rotations, Zhou 2020 "
-                "Table 5) without carrying it along or tapping it")
+        return "turning it in the hand about each axis, without carrying or tapping it, determines them"
 
     def _is(self, label: str) -> np.ndarray:
         return np.array([lb == label for lb in self.labels], bool)
@@ -183,12 +182,12 @@ class MotionClassification:
                                "lever_arm_max_m": LEVER_ARM_MAX_M}}
 
     def lines(self) -> list[str]:
-        """One line for the terminal (two when S and G cannot be read from the motion)."""
+        """One line for the terminal: what the motion is and, when S and G cannot be read from it, why, what it
+        does to the result and what motion would determine them."""
         share = ", ".join(f"{_TEXT[lb]} {self.fraction(lb):.0%}" for lb in LABELS if self.fraction(lb) > 0)
-        out = [f"motion: {self.kind} ({share} of {len(self.labels)} windows of {self.window_s:.0f} s)"]
-        if not self.model_holds:
-            out.append(f"motion: S and G not determined — {self.reason}; {self.advice}")
-        return out
+        if self.model_holds:
+            return [f"motion: {self.kind} ({share} of {len(self.labels)} windows of {self.window_s:.0f} s)"]
+        return [f"motion: {self.reason} — S, G cannot be read from it: left at the prior; {self.advice}"]
 
 
 def _lowpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 2) -> np.ndarray:

@@ -74,12 +74,12 @@ def _unblock(d: dict, dtype=float) -> np.ndarray:
 @dataclass(frozen=True)
 class Prior:
     """Mean and 1σ (18,) of every parameter before this session (module docstring); ``source`` says where
-    they come from, in words (``maker-calibrated sensor (datasheet tolerance)`` or the previous file);
+    they come from, in words (``maker-calibrated sensor, datasheet tolerance`` or the previous file);
     ``previous``: a previous calibration, whose values the session's recording is compensated with first."""
 
     mean: np.ndarray
     sigma: np.ndarray
-    source: str = "maker-calibrated sensor (datasheet tolerance)"
+    source: str = "maker-calibrated sensor, datasheet tolerance"
     previous: bool = False
 
     def __post_init__(self) -> None:
@@ -179,6 +179,23 @@ class Determination:
                 if m[3 * i + j]:
                     out.append(("acc " if triad == "accelerometer" else "") + f"{short[kind]}_{ax}")
         return out
+
+    def grouped(self, mask: np.ndarray) -> str:
+        """The parameters in ``mask`` for a terminal line, grouped: "S, G_y; accelerometer b, S" (a kind whose
+        three axes are all in it by its letter alone), '' for none."""
+        short = {"bias": "b", "scale_factor": "S", "nonorthogonality": "G"}
+        parts: dict[str, list[str]] = {"gyro": [], "accelerometer": []}
+        for i, (triad, kind, _) in enumerate(PARAMETERS):
+            m = np.asarray(mask, bool)[3 * i:3 * i + 3]
+            if m.all():
+                parts[triad].append(short[kind])
+            else:
+                parts[triad] += [f"{short[kind]}_{ax}" for ax, on in zip("xyz", m) if on]
+        text = ", ".join(parts["gyro"]).replace("b, ", "bias, ") if parts["gyro"] else ""
+        if text == "b":
+            text = "bias"
+        acc = ", ".join(parts["accelerometer"])
+        return "; ".join(t for t in (text, f"accelerometer {acc}" if acc else "") if t)
 
     def to_dict(self) -> dict:
         return {"rule": f"posterior σ ≤ {self.rule:g} × prior σ (the data carry ≥ {1 / self.rule**2 - 1:g}× the "
