@@ -176,3 +176,37 @@ def test_broad_translation_trial_bias_only_and_a_message_on_one_screen(capsys):
     assert not re.search(r"\bcalib\.[a-z]|\bdiagnostics\.|\b[a-z]+_[a-z]+\.[a-z]", out), out
     assert "S, G cannot be read from it" in out and "applied: from this session: gyro bias;" in out
     assert "status: inconsistent" in out
+
+
+@pytest.mark.slow
+def test_every_broad_trial_through_the_harness():
+    """The rules on BROAD, through the measured-data harness (calib run and calib apply as a user runs them, the
+    orientation filters users run, BROAD's optical reference): no ``ok`` result makes a filter more than 10 % worse
+    than raw unless the plain reference calibration (S = G = 0, the first rest's bias) does too; over the trials the
+    median full-vs-raw change is ≤ 0 % for VQF 9D total and ≤ +5 % for VQF 6D inclination, and Madgwick and Mahony
+    are no worse with the full calibration than with the bias alone; the translations determine no S, G."""
+    from gyrosim.loaders import data_root
+
+    from calib.scoring.measured import validate
+
+    if not (data_root() / "broad").is_dir():
+        pytest.skip("measured data not found (set GYROSIM_DATA)")
+    v = validate(data_root(), only="broad/")
+    trials = [r for r in v.recordings if r.kind == "broad"]
+    assert trials and v.ok, v.failed
+    four = ("vqf_9d.total_rmse_deg", "vqf_6d.inclination_rmse_deg", "madgwick_c2011_9d.total_rmse_deg",
+            "mahony_9d.total_rmse_deg")
+    for r in trials:
+        c = r.calibration
+        if c.get("status") == "ok":
+            for key in four:
+                f = r.figures[key]
+                if f.get("full", 0.0) > 1.1 * f["raw"]:
+                    assert f["plain_reference"] > 1.1 * f["raw"], (r.name, key, f)
+        if "translation" in r.name:   # trials.json: translation without rotation
+            assert sum(c["gyro_sg_determined"]) == 0 and sum(c["gyro_sg_applied"]) == 0, (r.name, c)
+    m = v.medians
+    assert m["vqf_9d.total_rmse_deg"]["full_vs_raw_pct"] <= 0.0, m
+    assert m["vqf_6d.inclination_rmse_deg"]["full_vs_raw_pct"] <= 5.0, m
+    for key in ("madgwick_c2011_9d.total_rmse_deg", "mahony_9d.total_rmse_deg"):
+        assert m[key]["full_vs_bias_only_pct"] <= 0.0, (key, m[key])

@@ -93,7 +93,7 @@ def _print_calibration(cal, where_s_holds: bool = True) -> None:
 
 
 # warnings that describe the fit rather than call for something to do: shown under --verbose (and in the JSON)
-_DETAIL_HEADS = ("hand:", "timing:", "σ of S, G follows", "temperature:", "cautious:", "σ inflated")
+_DETAIL_HEADS = ("hand:", "timing:", "σ of S, G follows", "temperature:", "cautious:")
 # warnings about S, G's own σ: moot when S, G are not applied (the decision's lines say why)
 _SG_HEADS = ("unobservable", "weakly observable", "gyro bias drift and no temperature")
 # a parenthesis that names internals (a module path, a variable or key name): dropped on the terminal
@@ -103,14 +103,16 @@ _WIDTH = 210   # with "  warning: ", about two lines of a terminal
 
 def _terminal_warning(w: str) -> str:
     """A warning for the terminal (the JSON and --verbose keep it whole): parentheses that name internals
-    dropped, and at most ~two lines — its first clause (what was found) and its last (what to do)."""
+    dropped, and at most ~two lines — its last clause (what to do) whole and as much of its first (what was
+    found) as fits."""
     w = _IDENTIFIER.sub("", w)
     if len(w) <= _WIDTH:
         return w
     clauses = re.split(r"(?<=[;.]) ", w)
     first, last = clauses[0].rstrip(";."), clauses[-1]
-    if len(clauses) > 1 and len(first) + len(last) + 3 <= _WIDTH:
-        return f"{first} … {last}"
+    room = _WIDTH - len(last) - 3   # what to do comes last: keep it whole, cut what was found to fit
+    if len(clauses) > 1 and room >= 60:
+        return (first if len(first) <= room else first[:room].rsplit(" ", 1)[0]) + f" … {last}"
     return w[:_WIDTH].rsplit(" ", 1)[0] + " …"
 
 
