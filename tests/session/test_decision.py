@@ -210,3 +210,40 @@ def test_every_broad_trial_through_the_harness():
     assert m["vqf_6d.inclination_rmse_deg"]["full_vs_raw_pct"] <= 5.0, m
     for key in ("madgwick_c2011_9d.total_rmse_deg", "mahony_9d.total_rmse_deg"):
         assert m[key]["full_vs_bias_only_pct"] <= 0.0, (key, m[key])
+
+
+def _poses(acc_theta: np.ndarray, seed: int = 0, n_poses: int = 12, noise_m_s2: float = 0.01):
+    """Static poses only (2 s each at 100 Hz, gravity in random body directions) through an accelerometer with
+    bias, S, G ``acc_theta`` and white noise; the rests as (t0, t1) in s."""
+    from gyrosim.effects import nonortho_matrix
+    from gyrosim.recording import Recording
+
+    rng = np.random.default_rng(seed)
+    m = np.eye(3) + np.diag(acc_theta[3:6]) + nonortho_matrix(acc_theta[6:9])
+    f, rests = [], []
+    for k in range(n_poses):
+        u = rng.normal(size=3)
+        g = 9.80665 * u / np.linalg.norm(u)
+        f.append(np.tile(m @ g + acc_theta[0:3], (200, 1)) + rng.normal(0, noise_m_s2, (200, 3)))
+        rests.append((2.0 * k + 0.05, 2.0 * k + 1.95))
+    acc = np.concatenate(f)
+    t = np.arange(acc.shape[0]) / 100.0
+    return Recording(t, rng.normal(0, 1e-3, acc.shape), acc, meta={"rate_hz": 100.0}), rests
+
+
+def test_rest_pose_check_applies_a_fitted_accelerometer_and_refuses_a_calibrated_one():
+    """Leave-one-pose-out: an accelerometer with 0.3 m/s² biases and 2 % scale errors is predicted at each held-out
+    pose far better than raw (|f| − g raw ~0.3 m/s², fit ~ the noise over 200 samples, ~1e-3); a calibrated one
+    cannot be improved on, so the fit does not agree (it only adds its own scatter)."""
+    from calib.session.decision.decide import rest_pose_check
+
+    truth = np.r_[0.3, -0.2, 0.25, 0.02, -0.015, 0.01, 0.004, -0.003, 0.002]
+    rec, rests = _poses(truth)
+    out = rest_pose_check(rec, rests, Prior.maker(), 9.80665)
+    assert out["verdict"] == "agrees" and out["poses"] == 12
+    assert out["rms_m_s2"]["fit"] < 0.1 * out["rms_m_s2"]["raw"]
+    # the fit on every pose is the truth within 5σ of its own σ (+1e-4: the prior's ridge pull)
+    assert np.all(np.abs(out["theta"] - truth) < 5 * out["sigma"] + 1e-4), (out["theta"], truth)
+    rec, rests = _poses(np.zeros(9), seed=1)
+    assert rest_pose_check(rec, rests, Prior.maker(), 9.80665)["verdict"] == "disagrees"
+    assert rest_pose_check(rec, rests[:5], Prior.maker(), 9.80665) is None   # too few poses to spare

@@ -17,7 +17,11 @@
    only the rests' accelerometer is at stake).  S, G are applied when the ``gyro`` variant agrees, the
    accelerometer when the ``accelerometer`` variant agrees (and not when S, G alone agree and ``full``
    disagrees).  A part the check rejects is left at the prior and the status is not ``ok``; a part it could not
-   test (no half determined it) is left at the prior too, with a line saying so, and does not change the status.
+   test (no half determined it) is left at the prior too, with a line saying so, and does not change the status —
+   except the accelerometer of a session with ≥ 6 rest poses (a designed protocol puts its poses in one stretch,
+   so neither half determines it): each pose is left out of the |f| = g fit in turn and predicted by the others
+   (:func:`rest_pose_check`); the fit is applied when it predicts the held-out poses better than raw by two
+   standard errors, and rejected otherwise.
 4. **Status**: ``ok`` only when the method's own check passed, the motion is the model's, and the held-out
    check rejected nothing the session determined; otherwise the method's status, or ``inconsistent`` with the
    reason.  The bias is applied whatever the status (diverged included: its rests measure it).
@@ -110,6 +114,57 @@ def compensate_prior(rec: Recording, prior: Prior) -> Recording:
     g[0:3] = 0.0
     return rec.with_signals(gyro_rad_s=linear_compensate(rec.gyro_rad_s, g),
                             acc_m_s2=linear_compensate(rec.acc_m_s2, prior.mean[9:18]))
+
+
+def _rest_means(rec: Recording, rests: list) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per rest ((t0, t1), s) of at least 10 samples: its 0.1-s window means (K, 3) and their σ (K,)."""
+    from calib.session.gravityfit import quasi_static_windows
+
+    out = []
+    for t0, t1 in rests:
+        a, b = np.searchsorted(rec.t_s, [t0, t1])
+        if b - a >= 10:
+            out.append(quasi_static_windows(rec.acc_m_s2[a:b], rec.rate_hz))
+    return out
+
+
+def _fit_rest_means(poses: list, prior: Prior, gravity_m_s2: float) -> tuple[np.ndarray, np.ndarray]:
+    from calib.session.gravityfit import fit_gravity
+
+    f = np.concatenate([m for m, _ in poses])
+    sd = np.concatenate([s for _, s in poses])
+    fit = fit_gravity(f, f, np.maximum(sd**2, 1e-8), 0.0, gravity_m_s2, np.minimum(prior.sigma[ACC], 10.0),
+                      block_samples=10)
+    return fit.theta, np.sqrt(np.clip(np.diag(fit.covariance), 0, None))
+
+
+def rest_pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, z: float = 2.0,
+                    min_poses: int = 6) -> dict | None:
+    """The accelerometer's own held-out check, for sessions whose halves cannot test it (a designed protocol puts
+    its poses in one stretch): leave each rest pose out of the |f| = g fit (:func:`rest_pose_accelerometer`) and
+    predict |f̂| − g there.  ``agrees`` when the fit's error at the held-out poses is below the raw accelerometer's
+    (the prior's) by more than ``z`` standard errors (paired over the poses); the fit on every pose is what is
+    then applied.  None with fewer than ``min_poses`` rests (the nine parameters need poses to spare)."""
+    poses = _rest_means(rec, rests)
+    if len(poses) < min_poses:
+        return None
+    err_fit, err_raw = [], []
+    for i, (m, _) in enumerate(poses):
+        theta, _ = _fit_rest_means(poses[:i] + poses[i + 1:], prior, gravity_m_s2)
+        from calib.session.decision.heldout import linear_compensate
+
+        f = m.mean(axis=0)
+        err_fit.append(abs(float(np.linalg.norm(linear_compensate(f[None, :], theta)[0])) - gravity_m_s2))
+        err_raw.append(abs(float(np.linalg.norm(f)) - gravity_m_s2))
+    d = np.array(err_fit) - np.array(err_raw)
+    se = float(d.std(ddof=1) / np.sqrt(d.size))
+    verdict = "agrees" if float(d.mean()) < -z * se else "disagrees"
+    theta, sigma = _fit_rest_means(poses, prior, gravity_m_s2)
+    return {"verdict": verdict, "poses": len(poses), "rms_m_s2": {"raw": float(np.sqrt(np.mean(np.square(err_raw)))),
+                                                                  "fit": float(np.sqrt(np.mean(np.square(err_fit))))},
+            "mean_difference_m_s2": [float(d.mean()), se], "theta": theta, "sigma": sigma,
+            "rule": f"leave one rest pose out of the |f| = g fit, predict |f| − g there: better than raw by {z:g} "
+                    "standard errors"}
 
 
 def rest_pose_accelerometer(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float
@@ -308,6 +363,7 @@ def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
     if params.check and beyond_bias:
         check = _check(rec, cal, estimate, prior, motion, rests, gravity_m_s2, params)
     allowed, rejected = _permitted(det, check)
+    poses = _pose_check(rec, rests, prior, gravity_m_s2, params, det, allowed, rejected, theta, sigma)
     session = det.determined.copy()
     session[3:] &= allowed[3:]
     values, sig = _session_values(theta, sigma, prior, replace(det, determined=session))
@@ -315,12 +371,43 @@ def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
     status, why = _status(cal.status, motion, det, rejected)
     summary = _summary(det, session, prior)
     lines = _lines(motion, motion_note, det, rejected, untested, check, prior, summary)
+    if poses is not None:
+        lines.insert(next(i for i, line in enumerate(lines) if line.startswith("applied:")), _pose_line(poses))
     applied = Applied(values, sig, session, det.determined, prior.source, summary, tuple(lines))
     warnings = tuple(w for w in (why,) if w)
     report = {"motion": {**motion.to_dict(), **({"note": motion_note} if motion_note else {})},
               "prior": {**prior.to_dict(), "determination": det.to_dict()},
               "held_out_check": None if check is None else check.to_dict()}
+    if poses is not None and report["held_out_check"] is not None:
+        report["held_out_check"]["rest_poses"] = {k: v for k, v in poses.items() if k not in ("theta", "sigma")}
     return Decision(applied, status, det, motion, check, warnings, tuple(lines), motion_note, report)
+
+
+def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, params: DecisionParams,
+                det: Determination, allowed: np.ndarray, rejected: np.ndarray, theta: np.ndarray,
+                sigma: np.ndarray) -> dict | None:
+    """The accelerometer the halves could not test, checked by leaving each rest pose out
+    (:func:`rest_pose_check`): agrees → its fit on every pose is applied (``theta``, ``sigma``, ``allowed`` updated
+    in place); disagrees → rejected.  None when there was nothing to check or too few poses."""
+    untested = det.determined & ~allowed & ~rejected
+    untested[:9] = False
+    if not params.check or not untested.any():
+        return None
+    poses = rest_pose_check(rec, rests, prior, gravity_m_s2, params.held_out.z)
+    if poses is None:
+        return None
+    if poses["verdict"] == "agrees":
+        theta[ACC], sigma[ACC] = poses["theta"], poses["sigma"]
+        allowed |= untested
+    else:
+        rejected |= untested
+    return poses
+
+
+def _pose_line(poses: dict) -> str:
+    r = poses["rms_m_s2"]
+    return (f"accelerometer held out by rest pose ({poses['poses']} poses, each predicted by the others): |f| − g RMS "
+            f"raw {r['raw']:.3f}, calibrated {r['fit']:.3f} m/s² — {poses['verdict']}")
 
 
 def _status(method_status: str, motion: MotionClassification, det: Determination, rejected: np.ndarray

@@ -11,7 +11,8 @@ trained neighbours (τ up to ~7 s in the fits), so they are less independent tha
 half — both halves then start at a rest and there are two folds — else the middle, and only the first half
 predicts the second.  The price: a protocol that puts each axis in its own stretch (Ferraris: the poses, then
 one turn per axis) determines in a half only part of what the whole does; what neither half determines cannot be
-tested, and the caller leaves it at the prior (:func:`calib.session.decision.decide.decide`).
+tested, and the caller leaves it at the prior — the accelerometer of a session with enough rest poses has its own
+check, each pose left out of the |f| = g fit in turn (:func:`calib.session.decision.decide.rest_pose_check`).
 
 **What is predicted** (each a *source*; an item is one prediction, its error an angle in degrees unless
 said otherwise), within the predicted half, for every variant of the fold's result — ``raw`` (nothing
