@@ -23,7 +23,11 @@ simulator's own truth as an oracle):
 * ``report``: what a session run adds around the estimate (``calib run``, :func:`calib.session.run.run_session`):
   sections named in :data:`REPORT_SECTIONS` — ``input`` (what the input boundary read and did), ``coaching``
   (what the hand cost), ``truth`` (a simulated file's own device) — written at the top level of the JSON
-  after the estimate, under those keys, and read back into ``report`` by :meth:`Calibration.from_dict`.
+  after the estimate, under those keys, and read back into ``report`` by :meth:`Calibration.from_dict`;
+* ``applied`` (:class:`Applied`, optional): what :meth:`Calibration.compensate` applies when it is not every
+  estimated value — the parameters this session determined, and the prior's values for the rest (a
+  maker-calibrated sensor's zeros, or a previous calibration's values); a file without it applies every
+  estimated value, as before.
 
 It saves and loads itself (:meth:`to_json` / :meth:`from_json`, versioned, UTF-8, NaN never written:
 ``null`` with the reason in ``warnings``) and compensates a recording (:meth:`compensate`, which
@@ -53,7 +57,7 @@ from .effects import (
 from .errors import GyrosimError
 from .recording import FRAMES, Recording
 
-__all__ = ["Calibration", "CALIBRATION_FORMAT", "CALIBRATION_VERSION", "STATUSES", "REPORT_SECTIONS",
+__all__ = ["Calibration", "Applied", "CALIBRATION_FORMAT", "CALIBRATION_VERSION", "STATUSES", "REPORT_SECTIONS",
            "truth_calibration"]
 
 CALIBRATION_FORMAT = "gyrosim.calibration"
@@ -61,8 +65,9 @@ CALIBRATION_VERSION = 1
 STATUSES = ("ok", "diverged", "inconsistent")
 TRIADS = ("gyro", "accelerometer")
 # the sections a session run adds around the estimate (``calib run --json`` promises these keys): the input
-# boundary's report, the coaching, and a simulated file's truth
-REPORT_SECTIONS = ("coaching", "input", "truth")
+# boundary's report, the coaching, a simulated file's truth, and what decided the applied parameters (the motion,
+# the prior, the held-out check)
+REPORT_SECTIONS = ("coaching", "input", "truth", "motion", "prior", "held_out_check")
 # the summary blocks of the JSON (``calib run --json`` promises these keys): kind → key per triad
 _SUMMARY = {"gyro": ((Bias.kind, "bias_rad_s"), (ScaleFactor.kind, "scale_factor"),
                      (NonOrthogonality.kind, "nonorthogonality")),
@@ -101,6 +106,83 @@ def _clean(x: Any, path: str, nan_paths: list[str]) -> Any:
     return x
 
 
+def _triad_blocks(v: np.ndarray) -> dict[str, dict[str, Any]]:
+    """(18,) in :meth:`Calibration.vector` order, gyro then accelerometer → {triad: {JSON key: [3]}}."""
+    out: dict[str, dict[str, Any]] = {}
+    for i, triad in enumerate(TRIADS):
+        out[triad] = {key: v[9 * i + 3 * j:9 * i + 3 * j + 3].tolist() for j, (_, key) in enumerate(_SUMMARY[triad])}
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Applied:
+    """What :meth:`Calibration.compensate` applies, both triads, the linear model's 18 values in
+    :meth:`Calibration.vector` order (gyro b rad/s, S, G; accelerometer b m/s², S, G): ``values`` and their 1σ
+    ``sigma``; ``from_session`` True where the value is this session's (determined and not rejected by its
+    held-out check), False where it is the prior's; ``determined`` True where the session determined it (a
+    held-out check may still have kept it from being applied); ``prior``: where the other values come from, in
+    words; ``summary``: one line for the person at the terminal; ``notes``: why (one line each: the motion, the
+    held-out check, what was not determined and what would determine it)."""
+
+    values: np.ndarray
+    sigma: np.ndarray
+    from_session: np.ndarray
+    determined: np.ndarray
+    prior: str = ""
+    summary: str = ""
+    notes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name, dtype in (("values", float), ("sigma", float), ("from_session", bool), ("determined", bool)):
+            a = np.array(getattr(self, name), dtype=dtype).reshape(18)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "notes", tuple(self.notes))
+
+    def vector(self) -> np.ndarray:
+        return np.array(self.values)
+
+    def sigma_vector(self) -> np.ndarray:
+        return np.array(self.sigma)
+
+    def value(self, triad: str, kind: str) -> np.ndarray:
+        i = TRIADS.index(triad) * 9 + LINEAR_KINDS.index(kind) * 3
+        return np.array(self.values[i:i + 3])
+
+    def effects(self, triad: str) -> tuple[Effect, ...]:
+        """The applied linear model of ``triad`` as vocabulary effects (what compensation inverts)."""
+        return tuple(_LINEAR[kind](value=self.value(triad, kind)) for kind in LINEAR_KINDS)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``applied`` in the JSON: per triad the values under the summary blocks' keys, ``std`` and
+        ``from_session`` (both the same keys), then ``prior`` and ``summary``."""
+        values = _triad_blocks(self.values)
+        sigma = _triad_blocks(np.where(np.isfinite(self.sigma), self.sigma, None))  # ∞ (no prior): null
+        session = _triad_blocks(self.from_session)
+        out: dict[str, Any] = {}
+        for triad in TRIADS:
+            out[triad] = {**values[triad], "std": sigma[triad], "from_session": session[triad]}
+        out["prior"] = self.prior
+        out["summary"] = self.summary
+        out["notes"] = list(self.notes)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], determined: np.ndarray | None = None) -> "Applied":
+        def flat(key: str | None, default: float) -> np.ndarray:
+            vals = []
+            for triad in TRIADS:
+                block = d.get(triad) or {}
+                block = block if key is None else (block.get(key) or {})
+                for _, k in _SUMMARY[triad]:
+                    vals += [default if v is None else v for v in (block.get(k) or [default] * 3)]
+            return np.array(vals, float)
+
+        session = flat("from_session", 0.0).astype(bool)
+        return cls(flat(None, 0.0), flat("std", np.nan), session, session if determined is None else determined,
+                   d.get("prior", ""), d.get("summary", ""), tuple(d.get("notes") or ()))
+
+
 @dataclass(frozen=True)
 class Calibration:
     """A calibration of an IMU: estimated vocabulary effects with covariance, status and warnings."""
@@ -114,6 +196,7 @@ class Calibration:
     diagnostics: Mapping[str, Any] = field(default_factory=dict)
     history: Any = field(default=None, repr=False, compare=False)
     report: Mapping[str, Any] = field(default_factory=dict)
+    applied: Applied | None = None
 
     def __post_init__(self) -> None:
         for triad in TRIADS:
@@ -265,9 +348,13 @@ class Calibration:
 
     # ------------------------------------------------------------------ use
     def sensor_model(self):
-        """The deterministic effects as a :class:`~gyrosim.sensor_model.SensorModel` (for compensation)."""
+        """The deterministic effects as a :class:`~gyrosim.sensor_model.SensorModel` (for compensation): the
+        :attr:`applied` linear model of both triads when there is one, else every estimated effect."""
         from .sensor_model import SensorModel
 
+        if self.applied is not None:
+            return SensorModel(name=f"calibration ({self.method or 'unnamed'}, applied)",
+                               gyro=self.applied.effects("gyro"), accelerometer=self.applied.effects("accelerometer"))
         return SensorModel(name=f"calibration ({self.method or 'unnamed'})", gyro=_deterministic(self.gyro),
                            accelerometer=_deterministic(self.accelerometer))
 
@@ -276,8 +363,10 @@ class Calibration:
         implies, ω = (I + S_g + N(G_g))⁻¹(ω̃ − b_g), f likewise (effects inverted by the vocabulary;
         the accelerometer first, so effects that need the specific force see the compensated one).
 
-        ``rec`` is not modified.  The result's metadata names the calibration; a simulated recording's
-        ``sensor_model`` (the device before compensation) moves to ``sensor_model_before_compensation``.
+        With an :attr:`applied` block, its values (the parameters the session determined, the prior's for the
+        rest); without one, every estimated effect.  ``rec`` is not modified.  The result's metadata names the
+        calibration and what it applied; a simulated recording's ``sensor_model`` (the device before compensation)
+        moves to ``sensor_model_before_compensation``.
         """
         model = self.sensor_model()
         ctx = SignalContext(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2, rec.temp_c, None, rec.mag_ut)
@@ -290,6 +379,8 @@ class Calibration:
         meta["compensated_by"] = {"format": CALIBRATION_FORMAT, "version": CALIBRATION_VERSION, "method": self.method,
                                   "status": self.status, "parameters": dict(zip(self.parameter_names(),
                                                                                 self.parameters().tolist()))}
+        if self.applied is not None:
+            meta["compensated_by"]["applied"] = self.applied.to_dict()
         return replace(rec, gyro_rad_s=gyro, acc_m_s2=acc, meta=meta)
 
     # ------------------------------------------------------------------ JSON
@@ -310,7 +401,13 @@ class Calibration:
                     key = _EXTRA_SUMMARY[triad][e.kind]
                     block[key], std[key] = self.value(triad, e.kind), self.std(triad, e.kind)
             block["std"] = std
+            if self.applied is not None:   # which of these values the session determined (applied: the block below)
+                i = TRIADS.index(triad) * 9
+                block["determined"] = {key: self.applied.determined[i + 3 * j:i + 3 * j + 3].tolist()
+                                       for j, (_, key) in enumerate(_SUMMARY[triad])}
             d[triad] = block
+        if self.applied is not None:
+            d["applied"] = self.applied.to_dict()
         d.update({k: v for k, v in self.diagnostics.items() if k not in d})
         d["warnings"] = list(self.warnings)
         d["frames"] = FRAMES
@@ -353,12 +450,12 @@ class Calibration:
         cov = d.get("covariance")
         cov = None if cov is None else np.array([[np.nan if v is None else v for v in row] for row in cov], float)
         known = {"format", "version", "method", "status", "warnings", "frames", "effects", "parameters", "covariance",
-                 "gyro", "accelerometer", *REPORT_SECTIONS}
+                 "gyro", "accelerometer", "applied", *REPORT_SECTIONS}
         diagnostics = {k: v for k, v in d.items() if k not in known}
         out = cls(gyro=gyro, accelerometer=acc, covariance=cov, status=d.get("status", "ok"),
                   warnings=tuple(w for w in d.get("warnings", []) if not w.startswith("not a number, written as null")),
                   method=d.get("method", ""), diagnostics=diagnostics,
-                  report={k: d[k] for k in d if k in REPORT_SECTIONS})
+                  report={k: d[k] for k in d if k in REPORT_SECTIONS}, applied=_applied_from(d))
         if d.get("parameters") is not None and list(d["parameters"]) != out.parameter_names():
             raise GyrosimError(
                 "calibration file: 'parameters' does not match its effects; the file was edited by hand?"
@@ -393,6 +490,19 @@ class Calibration:
             raise GyrosimError(f"{path} is not a calibration JSON (not UTF-8 text: {exc.reason}); pass the file "
                                "calib run --json wrote") from exc
         return cls.from_json(text)
+
+
+def _applied_from(d: Mapping[str, Any]) -> Applied | None:
+    """The ``applied`` block of a calibration JSON with the ``determined`` flags of its summary blocks (an
+    accelerometer block absent: not determined), or None for a file without one."""
+    if not isinstance(d.get("applied"), Mapping):
+        return None
+    flags = []
+    for triad in TRIADS:
+        det = ((d.get(triad) or {}).get("determined")) or {}
+        for _, key in _SUMMARY[triad]:
+            flags += [bool(v) for v in (det.get(key) or [False] * 3)]
+    return Applied.from_dict(d["applied"], np.array(flags, bool))
 
 
 def truth_calibration(rec: Recording, *, linear_only: bool = True) -> Calibration | None:

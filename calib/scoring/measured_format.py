@@ -181,21 +181,31 @@ def _runs_cell(rec: RecordingResult, verb: str) -> str:
                       for r in runs) or "—"
 
 
+def _applied_cell(c: dict) -> str:
+    """How many of the six S, G ``calib apply`` applied and how many the session determined ("all" in a file
+    without an applied block: every estimate is applied)."""
+    if "gyro_sg_applied" not in c:
+        return "all" if c else "—"
+    return f"{sum(c['gyro_sg_applied'])} of 6 (determined {sum(c.get('gyro_sg_determined') or [])})"
+
+
 def _md_broad(v: MeasuredValidation) -> list[str]:
     broad = [r for r in v.recordings if r.kind == "broad"]
     if not broad:
         return []
     out = ["## BROAD trials", "", "What `calib run` did on each trial (exit codes in order; the retry is "
-           "`--accelerometer calibrated`) and the parameters `calib apply` applied:", ""]
+           "`--accelerometer calibrated`), the motion it found, its estimate of S and G, and what `calib apply` "
+           "applied of them:", ""]
     rows = []
     for r in broad:
         c = r.calibration
         rows.append([r.name.split("/")[-1], _runs_cell(r, "run"), str(c.get("status", "—")), str(c.get("method", "—")),
                      _pm(c.get("gyro_scale_factor"), c.get("gyro_scale_factor_std"), 3),
                      _pm(c.get("gyro_nonorthogonality"), c.get("gyro_nonorthogonality_std"), 3),
+                     str(c.get("motion") or "—"), _applied_cell(c),
                      f"{_runs_cell(r, 'mag')} ({r.details.get('magnetometer', {}).get('status', '—')})"])
-    out += _md_table(["trial", "calib run exit", "status", "method", "gyro S ± σ", "gyro G ± σ", "calib mag exit"],
-                     rows)
+    out += _md_table(["trial", "calib run exit", "status", "method", "gyro S ± σ", "gyro G ± σ", "motion",
+                      "S, G applied", "calib mag exit"], rows)
     agreement = _published_agreement(broad)
     if agreement:
         out += ["", agreement]

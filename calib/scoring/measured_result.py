@@ -155,6 +155,14 @@ def _summary(cal_json: Path) -> dict[str, Any]:
         for key in ("bias_m_s2", "scale_factor", "nonorthogonality"):
             out[f"acc_{key}"] = acc.get(key)
     out["gravity_m_s2"] = d.get("noise", {}).get("gravity_m_s2")
+    applied = d.get("applied")   # what calib apply applies (absent in a file written before the block existed)
+    if isinstance(applied, dict):
+        out["applied"] = applied.get("summary")
+        out["gyro_sg_applied"] = [bool(v) for key in ("scale_factor", "nonorthogonality")
+                                  for v in (applied.get("gyro", {}).get("from_session", {}).get(key) or [])]
+        out["gyro_sg_determined"] = [bool(v) for key in ("scale_factor", "nonorthogonality")
+                                     for v in (gyro.get("determined", {}).get(key) or [])]
+        out["motion"] = (d.get("motion") or {}).get("kind")
     out["status_reasons"] = [w for w in d.get("warnings", []) if w.startswith(("inconsistent", "diverged"))]
     return out
 

@@ -13,7 +13,18 @@ What a run holds, beyond the method's estimate:
   (:func:`method_warnings` gives the method's alone);
 * ``report``: ``input`` (what the boundary read and did), ``coaching`` (what the hand cost,
   :func:`calib.session.coach.coach`, on the preparation the method itself used — the recording is prepared
-  once) and, for a simulated file, ``truth`` (the device's own bias, scale factor and non-orthogonality).
+  once) and, for a simulated file, ``truth`` (the device's own bias, scale factor and non-orthogonality);
+  ``motion``, ``prior`` and ``held_out_check``: what decided the applied parameters;
+* ``applied`` (:class:`~gyrosim.calibration.Applied`): what ``calib apply`` applies — the parameters this
+  recording determined, the prior's values for the rest (:mod:`calib.session.decision`: the motion is
+  classified before the estimate, each parameter is determined against a real prior — a maker-calibrated sensor,
+  or a previous calibration whose values the recording is read through first — and S, G and the accelerometer
+  are applied only when the method, run again on the first half, predicts the second half no worse than the
+  bias alone).  The status is ``ok`` only when that held-out check agrees too.
+
+When the motion cannot separate the accelerometer from the gyro errors and neither the method nor the
+accelerometer mode was asked for, the run continues with the accelerometer taken as calibrated (its prior,
+``kf_hand``) and one warning says so.
 
 Former method spellings still run and warn (DeprecationWarning here; a one-line note from ``calib run``):
 ``hand`` → ``kf_hand_joint`` / ``kf_hand``; ``kf_session`` → ``kf_joint`` / ``kf_session_r``;
@@ -24,15 +35,17 @@ registered names ``kf`` / ``iterated`` mean in campaigns and Monte Carlo), and t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from warnings import warn
 
 from gyrosim.calibration import Calibration, truth_calibration
-from gyrosim.errors import GyrosimError
+from gyrosim.errors import GyrosimError, RecordingError
 from gyrosim.recording import Recording
 
 from calib.inputs import KF, Loaded, prepare_recording
 from calib.inputs.turns import Turns
+from calib.session.decision.decide import DecisionParams, compensate_prior, decide
+from calib.session.decision.prior import Prior
 from calib.session.defaults import default_method
 
 __all__ = ["RunOptions", "run_session", "resolve_run_method", "method_warnings", "SESSION_METHODS",
@@ -63,8 +76,11 @@ class RunOptions:
     "estimate" or "calibrated" (None: what the method's name says, else "estimate"); ``gravity_m_s2``: local
     gravity (None: the method's default); ``external_acc_allowance_m_s2``: the hand-blind filters' allowance for
     the hand's acceleration, m/s² RMS (None: from the data); ``keep_history``: keep the per-step history for a
-    viewer (never saved in the JSON); ``turns``: turns of a known angle (:mod:`calib.inputs.turns`; the hand-aware
-    methods take them as measurements, :mod:`calib.session.known_turns`)."""
+    viewer (never saved in the JSON); ``prior``: what the sensor is known to be before this session (None: a
+    maker-calibrated sensor, :meth:`calib.session.decision.prior.Prior.maker`); ``decision``: the settings of
+    what is applied (:class:`calib.session.decision.decide.DecisionParams`).;
+    ``turns``: turns of a known angle (:mod:`calib.inputs.turns`; the hand-aware methods take them as
+    measurements, :mod:`calib.session.known_turns`)."""
 
     method: str | None = None
     accelerometer: str | None = None
@@ -72,6 +88,8 @@ class RunOptions:
     external_acc_allowance_m_s2: float | None = None
     keep_history: bool = False
     turns: Turns | None = None
+    prior: Prior | None = None
+    decision: DecisionParams = field(default_factory=DecisionParams)
 
 
 def _spell(name: str, flag: str | None) -> str:
@@ -115,39 +133,82 @@ def resolve_run_method(options: RunOptions, *, flag: str | None = None) -> tuple
     return name, mode, note
 
 
+ACC_REFUSAL = "cannot separate the accelerometer"   # the method's refusal that the run answers by continuing
+FALLBACK_NOTE = ("the motion cannot separate the accelerometer from the gyro errors: it is taken as calibrated (its "
+                 "prior) and only the gyro is estimated; rest poses of ≥ 2 s in several attitudes would determine it")
+
+
+def _estimate(rec: Recording, name: str, mode: str, options: RunOptions, keep_history: bool = False,
+              turns: Turns | None = None):
+    """The method ``name`` on ``rec``: (result, preparation); ``turns``: known turns as measurements (hand-aware
+    methods only; the held-out halves run without them)."""
+    from calib.session.hand.filter import kf_hand
+    from calib.session.paper import calibrate, prepare
+
+    prep = prepare(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
+                   external_acc_allowance_m_s2=options.external_acc_allowance_m_s2)
+    if SESSION_METHODS[name][0] == "hand":
+        result = kf_hand(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2, keep_history=keep_history,
+                         prepared=prep, turns=turns)
+    else:
+        result = calibrate(rec, name, external_acc_allowance_m_s2=options.external_acc_allowance_m_s2,
+                           gravity_m_s2=options.gravity_m_s2, keep_history=keep_history, prepared=prep)
+    return result, prep
+
+
+def _estimate_or_fall_back(rec: Recording, name: str, mode: str, options: RunOptions, keep_history: bool = False):
+    """:func:`_estimate`, continuing with the accelerometer calibrated when the motion cannot separate it and the
+    caller asked for neither a method nor a mode: (result, preparation, name, mode, fell back)."""
+    try:
+        return (*_estimate(rec, name, mode, options, keep_history, options.turns), name, mode, False)
+    except RecordingError as exc:
+        if ACC_REFUSAL not in str(exc) or options.method is not None or options.accelerometer is not None:
+            raise
+    name = _NAME[SESSION_METHODS[name][0], "calibrated"]
+    return (*_estimate(rec, name, "calibrated", options, keep_history, options.turns), name, "calibrated", True)
+
+
 def run_session(source: Recording | Loaded, options: RunOptions = RunOptions()) -> Calibration:
     """Calibrate one hand-held session as ``calib run`` does (module docstring) and return the one Calibration.
 
     ``source``: a recording that passed the input boundary (:func:`calib.inputs.open_recording`), or a
     :class:`~gyrosim.recording.Recording`, which is passed through it here (:func:`calib.inputs.prepare_recording`
     for the filter).  Raises the input boundary's and the method's errors for input the method cannot use; a
-    result that fails its own check comes back with its status ("inconsistent", "diverged")."""
+    result that fails its own check comes back with its status ("inconsistent", "diverged"), and one whose
+    held-out check does not agree as "inconsistent" applying the bias alone."""
     from calib.session.coach import coach
-    from calib.session.hand.filter import kf_hand
-    from calib.session.paper import calibrate, prepare
+    from calib.session.decision.motion import classify_motion
 
     loaded = source if isinstance(source, Loaded) else prepare_recording(source, KF)
-    rec = loaded.recording
+    prior = options.prior or Prior.maker()
+    rec = compensate_prior(loaded.recording, prior)
     name, mode, note = resolve_run_method(options)
     if note:
         warn(note, DeprecationWarning, stacklevel=2)
-    algorithm = SESSION_METHODS[name][0]
-    prep = prepare(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
-                   external_acc_allowance_m_s2=options.external_acc_allowance_m_s2)
-    if algorithm == "hand":
-        result = kf_hand(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
-                         keep_history=options.keep_history, prepared=prep, turns=options.turns)
-    elif options.turns is not None:
+    if options.turns is not None and SESSION_METHODS[name][0] != "hand":
         raise GyrosimError(f"turns of a known angle enter the hand-aware filter only, not {name}: leave out "
                            "--method (or give kf_hand_joint / kf_hand)")
-    else:
-        result = calibrate(rec, name, external_acc_allowance_m_s2=options.external_acc_allowance_m_s2,
-                           gravity_m_s2=options.gravity_m_s2, keep_history=options.keep_history, prepared=prep)
+    result, prep, name, mode, fell_back = _estimate_or_fall_back(rec, name, mode, options, options.keep_history)
+    motion = classify_motion(rec, prep.bias.value_rad_s, options.decision.motion)
+    gravity = float((result.diagnostics.get("noise") or {}).get("gravity_m_s2") or prep.config.gravity_m_s2)
+    def part(half: Recording) -> Calibration:   # the held-out check's: through the boundary, the same method
+        half = prepare_recording(half, KF).recording
+        try:
+            return _estimate(half, name, mode, options)[0]
+        except RecordingError as exc:
+            if ACC_REFUSAL not in str(exc) or mode == "calibrated":
+                raise
+            return _estimate(half, _NAME[SESSION_METHODS[name][0], "calibrated"], "calibrated", options)[0]
+
+    decision = decide(rec, result, part, prior, motion, gravity, options.decision)
     report = {"coaching": coach(rec, result, prep).to_dict(), "input": loaded.report.to_dict()}
-    truth = truth_calibration(rec)
+    truth = truth_calibration(loaded.recording)
     if truth is not None:
         report["truth"] = _truth_section(truth)
-    return replace(result, warnings=tuple(loaded.report.warnings) + tuple(result.warnings), report=report)
+    report.update(decision.report)
+    warnings = tuple(loaded.report.warnings) + ((FALLBACK_NOTE,) if fell_back else ()) + tuple(result.warnings)
+    return replace(result, status=decision.status, warnings=warnings + decision.warnings, report=report,
+                   applied=decision.applied)
 
 
 def _truth_section(truth: Calibration) -> dict:

@@ -77,7 +77,9 @@ def test_calib_run_json_is_exactly_what_the_library_call_saves(recording, defaul
     d = json.loads(path.read_text(encoding="utf-8"))
     assert d["method"] == cal.method == "kf_hand_joint"
     # what calib run added before is in the Calibration now, under the same keys
-    assert {"coaching", "input", "truth"} <= set(d) and set(cal.report) == {"coaching", "input", "truth"}
+    # and what decided the applied parameters (the motion, the prior, the held-out check)
+    sections = {"coaching", "input", "truth", "motion", "prior", "held_out_check"}
+    assert sections <= set(d) and set(cal.report) == sections and "applied" in d
     given = d["input"]["warnings"]
     assert given and any("bridged" in w for w in given), given
     assert d["warnings"][:len(given)] == given and len(d["warnings"]) > len(given)   # the input's first

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -58,8 +59,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_calibration(cal) -> None:
-    """The estimate with its 1σ, where the scale factor holds, and the error against a simulated file's truth."""
+def _print_calibration(cal, where_s_holds: bool = True) -> None:
+    """The estimate with its 1σ, where the scale factor holds (unless ``where_s_holds`` is False: S is not
+    applied), and the error against a simulated file's truth."""
     blocks = [("gyro", "bias", "bias", 180 / math.pi, "°/s"), ("gyro", "scale_factor", "scale factor", 1, ""),
               ("gyro", "nonorthogonality", "non-orthogonality", 1, "")]
     if cal.has("accelerometer", "bias"):
@@ -71,7 +73,7 @@ def _print_calibration(cal) -> None:
         sd = cal.std(triad, kind) * scale
         print(f"  {name:<18} " + "  ".join(f"{a:+.5f}±{b:.5f}" for a, b in zip(v, sd)) + f" {unit}")
     ref = (cal.diagnostics or {}).get("scale_reference_rate")
-    if ref:   # where S holds (calib.session.hand.filter.scale_reference_rate): the user applies it at other rates
+    if ref and where_s_holds:   # where S holds (calib.session.hand.filter.scale_reference_rate)
         m = np.degrees(ref["rate_rad_s"])
         top = np.degrees(ref["max_abs_rate_rad_s"])
         print(
@@ -96,21 +98,78 @@ def _print_calibration(cal) -> None:
             )
 
 
-def _print_run(recording: str, cal, accelerometer: str) -> None:
-    """What ``calib run`` prints of a :func:`~calib.session.run.run_session` result."""
-    from calib.session.coach import Coaching
+# warnings that describe the fit rather than call for something to do: shown under --verbose (and in the JSON)
+_DETAIL_HEADS = ("hand:", "timing:", "σ of S, G follows", "temperature:", "cautious:")
+# warnings about S, G's own σ: moot when S, G are not applied (the decision's lines say why)
+_SG_HEADS = ("unobservable", "weakly observable", "gyro bias drift and no temperature")
+# a parenthesis that names internals (a module path, a variable or key name): dropped on the terminal
+_IDENTIFIER = re.compile(r"\s*\([^()]*(?:\b[a-z]+_[a-z_]+\b|\b[a-z]+\.[a-z_]+\.[a-z_.]+)[^()]*\)")
+_WIDTH = 210   # with "  warning: ", about two lines of a terminal
+
+
+def _terminal_warning(w: str) -> str:
+    """A warning for the terminal (the JSON and --verbose keep it whole): parentheses that name internals
+    dropped, and at most ~two lines — its last clause (what to do) whole and as much of its first (what was
+    found) as fits."""
+    w = _IDENTIFIER.sub("", w)
+    if len(w) <= _WIDTH:
+        return w
+    clauses = re.split(r"(?<=[;.]) ", w)
+    first, last = clauses[0].rstrip(";."), clauses[-1]
+    room = _WIDTH - len(last) - 3   # what to do comes last: keep it whole, cut what was found to fit
+    if len(clauses) > 1 and room >= 60:
+        return (first if len(first) <= room else first[:room].rsplit(" ", 1)[0]) + f" … {last}"
+    return w[:_WIDTH].rsplit(" ", 1)[0] + " …"
+
+
+def _decision_warning(w: str) -> bool:
+    """One of the warnings the decision layer adds (its lines and the status line say it)."""
+    from calib.session.decision.decide import CHECK_WARNING, MOTION_WARNING
+
+    return w.startswith((MOTION_WARNING, CHECK_WARNING))
+
+
+def _shown_warnings(cal, verbose: bool) -> tuple[list[str], int]:
+    """The method's warnings as ``calib run`` prints them, and how many it left to --verbose."""
     from calib.session.run import method_warnings
 
+    warnings = list(method_warnings(cal))
+    if verbose:
+        return warnings, 0
+    sg_applied = cal.applied is None or bool(cal.applied.from_session[3:9].any())
+    shown = [_terminal_warning(w) for w in warnings
+             if not w.startswith(_DETAIL_HEADS) and (sg_applied or not w.startswith(_SG_HEADS))
+             and not _decision_warning(w)]
+    return shown, len(warnings) - len(shown) - sum(_decision_warning(w) for w in warnings)
+
+
+def _print_run(recording: str, cal, verbose: bool = False) -> None:
+    """What ``calib run`` prints of a :func:`~calib.session.run.run_session` result: the estimate, the input's
+    lines, the coaching (when S, G are applied), the warnings (each in one or two lines; the descriptive ones
+    and the whole text under ``verbose``), what is applied and why (the motion, the held-out check), and the
+    status."""
+    from calib.session.coach import Coaching
+    from calib.session.run import SESSION_METHODS, method_warnings
+
     rest = cal.to_dict()["rest_segments"]
-    print(f"{recording}: method {cal.method}, accelerometer {accelerometer}, rest "
-          f"{rest[:3]}{' …' if len(rest) > 3 else ''}")
-    _print_calibration(cal)
+    mode = SESSION_METHODS.get(cal.method, (None, "estimate"))[1]
+    print(f"{recording}: method {cal.method}, accelerometer {mode}, rest "
+          + ", ".join(f"{a:.0f}–{b:.0f} s" for a, b in rest[:3]) + (" …" if len(rest) > 3 else ""))
+    sg_applied = cal.applied is None or bool(cal.applied.from_session[3:9].any())
+    _print_calibration(cal, verbose or sg_applied)
     print_input_warnings(cal.report["input"]["warnings"])
-    for line in Coaching.from_dict(cal.report["coaching"]).lines():
-        print(f"  {line}")
-    for w in method_warnings(cal):
+    if verbose or sg_applied:
+        for line in Coaching.from_dict(cal.report["coaching"]).lines():
+            print(f"  {line}")
+    warnings, hidden = _shown_warnings(cal, verbose)
+    for w in warnings:
         print(f"  warning: {w}")
-    print(f"  status: {cal.status}")
+    for line in (cal.applied.notes if cal.applied is not None else ()):
+        print(f"  {line}")
+    if hidden:
+        print(f"  ({hidden} more findings: calib run --verbose, or the JSON's warnings)")
+    why = next((w for w in method_warnings(cal) if _decision_warning(w)), "")
+    print(f"  status: {cal.status}" + (f" — {why.partition(': ')[2]}" if why and not verbose else ""))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -121,16 +180,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     from calib.inputs import KF
     from calib.session.run import RunOptions, method_warnings, resolve_run_method, run_session
 
-    check_output_paths({"--json": args.json, "--rrd": args.rrd}, input_files(args.recording, args.turns))
+    check_output_paths({"--json": args.json, "--rrd": args.rrd}, input_files(args.recording, args.turns, args.prior))
     options = RunOptions(method=args.method, accelerometer=args.accelerometer, gravity_m_s2=args.gravity,
-                         external_acc_allowance_m_s2=args.external_acc, keep_history=args.rrd is not None)
+                         external_acc_allowance_m_s2=args.external_acc, keep_history=args.rrd is not None,
+                         prior=_prior(args))
     name, mode, note = resolve_run_method(options, flag="--method")
-    if note:  # a former spelling: still runs, with a note
+    if note:  # a former spelling: still runs, with a note; the run gets the registered name
         print(f"warning: {note}", file=sys.stderr)
+        options = replace(options, method=name, accelerometer=mode)
     loaded = open_input(args, KF)
-    turns = _turns(args, loaded.recording)
-    cal = run_session(loaded, replace(options, method=name, accelerometer=mode, turns=turns))
-    _print_run(args.recording, cal, mode)
+    cal = run_session(loaded, replace(options, turns=_turns(args, loaded.recording)))
+    _print_run(args.recording, cal, args.verbose)
     if args.json:
         cal.save(args.json)
         print(f"wrote {args.json}")
@@ -159,6 +219,25 @@ def _turns(args: argparse.Namespace, rec):
     return None
 
 
+def _prior(args: argparse.Namespace):
+    """``--prior FILE`` (a previous calibration) and ``--prior-tolerance`` as a
+    :class:`~calib.session.decision.prior.Prior` (None: the maker-calibrated default)."""
+    from gyrosim.calibration import Calibration
+
+    from calib.session.decision.prior import Prior
+
+    if args.prior_tolerance is None and args.prior is None:
+        return None
+    try:
+        base = Prior.maker() if args.prior_tolerance is None else Prior.from_tolerance(args.prior_tolerance)
+    except ValueError as exc:
+        raise GyrosimError(f"--prior-tolerance: {exc}") from None
+    if args.prior is None:
+        return base
+    return Prior.from_calibration(Calibration.load(args.prior), f"previous calibration {Path(args.prior).name}",
+                                  fallback=base)
+
+
 def cmd_apply(args: argparse.Namespace) -> int:
     """Compensate a recording with a calibration file and write the result (HDF5 or CSV by suffix)."""
     from gyrosim.calibration import Calibration
@@ -171,22 +250,26 @@ def cmd_apply(args: argparse.Namespace) -> int:
         raise GyrosimError(f"--out {out}: use a .h5/.hdf5 (HDF5, keeps truth and metadata) or .csv (SI units) name")
     check_output_paths({"--out": out}, input_files(args.recording, args.calibration))
     cal = Calibration.load(args.calibration)
-    if cal.status == "diverged" and not args.force:
+    if cal.status == "diverged" and cal.applied is None and not args.force:
         raise GyrosimError(
             f"{args.calibration} has status 'diverged': its numbers are no calibration; re-run calib run "
             "(see its warnings) or pass --force to apply it anyway"
         )
     if cal.status != "ok":
-        print(
-            f"warning: {args.calibration} has status '{cal.status}': its σ does not describe its error", file=sys.stderr
-        )
+        what = ("its σ does not describe its error" if cal.applied is None else
+                "only what this file says it applies is applied")
+        print(f"warning: {args.calibration} has status '{cal.status}': {what}", file=sys.stderr)
     loaded = open_input(args, GENERIC)
     print_input_warnings(loaded.report)
     comp = cal.compensate(loaded.recording)
     rec = loaded.recording
     (save_csv if out.suffix.lower() == ".csv" else save_hdf5)(comp, out)
-    print(f"wrote {out}: {rec.n} samples, gyro{' and accelerometer' if cal.has('accelerometer', 'bias') else ''} "
-          f"compensated with {args.calibration} ({cal.method}, status {cal.status})")
+    if cal.applied is not None:   # the parameters the session determined, the prior's for the rest
+        print(f"wrote {out}: {rec.n} samples compensated with {args.calibration} ({cal.method}, status {cal.status})")
+        print(f"  applied {cal.applied.summary}")
+    else:
+        print(f"wrote {out}: {rec.n} samples, gyro{' and accelerometer' if cal.has('accelerometer', 'bias') else ''} "
+              f"compensated with {args.calibration} ({cal.method}, status {cal.status})")
     return 0
 
 
@@ -279,6 +362,16 @@ def _add_run(sub) -> None:
         help="write the result as JSON (a Calibration file: calib apply / export read it; never an input file)",
     )
     r.add_argument("--rrd", help="write a rerun recording (P converging, estimates, signals; never an input file)")
+    r.add_argument("--verbose", action="store_true",
+                   help="print every finding in full (by default the descriptive ones are left to the JSON and the "
+                        "rest kept to two lines each)")
+    r.add_argument("--prior", metavar="CAL_JSON", default=None,
+                   help="a previous calibration of this sensor (calib run --json) as the prior: this session starts "
+                        "from its values and σ, and what it does not determine stays at them (calibrations accumulate)")
+    r.add_argument("--prior-tolerance", metavar="SPEC", default=None,
+                   help="the maker-calibrated prior's 1σ: S=0.01,G=0.01,acc_bias=0.25,acc_S=0.01,acc_G=0.01 (the "
+                        "defaults; acc_bias in m/s²; any subset, or one number for S, G, acc_S, acc_G) — a parameter "
+                        "is applied when this session's σ is at most half of it")
     input_options(r, decimate=True)
     r.add_argument(
         "--external-acc",
