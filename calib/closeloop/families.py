@@ -38,7 +38,6 @@ from gyrosim.effects import (
     EarthRate,
     Effect,
     GSensitivity,
-    GyroAccMisalignment,
     MagneticSensitivity,
     Misalignment,
     NonOrthogonality,
@@ -160,29 +159,6 @@ class MisalignmentFamily(_AxisMatrix):
         sig_tot = np.hypot(nonortho_matrix(n_sig), Misalignment(value=sig).matrix())
         off = ~np.eye(3, dtype=bool)
         return tot_hat[off], tot_true[off], sig_tot[off]
-
-
-@register_family
-class GyroAccMisalignmentFamily(_AxisMatrix):
-    """The gyro triad turned against the accelerometer's by small angles α: the antisymmetric part of the gyro's axis
-    matrix (regressor [ω×]), three parameters where the general misalignment has six — its symmetric half trades with
-    the declared non-orthogonality, this one with nothing the linear model holds.  Against the gravity reference the
-    body frame is the accelerometer's (gravity's direction at each pose), so α is what a filter needs to carry the
-    accelerometer's gravity with the gyro."""
-
-    effects = (GyroAccMisalignment,)
-    driver = "the rate on the other axes (antisymmetric)"
-    follows_text = "the rate on the other axes, antisymmetric (the gyro's axes turned against the accelerometer's)"
-    bound = GyroAccMisalignment.max_rad
-
-    def plausible_max(self, kind, ctx):
-        return math.radians(3.0)
-
-    def caveat(self, kind, reference_kind):
-        if reference_kind == "optical":
-            return ("a rotation between the IMU and the optical body frame (the reference's alignment) looks exactly "
-                    "like this")
-        return None
 
 
 @register_family

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gyrosim.calibration import Calibration
+from gyrosim.calibration import LINEAR_KINDS, Calibration
 from gyrosim.recording import Recording
 from gyrosim.rotations import skew
 
@@ -125,7 +125,7 @@ def apply_known_turns(cal: Calibration, rec: Recording, turns: Turns, arw_rad_s_
 
 def _with_accelerometer(cal: Calibration, dx: np.ndarray, kinds: list[str]) -> Calibration:
     """The accelerometer's parameters moved by their share of the update (correlated with the gyro's in P)."""
-    acc_kinds = [e.kind for e in cal.accelerometer if e.kind in ("bias", "scale_factor", "nonorthogonality")]
+    acc_kinds = [e.kind for e in cal.accelerometer if e.kind in LINEAR_KINDS]   # the linear model's, in its order
     if dx.size != 3 * len(acc_kinds):
         return cal
     acc = tuple(replace(e, value=np.asarray(e.value, float) + dx[3 * acc_kinds.index(e.kind):

@@ -49,12 +49,14 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal as sp_signal
 
 from gyrosim.effects import nonortho_matrix
+from gyrosim.lazy import lazy_module
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_multiply, quat_rotate
 from gyrosim.strapdown import integrate_gyro
+
+sp_signal = lazy_module("scipy.signal")   # imported on first use: not before a bad file is refused
 
 __all__ = ["HeldOutParams", "HeldOutCheck", "CrossCheck", "SourceScore", "held_out_check", "split_recording",
            "split_point", "VARIANTS", "has_measured_reference", "linear_compensate"]

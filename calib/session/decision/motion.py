@@ -50,11 +50,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal as sp_signal
 
+from gyrosim.lazy import lazy_module
 from gyrosim.recording import Recording
 from gyrosim.rotations import quat_conjugate, quat_from_two_vectors, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
+
+sp_signal = lazy_module("scipy.signal")   # imported on first use: not before a bad file is refused
 
 __all__ = ["MotionParams", "MotionClassification", "classify_motion", "LABELS"]
 
