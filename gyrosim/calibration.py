@@ -122,7 +122,10 @@ class Applied:
     held-out check), False where it is the prior's; ``determined`` True where the session determined it (a
     held-out check may still have kept it from being applied); ``prior``: where the other values come from, in
     words; ``summary``: one line for the person at the terminal; ``notes``: why (one line each: the motion, the
-    held-out check, what was not determined and what would determine it)."""
+    held-out check, what was not determined and what would determine it).  ``gyro_misalignment_rad`` (3,) and its
+    ``gyro_misalignment_std_rad``: the gyro triad's rotation against the accelerometer's
+    (:class:`~gyrosim.effects.GyroAccMisalignment`, rad about body x, y, z) when this session determined it and its
+    held-out check let S, G be applied; None otherwise (not applied: the maker's 0)."""
 
     values: np.ndarray
     sigma: np.ndarray
@@ -131,6 +134,8 @@ class Applied:
     prior: str = ""
     summary: str = ""
     notes: tuple[str, ...] = ()
+    gyro_misalignment_rad: np.ndarray | None = None
+    gyro_misalignment_std_rad: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         for name, dtype in (("values", float), ("sigma", float), ("from_session", bool), ("determined", bool)):
@@ -138,6 +143,11 @@ class Applied:
             a.setflags(write=False)
             object.__setattr__(self, name, a)
         object.__setattr__(self, "notes", tuple(self.notes))
+        for name in ("gyro_misalignment_rad", "gyro_misalignment_std_rad"):
+            if getattr(self, name) is not None:
+                a = np.array(getattr(self, name), dtype=float).reshape(3)
+                a.setflags(write=False)
+                object.__setattr__(self, name, a)
 
     def vector(self) -> np.ndarray:
         return np.array(self.values)
@@ -150,8 +160,12 @@ class Applied:
         return np.array(self.values[i:i + 3])
 
     def effects(self, triad: str) -> tuple[Effect, ...]:
-        """The applied linear model of ``triad`` as vocabulary effects (what compensation inverts)."""
-        return tuple(_LINEAR[kind](value=self.value(triad, kind)) for kind in LINEAR_KINDS)
+        """The applied model of ``triad`` as vocabulary effects (what compensation inverts): the linear model, and
+        for the gyro its rotation against the accelerometer when applied."""
+        linear = tuple(_LINEAR[kind](value=self.value(triad, kind)) for kind in LINEAR_KINDS)
+        if triad == "gyro" and self.gyro_misalignment_rad is not None:
+            return linear + (GyroAccMisalignment(value=self.gyro_misalignment_rad),)
+        return linear
 
     def to_dict(self) -> dict[str, Any]:
         """``applied`` in the JSON: per triad the values under the summary blocks' keys, ``std`` and
@@ -162,6 +176,12 @@ class Applied:
         out: dict[str, Any] = {}
         for triad in TRIADS:
             out[triad] = {**values[triad], "std": sigma[triad], "from_session": session[triad]}
+        if self.gyro_misalignment_rad is not None:   # the rotation, when applied: always this session's
+            key = _EXTRA_SUMMARY["gyro"][GyroAccMisalignment.kind]
+            std = self.gyro_misalignment_std_rad
+            out["gyro"][key] = self.gyro_misalignment_rad.tolist()
+            out["gyro"]["std"][key] = [None] * 3 if std is None else std.tolist()
+            out["gyro"]["from_session"][key] = [True] * 3
         out["prior"] = self.prior
         out["summary"] = self.summary
         out["notes"] = list(self.notes)
@@ -179,8 +199,13 @@ class Applied:
             return np.array(vals, float)
 
         session = flat("from_session", 0.0).astype(bool)
+        gyro = d.get("gyro") or {}
+        key = _EXTRA_SUMMARY["gyro"][GyroAccMisalignment.kind]
+        alpha = gyro.get(key)
+        alpha_std = (gyro.get("std") or {}).get(key)
+        alpha_std = None if alpha_std is None or any(v is None for v in alpha_std) else alpha_std
         return cls(flat(None, 0.0), flat("std", np.nan), session, session if determined is None else determined,
-                   d.get("prior", ""), d.get("summary", ""), tuple(d.get("notes") or ()))
+                   d.get("prior", ""), d.get("summary", ""), tuple(d.get("notes") or ()), alpha, alpha_std)
 
 
 @dataclass(frozen=True)

@@ -73,6 +73,9 @@ def _calibration_lines(cal: dict) -> list[str]:
              f"    gyro bias (°/s)  {_vec(cal.get('gyro_bias_rad_s'), RAD2DEG)}",
              f"    gyro S           {_pm(cal.get('gyro_scale_factor'), cal.get('gyro_scale_factor_std'))}",
              f"    gyro G           {_pm(cal.get('gyro_nonorthogonality'), cal.get('gyro_nonorthogonality_std'))}"]
+    if cal.get("gyro_misalignment_rad") is not None:
+        alpha = _vec(cal.get("gyro_misalignment_rad"), RAD2DEG)
+        lines.append(f"    gyro α (°)       {alpha}   (its rotation against the accelerometer)")
     if cal.get("accelerometer") == "estimated":
         lines += [f"    acc. bias (m/s²) {_vec(cal.get('acc_bias_m_s2'))}",
                   f"    acc. S           {_vec(cal.get('acc_scale_factor'))}",

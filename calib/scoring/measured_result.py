@@ -145,17 +145,18 @@ def _summary(cal_json: Path) -> dict[str, Any]:
     """The parameters a calibration file states (its promised keys), with the warnings behind its status."""
     d = json.loads(cal_json.read_text())
     gyro = d.get("gyro", {})
+    applied = d.get("applied")   # what calib apply applies (absent in a file written before the block existed)
+    shown = applied if isinstance(applied, dict) else d   # the values calib apply uses
     out: dict[str, Any] = {"method": d.get("method"), "status": d.get("status")}
-    for key in ("bias_rad_s", "scale_factor", "nonorthogonality"):
-        out[f"gyro_{key}"] = gyro.get(key)
-        out[f"gyro_{key}_std"] = gyro.get("std", {}).get(key)
+    for key in ("bias_rad_s", "scale_factor", "nonorthogonality", "misalignment_rad"):
+        out[f"gyro_{key}"] = shown.get("gyro", {}).get(key)
+        out[f"gyro_{key}_std"] = shown.get("gyro", {}).get("std", {}).get(key)
     acc = d.get("accelerometer")
     out["accelerometer"] = "estimated" if acc else "assumed calibrated"
     if acc:
         for key in ("bias_m_s2", "scale_factor", "nonorthogonality"):
-            out[f"acc_{key}"] = acc.get(key)
+            out[f"acc_{key}"] = (shown.get("accelerometer") or acc).get(key)
     out["gravity_m_s2"] = d.get("noise", {}).get("gravity_m_s2")
-    applied = d.get("applied")   # what calib apply applies (absent in a file written before the block existed)
     if isinstance(applied, dict):
         out["applied"] = applied.get("summary")
         out["gyro_sg_applied"] = [bool(v) for key in ("scale_factor", "nonorthogonality")

@@ -112,9 +112,14 @@ def test_json_keys_round_trip_and_compensate_applies_only_what_is_applied(zhou_r
     back = Calibration.load(path)
     np.testing.assert_array_equal(back.applied.from_session, cal.applied.from_session)
     np.testing.assert_allclose(back.applied.values, cal.applied.values)
+    if cal.applied.gyro_misalignment_rad is not None:   # the gyro's rotation, applied with S, G, round-trips too
+        np.testing.assert_allclose(back.applied.gyro_misalignment_rad, cal.applied.gyro_misalignment_rad)
+        assert "gyro_acc_misalignment" in [e.kind for e in back.sensor_model().gyro]
     # compensate: with the applied block, its values; a file edited to apply nothing beyond the bias leaves S, G raw
     d["applied"]["gyro"]["scale_factor"] = [0.0, 0.0, 0.0]
     d["applied"]["gyro"]["nonorthogonality"] = [0.0, 0.0, 0.0]
+    for block in (d["applied"]["gyro"], d["applied"]["gyro"]["std"], d["applied"]["gyro"]["from_session"]):
+        block.pop("misalignment_rad", None)
     bias_only = Calibration.from_dict(d)
     out = bias_only.compensate(rec)
     np.testing.assert_allclose(out.gyro_rad_s, rec.gyro_rad_s - bias_only.applied.value("gyro", "bias"), atol=1e-12)

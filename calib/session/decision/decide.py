@@ -50,6 +50,7 @@ from calib.session.decision.motion import MotionClassification, MotionParams, cl
 from calib.session.decision.prior import (
     ACC,
     DETERMINED_RATIO,
+    MISALIGNMENT_PRIOR_RAD,
     SG,
     Determination,
     Gate,
@@ -61,10 +62,13 @@ from calib.session.decision.prior import (
 
 # the beginnings of the warnings this layer adds (the terminal shows their reason on the status line)
 MOTION_WARNING = "inconsistent: the motion is not a hand turning the device"
+# a sequence of static poses whose |f| = g fit then measures the accelerometer alone: one pose per parameter at the
+# least (imu_tk's protocol takes 36–50, Tedaldi et al. 2014)
+REST_FIT_MIN_POSES = 9
 CHECK_WARNING = "inconsistent: calibrated on one half,"
 
 __all__ = ["MOTION_WARNING", "CHECK_WARNING", "DecisionParams", "Decision", "decide", "estimate_vector",
-           "rest_pose_accelerometer", "compensate_prior"]
+           "rest_pose_accelerometer", "compensate_prior", "determined_misalignment"]
 
 
 @dataclass(frozen=True)
@@ -101,6 +105,22 @@ def estimate_vector(cal: Calibration) -> tuple[np.ndarray, np.ndarray]:
     if not cal.has("accelerometer", "bias"):
         theta[ACC], sigma[ACC] = np.nan, np.nan
     return theta, sigma
+
+
+def determined_misalignment(cal: Calibration, motion: MotionClassification, ratio: float = DETERMINED_RATIO
+                            ) -> tuple[np.ndarray, np.ndarray] | None:
+    """α (3,) and σ (3,) of the gyro's rotation against the accelerometer (rad) when ``cal`` estimated it and the
+    recording determined it: finite, σ ≤ ``ratio`` of :data:`~calib.session.decision.prior.MISALIGNMENT_PRIOR_RAD`
+    on every axis, a motion that is the model's, an estimate that did not diverge; None otherwise.  It is applied
+    with S, G (a part of the same gyro axis matrix), when their held-out check agrees."""
+    kind = "gyro_acc_misalignment"
+    if not cal.has("gyro", kind) or cal.status == "diverged" or not motion.model_holds:
+        return None
+    alpha, sigma = cal.value("gyro", kind), cal.std("gyro", kind)
+    if not (np.all(np.isfinite(alpha)) and np.all(np.isfinite(sigma))
+            and np.all(sigma <= ratio * MISALIGNMENT_PRIOR_RAD)):
+        return None
+    return alpha, sigma
 
 
 def compensate_prior(rec: Recording, prior: Prior) -> Recording:
@@ -239,13 +259,15 @@ def _session_values(theta: np.ndarray, sigma: np.ndarray, prior: Prior, det: Det
     return out, sig
 
 
-def _variants(theta: np.ndarray, sigma: np.ndarray, prior: Prior, det: Determination) -> dict:
-    """The first half's variants for the held-out check: gyro θ (9,) and accelerometer θ (9,) or None."""
+def _variants(theta: np.ndarray, sigma: np.ndarray, prior: Prior, det: Determination,
+              alpha: np.ndarray | None = None) -> dict:
+    """The first half's variants for the held-out check: gyro θ (9,; 12 with the half's determined rotation
+    ``alpha``) and accelerometer θ (9,) or None."""
     values, _ = _session_values(theta, sigma, prior, det)
     bias = np.r_[values[0:3], np.zeros(6)]
     out = {"raw": (None, None), "bias": (bias, None)}
     has_g, has_a = bool(det.determined[SG].any()), bool(det.determined[ACC].any())
-    gyro = np.r_[values[0:3], values[3:9]]
+    gyro = np.r_[values[0:3], values[3:9]] if alpha is None else np.r_[values[0:3], values[3:9], alpha]
     if has_g:   # a variant the first half did not determine is not scored: its verdict is "inconclusive"
         out["gyro"] = (gyro, None)
     if has_a:
@@ -304,11 +326,13 @@ def _fold(train: Recording, predict: Recording, spans: tuple, rests_train: list,
                                 (f"the method refused the part {spans[0][0]:.0f}–{spans[0][1]:.0f} s: "
                                  f"{str(exc)[:160]}",))
         theta, sigma, gates = _parameters(train, cal, prior, motion, gravity_m_s2)
+        alpha = determined_misalignment(cal, motion, params.ratio)
     else:
         theta, sigma, gates = _parameters(train, whole, prior, motion, gravity_m_s2, rests_train)
+        alpha = None
     det = determine(theta, sigma, prior, gates, params.ratio)
-    return held_out_check(predict, _variants(theta, sigma, prior, det), rests_predict, gravity_m_s2, spans[0],
-                          spans[1], params.held_out)
+    variants = _variants(theta, sigma, prior, det, None if alpha is None else alpha[0])
+    return held_out_check(predict, variants, rests_predict, gravity_m_s2, spans[0], spans[1], params.held_out)
 
 
 def _check(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Calibration], prior: Prior,
@@ -373,7 +397,14 @@ def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
     lines = _lines(motion, motion_note, det, rejected, untested, check, prior, summary)
     if poses is not None:
         lines.insert(next(i for i, line in enumerate(lines) if line.startswith("applied:")), _pose_line(poses))
-    applied = Applied(values, sig, session, det.determined, prior.source, summary, tuple(lines))
+    alpha = determined_misalignment(cal, motion, params.ratio) if session[SG].any() else None
+    if alpha is not None:   # named with the gyro's group: "gyro bias, S, G, its misalignment …; accelerometer …"
+        cut = min((i for i in (summary.find("; accelerometer"), summary.find("; at the prior")) if i >= 0),
+                  default=len(summary))
+        summary = summary[:cut] + ", its misalignment to the accelerometer" + summary[cut:]
+        lines = [f"applied: {summary}" if line.startswith("applied: ") else line for line in lines]
+    applied = Applied(values, sig, session, det.determined, prior.source, summary, tuple(lines),
+                      *(alpha if alpha is not None else (None, None)))
     warnings = tuple(w for w in (why,) if w)
     report = {"motion": {**motion.to_dict(), **({"note": motion_note} if motion_note else {})},
               "prior": {**prior.to_dict(), "determination": det.to_dict()},
@@ -386,28 +417,44 @@ def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
 def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, params: DecisionParams,
                 det: Determination, allowed: np.ndarray, rejected: np.ndarray, theta: np.ndarray,
                 sigma: np.ndarray) -> dict | None:
-    """The accelerometer the halves could not test, checked by leaving each rest pose out
-    (:func:`rest_pose_check`): agrees → its fit on every pose is applied (``theta``, ``sigma``, ``allowed`` updated
-    in place); disagrees → rejected.  None when there was nothing to check or too few poses."""
-    untested = det.determined & ~allowed & ~rejected
-    untested[:9] = False
-    if not params.check or not untested.any():
+    """The accelerometer by its rest poses (:func:`rest_pose_check`, each pose left out and predicted by the
+    others), in two cases: the halves could not test it (a designed protocol puts its poses in one stretch); or
+    the session is a sequence of static poses (≥ :data:`REST_FIT_MIN_POSES`) whose |f| = g fit has a smaller σ
+    than the method's estimate on every one of the nine parameters — a motion filter weighs the moves as well,
+    where the hand's acceleration and the gyro's errors enter; the rests measure the accelerometer alone (imu_tk's
+    and Tedaldi's method).  Agrees → the fit on every pose is applied (``theta``, ``sigma``, ``allowed`` updated in
+    place); disagrees → rejected.  None when there was nothing to check or too few poses."""
+    acc = np.zeros(18, bool)
+    acc[ACC] = True
+    untested = det.determined & ~allowed & ~rejected & acc
+    if not params.check or not (det.determined & acc).any():
         return None
-    poses = rest_pose_check(rec, rests, prior, gravity_m_s2, params.held_out.z)
+    poses = rest_pose_check(rec, rests, prior, gravity_m_s2, params.held_out.z,
+                            min_poses=6 if untested.any() else REST_FIT_MIN_POSES)
     if poses is None:
         return None
+    sharper = bool(np.all(np.asarray(poses["sigma"]) < np.where(np.isfinite(sigma[ACC]), sigma[ACC], np.inf)))
+    if not untested.any() and not sharper:
+        return None
+    concerned = det.determined & acc if sharper else untested
+    poses["replaces_method"] = sharper
     if poses["verdict"] == "agrees":
         theta[ACC], sigma[ACC] = poses["theta"], poses["sigma"]
-        allowed |= untested
+        allowed |= concerned
+        rejected &= ~concerned
     else:
-        rejected |= untested
+        rejected |= concerned
+        allowed &= ~concerned
     return poses
 
 
 def _pose_line(poses: dict) -> str:
     r = poses["rms_m_s2"]
-    return (f"accelerometer held out by rest pose ({poses['poses']} poses, each predicted by the others): |f| − g RMS "
-            f"raw {r['raw']:.3f}, calibrated {r['fit']:.3f} m/s² — {poses['verdict']}")
+    head = (f"accelerometer from its {poses['poses']} rest poses (|f| = g; a smaller σ than the filter's), held out"
+            if poses.get("replaces_method") else f"accelerometer held out by rest pose ({poses['poses']} poses")
+    return (f"{head}{',' if poses.get('replaces_method') else ''} each pose predicted by the others"
+            f"{'' if poses.get('replaces_method') else ')'}: |f| − g RMS raw {r['raw']:.3f}, calibrated "
+            f"{r['fit']:.3f} m/s² — {poses['verdict']}")
 
 
 def _status(method_status: str, motion: MotionClassification, det: Determination, rejected: np.ndarray

@@ -53,7 +53,7 @@ import numpy as np
 from gyrosim.effects import nonortho_matrix
 from gyrosim.lazy import lazy_module
 from gyrosim.recording import Recording
-from gyrosim.rotations import quat_conjugate, quat_multiply, quat_rotate
+from gyrosim.rotations import quat_conjugate, quat_multiply, quat_rotate, skew
 from gyrosim.strapdown import integrate_gyro
 
 sp_signal = lazy_module("scipy.signal")   # imported on first use: not before a bad file is refused
@@ -187,10 +187,13 @@ def has_measured_reference(rec: Recording) -> bool:
             and "sensor_model_before_compensation" not in (rec.meta or {}))
 
 
-def linear_compensate(x: np.ndarray, theta9: np.ndarray) -> np.ndarray:
-    """x̂ = M⁻¹ (x̃ − b) for θ = [b, S, G] (9,), rows of ``x`` (N, 3)."""
-    m = np.eye(3) + np.diag(theta9[3:6]) + nonortho_matrix(theta9[6:9])
-    return np.linalg.solve(m, (np.asarray(x, float) - theta9[0:3]).T).T
+def linear_compensate(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """x̂ = M⁻¹ (x̃ − b) for θ = [b, S, G] (9,), rows of ``x`` (N, 3); θ (12,) = [b, S, G, α] adds the gyro's
+    rotation against the accelerometer, M = I + diag(S) + N(G) − [α×] (:class:`gyrosim.effects.GyroAccMisalignment`)."""
+    m = np.eye(3) + np.diag(theta[3:6]) + nonortho_matrix(theta[6:9])
+    if len(theta) == 12:
+        m = m - skew(np.asarray(theta[9:12], float))
+    return np.linalg.solve(m, (np.asarray(x, float) - theta[0:3]).T).T
 
 
 def _blocks(x: np.ndarray, n: int) -> np.ndarray:

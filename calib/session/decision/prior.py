@@ -41,7 +41,7 @@ from gyrosim.calibration import Calibration
 from gyrosim.effects import nonortho_matrix
 
 __all__ = ["PARAMETERS", "Prior", "Gate", "Determination", "determine", "compose", "combine", "DETERMINED_RATIO",
-           "MAKER_TOLERANCE"]
+           "MAKER_TOLERANCE", "MISALIGNMENT_PRIOR_RAD"]
 
 # (triad, kind, JSON key) in θ order, three values each
 PARAMETERS = (("gyro", "bias", "bias_rad_s"), ("gyro", "scale_factor", "scale_factor"),
@@ -51,6 +51,9 @@ PARAMETERS = (("gyro", "bias", "bias_rad_s"), ("gyro", "scale_factor", "scale_fa
 # datasheet-class 1σ of a maker-calibrated sensor (module docstring): name → tolerance
 MAKER_TOLERANCE = {"gyro_scale": 0.01, "gyro_nonorth": 0.01, "acc_bias_m_s2": 0.25, "acc_scale": 0.01,
                    "acc_nonorth": 0.01}
+# the gyro triad's rotation against the accelerometer's (rad, 1σ per axis) on a part no one has measured: an
+# assembly's rotation between two dies or chips, 1° typical, 2° taken as 1σ (datasheets do not state it)
+MISALIGNMENT_PRIOR_RAD = 0.035
 DETERMINED_RATIO = 0.5   # σ_posterior ≤ ratio · σ_prior: the data carry ≥ 3× the prior's information
 GYRO = slice(0, 9)
 ACC = slice(9, 18)
