@@ -49,10 +49,14 @@ __all__ = ["MemberEvidence", "ConfoundedGroup", "find_confounded", "RULE", "MIN_
            "contribution_correlation"]
 
 MIN_OVERLAP = 0.5
+# held-out gains closer than this are a tie (G is a log-likelihood-ratio scale: a difference below 1 is no evidence
+# either way); a tie goes to the member with fewer parameters — e.g. the gyro's rotation against the accelerometer (3)
+# over the general misalignment (6) when the declared non-orthogonality holds the misalignment's symmetric half
+TIE_GAIN = 1.0
 RULE = ("a member that explains all another does and more first; else the physically direct channel first (the gyro's "
         "own input rate, then a dedicated measurement such as the thermometer or the reference attitude, then a "
-        "quantity sensed through another sensor, then time), ties by held-out gain; bias drift only over a partial "
-        "mimic of it")
+        "quantity sensed through another sensor, then time), ties by held-out gain (gains within 1 of each other: "
+        "the fewer parameters); bias drift only over a partial mimic of it")
 
 
 @dataclass(frozen=True)
@@ -162,7 +166,11 @@ def find_confounded(setup: LoopSetup, state: ModelState, pool: dict[str, Candida
             chosen = max(wider, key=lambda p: scores[p.kind].gain).kind
         else:                                                                  # rule 2: mutual
             mutual = [best] + [p.kind for p in measured if (p.g_b_given_c <= 0) == (p.g_c_given_b <= 0)]
-            chosen = min(mutual, key=lambda k: (int(fam[k].channel), -scores[k].gain))
+            channel = min(int(fam[k].channel) for k in mutual)
+            direct = [k for k in mutual if int(fam[k].channel) == channel]
+            top = max(scores[k].gain for k in direct)
+            tied = [k for k in direct if scores[k].gain >= top - TIE_GAIN]   # no evidence either way: the fewer
+            chosen = min(tied, key=lambda k: (pool[k].n_params, -scores[k].gain))   # parameters
     rss0 = scores[best].rss_before
     own = MemberEvidence(best, fam[best].channel.name.lower(), float(scores[best].gain),
                          1.0 - scores[best].rss_after / rss0, 1.0, float(scores[best].gain), float(scores[best].gain),

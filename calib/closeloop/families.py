@@ -38,6 +38,7 @@ from gyrosim.effects import (
     EarthRate,
     Effect,
     GSensitivity,
+    GyroAccMisalignment,
     MagneticSensitivity,
     Misalignment,
     NonOrthogonality,
@@ -157,6 +158,44 @@ class MisalignmentFamily(_AxisMatrix):
         tot_hat = nonortho_matrix(n_hat) + Misalignment(value=vals).matrix()
         tot_true = nonortho_matrix(n_true) + true_effect.matrix()
         sig_tot = np.hypot(nonortho_matrix(n_sig), Misalignment(value=sig).matrix())
+        off = ~np.eye(3, dtype=bool)
+        return tot_hat[off], tot_true[off], sig_tot[off]
+
+
+@register_family
+class GyroAccMisalignmentFamily(_AxisMatrix):
+    """The gyro triad turned against the accelerometer's by small angles α: the antisymmetric part of the gyro's axis
+    matrix (regressor [ω×]), three parameters where the general misalignment has six — its symmetric half trades with
+    the declared non-orthogonality, this one with nothing the linear model holds.  Against the gravity reference the
+    body frame is the accelerometer's (gravity's direction at each pose), so α is what a filter needs to carry the
+    accelerometer's gravity with the gyro."""
+
+    effects = (GyroAccMisalignment,)
+    driver = "the rate on the other axes (antisymmetric)"
+    follows_text = "the rate on the other axes, antisymmetric (the gyro's axes turned against the accelerometer's)"
+    bound = GyroAccMisalignment.max_rad
+
+    def plausible_max(self, kind, ctx):
+        return math.radians(3.0)
+
+    def caveat(self, kind, reference_kind):
+        if reference_kind == "optical":
+            return ("a rotation between the IMU and the optical body frame (the reference's alignment) looks exactly "
+                    "like this")
+        return None
+
+    def compare_with_truth(self, kind, finding_params, declared_params, true_effect, device):
+        """Against a true rotation α or a true general misalignment M (whose antisymmetric half this is, its
+        symmetric half held by the declared non-orthogonality): the total off-diagonal matrix N − [α×] against
+        N_true + M_true."""
+        vals = np.array([v["value"] for v in finding_params.values()])
+        sig = np.array([v["sigma"] for v in finding_params.values()])
+        n_hat = np.array([declared_params[f"nonorthogonality.value[{i}]"]["value"] for i in range(3)])
+        n_sig = np.array([declared_params[f"nonorthogonality.value[{i}]"]["sigma"] for i in range(3)])
+        n_true = device["nonorthogonality"].params() if "nonorthogonality" in device else np.zeros(3)
+        tot_hat = nonortho_matrix(n_hat) + GyroAccMisalignment(value=vals).matrix()
+        tot_true = nonortho_matrix(n_true) + true_effect.matrix()
+        sig_tot = np.hypot(nonortho_matrix(n_sig), np.abs(GyroAccMisalignment(value=sig).matrix()))
         off = ~np.eye(3, dtype=bool)
         return tot_hat[off], tot_true[off], sig_tot[off]
 
