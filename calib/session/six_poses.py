@@ -13,7 +13,8 @@ decomposition): P = I + diag(S) + N(G), U the box's rotation against the acceler
 Why it matters (imucal's own Ferraris session): the rests' |f| = g sees N(G) only to second order when every pose
 is near a body axis, and a shear in the x–z plane changes the angle the accelerometer sees over a quarter turn
 about y by 2 G_y — the same as a scale-factor error of the gyro's y axis of 2 G_y / (π/2).  Left to the hand-held
-motion, the joint filter put G_y at 0.016 and S_y 0.023 from imucal's; the faces' right angles fix G_y.
+motion, the joint filter put G_y at 0.013 ± 0.0007 (the six poses: 0.003) and S_y 0.022 from imucal's; the
+faces' right angles fix G_y.
 """
 
 from __future__ import annotations

@@ -157,10 +157,11 @@ def _innovations(cal) -> np.ndarray:
 def test_ferraris_y_turn_agrees_once_the_accelerometer_is_the_six_poses():
     """The y turn's −10σ innovation under calib run's joint filter is the accelerometer's: a shear of the x–z plane
     (G_y) changes the angle gravity shows over a quarter turn about y by 2 G_y, the same as a gyro S_y error, and
-    the hand-held motion put G_y at 0.016 (the six poses: 0.003).  With the six poses' accelerometer and α, S_x, S_y
-    and G land within max(3σ, 0.005) of imucal's (0.005: a hand-made session's agreement — each 360° turn is known to
-    ±0.5°, 0.0014 of S, and imucal reads the gyro in the box's frame, 0.6° from the accelerometer's; measured: S_x
-    0.0027 off, the rest ≤ 0.001) and the y turn agrees (measured −1.1σ; was −10.4σ)."""
+    the hand-held motion put G_y at 0.013 ± 0.0007 (the six poses: 0.003).  With the six poses' accelerometer
+    and α, S_x, S_y and G land within max(3σ, 0.005) of imucal's (0.005: a hand-made session's agreement — each
+    360° turn is known to ±0.5°, 0.0014 of S, and imucal reads the gyro in the box's frame, 0.6° from the
+    accelerometer's; measured: S_x 0.0027 off, the rest ≤ 0.001) and the y turn agrees (measured −1.1σ; was
+    −10.4σ)."""
     rec = _load("imucal_ferraris")
     turns = turns_for_protocol("ferraris", rec.meta, rec.t_s)
     with warnings.catch_warnings():
