@@ -19,11 +19,15 @@ import pytest
 
 from gyrosim.errors import RecordingError
 from gyrosim.loaders import available_datasets
+from gyrosim.units import G0
 
-from calib import calibrate, load_recording
+from calib import load_recording
+from calib.inputs.turns import turns_for_protocol
 from calib.session.gravityfit import compensate_acc
 from calib.session.hand.checks import DISPLACEMENT_MAX_M, LEVER_ARM_MAX_M
 from calib.session.hand.filter import kf_hand
+from calib.session.hand.params import HandParams
+from calib.session.six_poses import six_pose_accelerometer
 from calib.session.validation import windowed_rotation_error_deg
 
 AVAILABLE = set(available_datasets())
@@ -132,32 +136,55 @@ def test_raw_accelerometer_is_flagged(name):
 IMUCAL_SG = np.array([0.02785, -0.01765, -0.00172, 0.00244, 0.00166, -0.00006])
 
 
-@needs("imucal_ferraris")
-@pytest.mark.xfail(strict=True, reason=(
-    "open: with the |f| = g fit weighing each pose by its own scatter, the accelerometer's residual on this session "
-    "fell from 10.9 to 0.8 mg, and kf_hand's S_y, S_z now show their own disagreement with imucal's (0.008, 0.005: "
-    "5-16 sigma) that the residual used to cover"))
-def test_ferraris_with_calibrated_accelerometer_agrees_with_imucal():
-    """With the accelerometer calibrated first (our joint estimate's accelerometer part applied), kf_hand's
-    S, G agree with imucal's within 3σ + ε, ε the residual accelerometer error kf_hand's own check reports
-    (the rests' |f| spread, 10.9 mg: a tilt reference error that biases S, G by ~ε) — measured: |δ| ≤ 0.008,
-    up to 3.8 σ alone (S_z), ε = 0.011.  Since ε exceeds σ the status is honestly not ok.  And the raw
-    accelerometer puts kf_hand's S, G far further from imucal's (G_y 9.8 σ off)."""
+def _ferraris_with_six_pose_accelerometer():
+    """kf_hand with imucal's six poses calibrating the accelerometer (:mod:`calib.session.six_poses`: the box's faces
+    at right angles fix its non-orthogonality, which |f| = g at near-axis poses does not), the gyro's rotation
+    against it estimated, and the protocol's three 360° turns as known angles."""
     rec = _load("imucal_ferraris")
+    acc = six_pose_accelerometer(rec.acc_m_s2, rec.meta["segments"], G0)
+    turns = turns_for_protocol("ferraris", rec.meta, rec.t_s)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        joint = calibrate(rec, "kf_joint")
-    th = np.concatenate([joint.value("accelerometer", k) for k in ("bias", "scale_factor", "nonorthogonality")])
-    cal = _hand(rec.with_signals(acc_m_s2=compensate_acc(rec.acc_m_s2, th)))
+        return kf_hand(rec.with_signals(acc_m_s2=compensate_acc(rec.acc_m_s2, acc.theta())), turns=turns,
+                       params=HandParams(misalignment=True))
+
+
+def _innovations(cal) -> np.ndarray:
+    return np.array([t["normalised_innovation"] for t in cal.diagnostics["known_turns"]["turns"]])
+
+
+@needs("imucal_ferraris")
+def test_ferraris_y_turn_agrees_once_the_accelerometer_is_the_six_poses():
+    """The y turn's −10σ innovation under calib run's joint filter is the accelerometer's: a shear of the x–z plane
+    (G_y) changes the angle gravity shows over a quarter turn about y by 2 G_y, the same as a gyro S_y error, and
+    the hand-held motion put G_y at 0.013 ± 0.0007 (the six poses: 0.003).  With the six poses' accelerometer
+    and α, S_x, S_y and G land within max(3σ, 0.005) of imucal's (0.005: a hand-made session's agreement — each
+    360° turn is known to ±0.5°, 0.0014 of S, and imucal reads the gyro in the box's frame, 0.6° from the
+    accelerometer's; measured: S_x 0.0027 off, the rest ≤ 0.001) and the y turn agrees (measured −1.1σ; was
+    −10.4σ)."""
+    rec = _load("imucal_ferraris")
+    turns = turns_for_protocol("ferraris", rec.meta, rec.t_s)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        joint = kf_hand(rec, "estimate", turns=turns)
+    assert _innovations(joint)[1] < -5        # the disagreement this test explains
+    cal = _ferraris_with_six_pose_accelerometer()
     sg = np.concatenate([cal.scale_factor, cal.nonorthogonality])
     sd = np.concatenate([cal.scale_factor_std, cal.nonorthogonality_std])
-    eps = cal.diagnostics["assumptions"]["rest_acc_norm_spread_g"]
-    assert np.all(np.abs(sg - IMUCAL_SG) <= 3 * sd + eps), (sg - IMUCAL_SG) / sd
-    if eps > np.median(sd):
-        assert cal.status != "ok"
-    raw = _hand(rec)
-    raw_sg = np.concatenate([raw.scale_factor, raw.nonorthogonality])
-    assert np.max(np.abs(sg - IMUCAL_SG)) < 0.5 * np.max(np.abs(raw_sg - IMUCAL_SG))
+    keep = [0, 1, 3, 4, 5]                    # S_z: the next test
+    assert np.all(np.abs(sg - IMUCAL_SG)[keep] <= np.maximum(3 * sd, 0.005)[keep]), (sg - IMUCAL_SG) / sd
+    assert abs(_innovations(cal)[1]) < 3
+
+
+@needs("imucal_ferraris")
+@pytest.mark.xfail(strict=True, reason=(
+    "open: with the six poses' accelerometer, kf_hand's S_z is -0.0080 +- 0.0003 against imucal's -0.0017; the z "
+    "turn (+4.5 sigma) and the gravity carried from rest to rest (smallest at S_z = -0.004) both side with a smaller "
+    "|S_z| than the filter's in-motion samples give; what in the motion pulls S_z is not yet named"))
+def test_ferraris_s_z_agrees_with_imucal():
+    """S_z within max(3σ, 0.005) of imucal's (measured: 0.0063 off, 21σ)."""
+    cal = _ferraris_with_six_pose_accelerometer()
+    assert abs(cal.scale_factor[2] - IMUCAL_SG[2]) <= max(3 * cal.scale_factor_std[2], 0.005)
 
 
 @needs("xio_ximu_thermometer")
