@@ -29,7 +29,7 @@ import csv
 import io
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,7 @@ FERRARIS_ANGLE_DEG = -360.0
 # edge and set down where it started, ±0.5° (1σ, engineering value; imucal takes the 360° as exact)
 FERRARIS_SIGMA_DEG = 0.5
 FERRARIS_TURNS = {"x_rot": "x", "y_rot": "y", "z_rot": "z"}
+FERRARIS_POSES = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")   # the box's faces: body axis up (p), down (a)
 PROTOCOLS = ("ferraris",)
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 _KEYS = ("start_s", "end_s", "axis", "angle_deg", "sigma_deg")
@@ -77,20 +78,27 @@ class Turn:
 
 @dataclass(frozen=True)
 class Turns:
-    """The turns of a recording and where they came from (a file's name, ``protocol ferraris``)."""
+    """The turns of a recording and where they came from (a file's name, ``protocol ferraris``); ``poses``: the
+    protocol's static poses on a box's faces, label → (start_s, end_s) on the recording's clock (Ferraris: ``x_p``,
+    ``x_a``, … the body axis up, down; empty when the protocol has none)."""
 
     turns: tuple[Turn, ...]
     source: str
+    poses: tuple[tuple[str, float, float], ...] = ()
 
     def __len__(self) -> int:
         return len(self.turns)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"source": self.source, "turns": [t.to_dict() for t in self.turns]}
+        out: dict[str, Any] = {"source": self.source, "turns": [t.to_dict() for t in self.turns]}
+        if self.poses:
+            out["poses"] = [{"label": a, "start_s": b, "end_s": c} for a, b, c in self.poses]
+        return out
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "Turns":
-        return cls(tuple(Turn.from_dict(t) for t in d.get("turns", [])), str(d.get("source", "")))
+        poses = tuple((str(p["label"]), float(p["start_s"]), float(p["end_s"])) for p in d.get("poses", []))
+        return cls(tuple(Turn.from_dict(t) for t in d.get("turns", [])), str(d.get("source", "")), poses)
 
     def sample_ranges(self, t_s: np.ndarray) -> list[tuple[int, int]]:
         """(i0, i1) per turn: the first sample at or after ``start_s`` and the last at or before ``end_s`` of the
@@ -214,7 +222,14 @@ def ferraris_turns(segments: dict[str, Any], t_s: np.ndarray, source: str = "pro
             raise TurnsError(f"{source}: {key} spans samples {i0}–{i1}, outside the recording's {t.size} samples")
         turns.append(Turn(float(t[i0]), float(t[i1]), _AXES[axis], math.radians(FERRARIS_ANGLE_DEG),
                           math.radians(sigma_deg), key))
-    return _check_order(turns, source)
+    checked = _check_order(turns, source)
+    poses = []
+    for key in FERRARIS_POSES:   # the six box faces, when the list has every one inside the recording
+        seg = segments.get(key)
+        if not isinstance(seg, dict) or not 0 <= int(seg.get("start", -1)) < int(seg.get("end", -1)) < t.size:
+            return checked
+        poses.append((key, float(t[int(seg["start"])]), float(t[int(seg["end"])])))
+    return replace(checked, poses=tuple(poses))
 
 
 def turns_for_protocol(protocol: str, meta: dict[str, Any], t_s: np.ndarray,

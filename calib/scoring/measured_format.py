@@ -76,7 +76,7 @@ def _calibration_lines(cal: dict) -> list[str]:
     if cal.get("gyro_misalignment_rad") is not None:
         alpha = _vec(cal.get("gyro_misalignment_rad"), RAD2DEG)
         lines.append(f"    gyro α (°)       {alpha}   (its rotation against the accelerometer)")
-    if cal.get("accelerometer") == "estimated":
+    if cal.get("accelerometer") != "assumed calibrated":
         lines += [f"    acc. bias (m/s²) {_vec(cal.get('acc_bias_m_s2'))}",
                   f"    acc. S           {_vec(cal.get('acc_scale_factor'))}",
                   f"    acc. G           {_vec(cal.get('acc_nonorthogonality'))}"]

@@ -152,10 +152,13 @@ def _summary(cal_json: Path) -> dict[str, Any]:
         out[f"gyro_{key}"] = shown.get("gyro", {}).get(key)
         out[f"gyro_{key}_std"] = shown.get("gyro", {}).get("std", {}).get(key)
     acc = d.get("accelerometer")
-    out["accelerometer"] = "estimated" if acc else "assumed calibrated"
-    if acc:
+    applied_acc = shown.get("accelerometer") if isinstance(applied, dict) else None
+    prior_acc = bool(applied_acc) and any(v for key in ("bias_m_s2", "scale_factor", "nonorthogonality")
+                                          for v in applied_acc.get(key) or ())
+    out["accelerometer"] = "estimated" if acc else ("from the prior" if prior_acc else "assumed calibrated")
+    if acc or prior_acc:
         for key in ("bias_m_s2", "scale_factor", "nonorthogonality"):
-            out[f"acc_{key}"] = (shown.get("accelerometer") or acc).get(key)
+            out[f"acc_{key}"] = (applied_acc or acc).get(key)
     out["gravity_m_s2"] = d.get("noise", {}).get("gravity_m_s2")
     if isinstance(applied, dict):
         out["applied"] = applied.get("summary")
@@ -182,10 +185,11 @@ class CalibratedVariants:
 
 
 def calibrate_variants(raw: Recording, source: str, shown: str, data_dir: Path, workdir: Path,
-                       first_rest: tuple[int, int] | None) -> CalibratedVariants:
-    """Run ``calib run`` (and its retry) and ``calib apply`` on ``source``; build the variants from ``raw``
-    (the same recording as loaded here) and ``first_rest`` (sample range of the plain reference's bias)."""
-    runs, cal = run_calibration(source, shown, data_dir, workdir)
+                       first_rest: tuple[int, int] | None, extra: tuple[str, ...] = ()) -> CalibratedVariants:
+    """Run ``calib run`` (and its retry; ``extra``: its further options) and ``calib apply`` on ``source``; build the
+    variants from ``raw`` (the same recording as loaded here) and ``first_rest`` (sample range of the plain
+    reference's bias)."""
+    runs, cal = run_calibration(source, shown, data_dir, workdir, extra)
     recs: dict[str, Recording] = {"raw": raw}
     notes: list[str] = []
     summary: dict[str, Any] = {}

@@ -103,16 +103,18 @@ def calib_command(args: list[str], shown: list[str], data_dir: Path, workdir: Pa
                   _message(proc.stderr, proc.returncode, (data_dir, workdir)))
 
 
-def run_calibration(source: str, shown: str, data_dir: Path, workdir: Path) -> tuple[tuple[CliRun, ...], Path | None]:
-    """``calib run SOURCE --json cal.json`` with the defaults, then, if it refused for the accelerometer,
-    with ``--accelerometer calibrated``; the runs and the calibration file (``None`` when none was written)."""
+def run_calibration(source: str, shown: str, data_dir: Path, workdir: Path, extra: tuple[str, ...] = ()
+                    ) -> tuple[tuple[CliRun, ...], Path | None]:
+    """``calib run SOURCE --json cal.json`` with the defaults (and ``extra`` options: what a user of that
+    recording knows, e.g. its protocol), then, if it refused for the accelerometer, with ``--accelerometer
+    calibrated``; the runs and the calibration file (``None`` when none was written)."""
     cal = workdir / "cal.json"
-    runs = [calib_command(["run", source, "--json", cal.name], ["run", shown, "--json", "cal.json"], data_dir,
-                          workdir, cal)]
+    runs = [calib_command(["run", source, *extra, "--json", cal.name], ["run", shown, *extra, "--json", "cal.json"],
+                          data_dir, workdir, cal)]
     if runs[0].exit_code == 2 and ACC_REFUSAL in runs[0].message:
-        runs.append(calib_command(["run", source, "--accelerometer", "calibrated", "--json", cal.name],
-                                  ["run", shown, "--accelerometer", "calibrated", "--json", "cal.json"], data_dir,
-                                  workdir, cal))
+        runs.append(calib_command(["run", source, *extra, "--accelerometer", "calibrated", "--json", cal.name],
+                                  ["run", shown, *extra, "--accelerometer", "calibrated", "--json", "cal.json"],
+                                  data_dir, workdir, cal))
     return tuple(runs), (cal if cal.is_file() and runs[-1].exit_code in (0, 1) else None)
 
 

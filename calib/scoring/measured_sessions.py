@@ -47,6 +47,7 @@ __all__ = ["IMU_TK_PUBLISHED", "validate_imu_tk", "validate_ferraris", "validate
 IMU_TK_PUBLISHED = {"rest_norm_rms_m_s2": 0.00795, "carried_gravity_rms_deg": 0.517}
 IMU_TK_GRAVITY_M_S2 = 9.81744  # test_imu_calib's setGravityMagnitude
 TURNS = ("x_rot", "y_rot", "z_rot")
+FERRARIS_RUN = ("--protocol", "ferraris")   # what a user of imucal's session knows and tells calib run
 
 
 def static_figures(rec: Recording, intervals: list[tuple[int, int]], first_n: int, gravity_m_s2: float) -> dict:
@@ -64,12 +65,12 @@ def _gravity(variant: str, calibration: dict) -> float:
     return float(g) if g else G0
 
 
-def _session(name: str, data_dir: Path, workdir: Path, detector_for) -> tuple:
+def _session(name: str, data_dir: Path, workdir: Path, detector_for, extra: tuple[str, ...] = ()) -> tuple:
     raw = load_dataset(name, data_dir)
     detector = detector_for(raw)
     intervals = static_intervals(raw.acc_m_s2, detector)
     cv = calibrate_variants(raw, f"dataset:{name}", f"dataset:{name}", data_dir, workdir,
-                            intervals[0] if intervals else None)
+                            intervals[0] if intervals else None, extra)
     figures: dict[str, dict[str, float]] = {}
     for variant in VARIANTS:
         rec = cv.recordings.get(variant)
@@ -133,8 +134,10 @@ def validate_ferraris(data_dir: Path, workdir: Path) -> RecordingResult:
     """imucal's Ferraris session: the rest figures and the 360° turns for every variant and imucal's result."""
     t0 = time.perf_counter()
     raw, intervals, detector, cv, figures, details = _session(
-        "imucal_ferraris", data_dir, workdir, lambda rec: StaticDetector.for_rate(rec.rate_hz))
+        "imucal_ferraris", data_dir, workdir, lambda rec: StaticDetector.for_rate(rec.rate_hz), FERRARIS_RUN)
     notes = _ferraris_extra(raw, intervals, detector, cv, figures, details, data_dir)
+    notes.append(f"calib run was told the protocol ({' '.join(FERRARIS_RUN)}): the three turns enter it as "
+                 "known angles, so its turn figure is in-sample too; the six box-face poses give its accelerometer")
     return RecordingResult("imucal_ferraris", "imucal", "Ferraris protocol (rests, 360° turns)", raw.n,
                            raw.duration_s, cv.runs, cv.calibration, cv.plain_reference, figures, details,
                            cv.notes + tuple(notes), round(time.perf_counter() - t0, 1))

@@ -41,6 +41,7 @@ from warnings import warn
 from gyrosim.calibration import Calibration, truth_calibration
 from gyrosim.errors import GyrosimError, RecordingError
 from gyrosim.recording import Recording
+from gyrosim.units import G0
 
 from calib.inputs import KF, Loaded, prepare_recording
 from calib.inputs.turns import Turns
@@ -80,7 +81,9 @@ class RunOptions:
     maker-calibrated sensor, :meth:`calib.session.decision.prior.Prior.maker`); ``decision``: the settings of
     what is applied (:class:`calib.session.decision.decide.DecisionParams`).;
     ``turns``: turns of a known angle (:mod:`calib.inputs.turns`; the hand-aware methods take them as
-    measurements, :mod:`calib.session.known_turns`)."""
+    measurements, :mod:`calib.session.known_turns`); when they come with a protocol's six box-face poses
+    (``turns.poses``, Ferraris's), the accelerometer is taken from those (:func:`protocol_accelerometer`) and the
+    hand-aware filter runs with it calibrated and the gyro's rotation against it estimated."""
 
     method: str | None = None
     accelerometer: str | None = None
@@ -141,15 +144,19 @@ FALLBACK_NOTE = ("the motion cannot separate the accelerometer from the gyro err
 def _estimate(rec: Recording, name: str, mode: str, options: RunOptions, keep_history: bool = False,
               turns: Turns | None = None):
     """The method ``name`` on ``rec``: (result, preparation); ``turns``: known turns as measurements (hand-aware
-    methods only; the held-out halves run without them)."""
+    methods only; the held-out halves run without them).  An accelerometer from a protocol's poses (its prior)
+    turns on the gyro's rotation against it in the hand-aware filter: what the rotation was confused with, the
+    accelerometer's own shear, is fixed by the poses."""
     from calib.session.hand.filter import kf_hand
+    from calib.session.hand.params import HandParams
     from calib.session.paper import calibrate, prepare
 
     prep = prepare(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
                    external_acc_allowance_m_s2=options.external_acc_allowance_m_s2)
     if SESSION_METHODS[name][0] == "hand":
+        params = HandParams(misalignment=True) if _poses(options) else None
         result = kf_hand(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2, keep_history=keep_history,
-                         prepared=prep, turns=turns)
+                         prepared=prep, turns=turns, params=params)
     else:
         result = calibrate(rec, name, external_acc_allowance_m_s2=options.external_acc_allowance_m_s2,
                            gravity_m_s2=options.gravity_m_s2, keep_history=keep_history, prepared=prep)
@@ -168,6 +175,28 @@ def _estimate_or_fall_back(rec: Recording, name: str, mode: str, options: RunOpt
     return (*_estimate(rec, name, "calibrated", options, keep_history, options.turns), name, "calibrated", True)
 
 
+def _poses(options: RunOptions) -> bool:
+    return options.turns is not None and bool(options.turns.poses)
+
+
+def protocol_prior(rec: Recording, options: RunOptions, prior: Prior) -> tuple[Prior, RunOptions, dict | None]:
+    """With a protocol's six box-face poses (``options.turns.poses``): the prior with the accelerometer they measure
+    (:func:`calib.session.six_poses.protocol_accelerometer`, at the run's gravity or g₀), the options with the
+    accelerometer calibrated (unless a method or mode was asked for), and the poses' result for the JSON; else
+    everything unchanged and None."""
+    if not _poses(options):
+        return prior, options, None
+    from calib.session.six_poses import protocol_accelerometer
+
+    g = options.gravity_m_s2 or G0
+    poses, sigma = protocol_accelerometer(rec.acc_m_s2, rec.t_s, options.turns.poses, g)
+    prior = prior.with_accelerometer(poses.theta(), sigma, f"the accelerometer from the {options.turns.source}'s six "
+                                     "box-face poses")
+    if options.method is None and options.accelerometer is None:
+        options = replace(options, accelerometer="calibrated")
+    return prior, options, {**poses.to_dict(), "std": sigma.tolist()}
+
+
 def run_session(source: Recording | Loaded, options: RunOptions = RunOptions()) -> Calibration:
     """Calibrate one hand-held session as ``calib run`` does (module docstring) and return the one Calibration.
 
@@ -180,7 +209,7 @@ def run_session(source: Recording | Loaded, options: RunOptions = RunOptions()) 
     from calib.session.decision.motion import classify_motion
 
     loaded = source if isinstance(source, Loaded) else prepare_recording(source, KF)
-    prior = options.prior or Prior.maker()
+    prior, options, poses = protocol_prior(loaded.recording, options, options.prior or Prior.maker())
     rec = compensate_prior(loaded.recording, prior)
     name, mode, note = resolve_run_method(options)
     if note:
@@ -206,6 +235,8 @@ def run_session(source: Recording | Loaded, options: RunOptions = RunOptions()) 
     if truth is not None:
         report["truth"] = _truth_section(truth)
     report.update(decision.report)
+    if poses is not None:
+        report["prior"] = {**report.get("prior", {}), "six_poses": poses}
     warnings = tuple(loaded.report.warnings) + ((FALLBACK_NOTE,) if fell_back else ()) + tuple(result.warnings)
     return replace(result, status=decision.status, warnings=warnings + decision.warnings, report=report,
                    applied=decision.applied)

@@ -27,7 +27,7 @@ from scipy.linalg import polar
 
 from calib.inputs.errors import TurnsError
 
-__all__ = ["SixPoses", "six_pose_accelerometer", "POSES"]
+__all__ = ["SixPoses", "six_pose_accelerometer", "POSES", "protocol_accelerometer"]
 
 # the section list's names of the six poses (imucal's): the body axis up (p) and down (a)
 POSES = (("x_p", "x_a"), ("y_p", "y_a"), ("z_p", "z_a"))
@@ -76,10 +76,49 @@ def six_pose_accelerometer(acc_m_s2: np.ndarray, segments: Mapping[str, Any], gr
         if not 0 <= i0 < i1 <= acc.shape[0]:
             raise TurnsError(f"pose {name} spans samples {i0}–{i1}, outside the recording's {acc.shape[0]} samples")
         means[name] = acc[i0:i1].mean(axis=0)
+    return _from_means(means, gravity_m_s2)
+
+
+def _from_means(means: Mapping[str, np.ndarray], gravity_m_s2: float) -> SixPoses:
+    """:class:`SixPoses` of the six poses' mean readings (label → (3,), m/s²)."""
     up = np.column_stack([means[p] for p, _ in POSES])
     down = np.column_stack([means[a] for _, a in POSES])
-    bias = (0.5 * (up + down)).mean(axis=1)          # each column an estimate of the bias
+    # the bias: each axis from the pair that turned it up and down (imucal's, Ferraris's), where gravity's share on
+    # that axis cancels whatever the poses' tilt; the other pairs' means carry their tilt (on imucal's session the
+    # three-pair mean put |f| − g at rest 0.025 m/s² against this one's 0.018)
+    bias = np.diag(0.5 * (up + down)).copy()
     u, p = polar((up - down) / (2.0 * gravity_m_s2), side="left")   # A = P U (scipy returns U first)
     rot = 0.5 * (u - u.T)                            # U ≈ I + [φ×] for small φ
     return SixPoses(bias, np.diag(p) - 1.0, np.array([p[1, 2], p[0, 2], p[0, 1]]),
                     np.degrees([rot[2, 1], rot[0, 2], rot[1, 0]]), float(gravity_m_s2))
+
+
+def protocol_accelerometer(acc_m_s2: np.ndarray, t_s: np.ndarray, poses, gravity_m_s2: float,
+                           block_s: float = 0.1) -> tuple[SixPoses, np.ndarray]:
+    """The accelerometer of a protocol's six poses given on the clock ``t_s`` (``poses``: label, start_s, end_s, as
+    :attr:`calib.inputs.turns.Turns.poses`) and its 1σ (9,): the noise of each pose's mean reading (the scatter of
+    its ``block_s`` means over √their number, so correlation within a block is counted) carried through the six-pose
+    equations to first order (a central difference per reading).  It is the noise's σ only: how square the box's
+    faces are is what the method assumes."""
+    acc, t = np.asarray(acc_m_s2, float), np.asarray(t_s, float)
+    means, se = {}, {}
+    rate = (t.size - 1) / (t[-1] - t[0])
+    for label, t0, t1 in poses:
+        i0, i1 = np.searchsorted(t, [t0, t1])
+        x = acc[i0:i1]
+        n = max(1, int(round(block_s * rate)))
+        blocks = x[: (x.shape[0] // n) * n].reshape(-1, n, 3).mean(axis=1)
+        if blocks.shape[0] < 2:
+            raise TurnsError(f"pose {label} holds too few samples ({x.shape[0]}) to measure the accelerometer")
+        means[label] = x.mean(axis=0)
+        se[label] = blocks.std(axis=0, ddof=1) / np.sqrt(blocks.shape[0])
+    result = _from_means(means, gravity_m_s2)
+    var = np.zeros(9)
+    for label in means:
+        for k in range(3):
+            h = max(float(se[label][k]), 1e-9)
+            plus, minus = dict(means), dict(means)
+            plus[label] = means[label] + h * np.eye(3)[k]
+            minus[label] = means[label] - h * np.eye(3)[k]
+            var += ((_from_means(plus, gravity_m_s2).theta() - _from_means(minus, gravity_m_s2).theta()) / 2.0) ** 2
+    return result, np.sqrt(var)

@@ -102,6 +102,14 @@ class Prior:
         sigma = np.repeat([math.inf, gyro_scale, gyro_nonorth, acc_bias_m_s2, acc_scale, acc_nonorth], 3)
         return cls(np.zeros(18), sigma)
 
+    def with_accelerometer(self, theta: np.ndarray, sigma: np.ndarray, source: str) -> "Prior":
+        """The prior with the accelerometer's b_a, S_a, G_a (``theta`` (9,), 1σ ``sigma``) measured by something
+        other than this session (a protocol's box-face poses): the recording is read through them first
+        (``previous``), as a previous calibration's."""
+        mean, sig = self.mean.copy(), self.sigma.copy()
+        mean[ACC], sig[ACC] = theta, np.maximum(np.asarray(sigma, float), 1e-12)
+        return Prior(mean, sig, f"{source}; the gyro: {self.source}", True)
+
     @classmethod
     def from_tolerance(cls, text: str) -> "Prior":
         """``calib run --prior-tolerance``: ``S=0.02,G=0.01,acc_bias=0.3,acc_S=0.02,acc_G=0.01`` (any subset; the
