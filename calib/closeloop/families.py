@@ -135,6 +135,22 @@ class NonOrthogonalityFamily(_AxisMatrix):
     follows_text = "the rate on the other axes (symmetric)"
 
 
+def _off_diagonal_vs_truth(effect_cls, finding_params, declared_params, true_effect, device):
+    """The total off-diagonal axis matrix N(G) + the finding's (``effect_cls``'s ``matrix()``) against the device's
+    N(G) + the true effect's: (estimate, truth, σ) over the six off-diagonal entries (what a misalignment-like
+    finding is scored by when its symmetric part trades with the declared non-orthogonality)."""
+    vals = np.array([v["value"] for v in finding_params.values()])
+    sig = np.array([v["sigma"] for v in finding_params.values()])
+    n_hat = np.array([declared_params[f"nonorthogonality.value[{i}]"]["value"] for i in range(3)])
+    n_sig = np.array([declared_params[f"nonorthogonality.value[{i}]"]["sigma"] for i in range(3)])
+    n_true = device["nonorthogonality"].params() if "nonorthogonality" in device else np.zeros(3)
+    tot_hat = nonortho_matrix(n_hat) + effect_cls(value=vals).matrix()
+    tot_true = nonortho_matrix(n_true) + true_effect.matrix()
+    sig_tot = np.hypot(nonortho_matrix(n_sig), np.abs(effect_cls(value=sig).matrix()))
+    off = ~np.eye(3, dtype=bool)
+    return tot_hat[off], tot_true[off], sig_tot[off]
+
+
 @register_family
 class MisalignmentFamily(_AxisMatrix):
     effects = (Misalignment,)
@@ -150,16 +166,7 @@ class MisalignmentFamily(_AxisMatrix):
     def compare_with_truth(self, kind, finding_params, declared_params, true_effect, device):
         """The misalignment's symmetric part trades with the declared non-orthogonality: compare the
         total off-diagonal matrix N + M."""
-        vals = np.array([v["value"] for v in finding_params.values()])
-        sig = np.array([v["sigma"] for v in finding_params.values()])
-        n_hat = np.array([declared_params[f"nonorthogonality.value[{i}]"]["value"] for i in range(3)])
-        n_sig = np.array([declared_params[f"nonorthogonality.value[{i}]"]["sigma"] for i in range(3)])
-        n_true = device["nonorthogonality"].params() if "nonorthogonality" in device else np.zeros(3)
-        tot_hat = nonortho_matrix(n_hat) + Misalignment(value=vals).matrix()
-        tot_true = nonortho_matrix(n_true) + true_effect.matrix()
-        sig_tot = np.hypot(nonortho_matrix(n_sig), Misalignment(value=sig).matrix())
-        off = ~np.eye(3, dtype=bool)
-        return tot_hat[off], tot_true[off], sig_tot[off]
+        return _off_diagonal_vs_truth(Misalignment, finding_params, declared_params, true_effect, device)
 
 
 @register_family
@@ -188,16 +195,7 @@ class GyroAccMisalignmentFamily(_AxisMatrix):
         """Against a true rotation α or a true general misalignment M (whose antisymmetric half this is, its
         symmetric half held by the declared non-orthogonality): the total off-diagonal matrix N − [α×] against
         N_true + M_true."""
-        vals = np.array([v["value"] for v in finding_params.values()])
-        sig = np.array([v["sigma"] for v in finding_params.values()])
-        n_hat = np.array([declared_params[f"nonorthogonality.value[{i}]"]["value"] for i in range(3)])
-        n_sig = np.array([declared_params[f"nonorthogonality.value[{i}]"]["sigma"] for i in range(3)])
-        n_true = device["nonorthogonality"].params() if "nonorthogonality" in device else np.zeros(3)
-        tot_hat = nonortho_matrix(n_hat) + GyroAccMisalignment(value=vals).matrix()
-        tot_true = nonortho_matrix(n_true) + true_effect.matrix()
-        sig_tot = np.hypot(nonortho_matrix(n_sig), np.abs(GyroAccMisalignment(value=sig).matrix()))
-        off = ~np.eye(3, dtype=bool)
-        return tot_hat[off], tot_true[off], sig_tot[off]
+        return _off_diagonal_vs_truth(GyroAccMisalignment, finding_params, declared_params, true_effect, device)
 
 
 @register_family
