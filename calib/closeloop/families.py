@@ -166,16 +166,17 @@ class MisalignmentFamily(_AxisMatrix):
     def compare_with_truth(self, kind, finding_params, declared_params, true_effect, device):
         """The misalignment's symmetric part trades with the declared non-orthogonality: compare the
         total off-diagonal matrix N + M."""
-        return _off_diagonal_vs_truth(Misalignment, finding_params, declared_params, true_effect, device)
+        return _off_diagonal_vs_truth(self.effects[0], finding_params, declared_params, true_effect, device)
 
 
 @register_family
-class GyroAccMisalignmentFamily(_AxisMatrix):
+class GyroAccMisalignmentFamily(MisalignmentFamily):
     """The gyro triad turned against the accelerometer's by small angles α: the antisymmetric part of the gyro's axis
     matrix (regressor [ω×]), three parameters where the general misalignment has six — its symmetric half trades with
     the declared non-orthogonality, this one with nothing the linear model holds.  Against the gravity reference the
     body frame is the accelerometer's (gravity's direction at each pose), so α is what a filter needs to carry the
-    accelerometer's gravity with the gyro."""
+    accelerometer's gravity with the gyro.  Scored against a true α or a true general misalignment M alike: the total
+    off-diagonal matrix N − [α×] against N_true + M_true."""
 
     effects = (GyroAccMisalignment,)
     driver = "the rate on the other axes (antisymmetric)"
@@ -184,18 +185,6 @@ class GyroAccMisalignmentFamily(_AxisMatrix):
 
     def plausible_max(self, kind, ctx):
         return math.radians(3.0)
-
-    def caveat(self, kind, reference_kind):
-        if reference_kind == "optical":
-            return ("a rotation between the IMU and the optical body frame (the reference's alignment) looks exactly "
-                    "like this")
-        return None
-
-    def compare_with_truth(self, kind, finding_params, declared_params, true_effect, device):
-        """Against a true rotation α or a true general misalignment M (whose antisymmetric half this is, its
-        symmetric half held by the declared non-orthogonality): the total off-diagonal matrix N − [α×] against
-        N_true + M_true."""
-        return _off_diagonal_vs_truth(GyroAccMisalignment, finding_params, declared_params, true_effect, device)
 
 
 @register_family
