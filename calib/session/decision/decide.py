@@ -14,7 +14,9 @@
    motion, a diverged estimate, an accelerometer the method took as calibrated.
 3. **The held-out check** (:mod:`calib.session.decision.heldout`): the method again on one half, its
    determined parameters predicting the other (with a motion that breaks the model the method is not run again:
-   only the rests' accelerometer is at stake).  S, G are applied when the ``gyro`` variant agrees, the
+   only the rests' accelerometer is at stake).  S, G are applied when the ``gyro`` variant agrees — or, the
+   accelerometer's agreeing, when S, G on top of that accelerometer predict better than it alone (a raw
+   accelerometer sets the gravity the pairs are scored against and can hide what S, G do) —, the
    accelerometer when the ``accelerometer`` variant agrees (and not when S, G alone agree and ``full``
    disagrees).  A part the check rejects is left at the prior and the status is not ``ok``; a part it could not
    test (no half determined it) is left at the prior too, with a line saying so, and does not change the status —
@@ -39,6 +41,7 @@ from gyrosim.errors import GyrosimError
 from gyrosim.recording import Recording
 
 from calib.session.decision.heldout import (
+    GYRO_GIVEN_ACC,
     CrossCheck,
     HeldOutCheck,
     HeldOutParams,
@@ -362,13 +365,24 @@ def _permitted(det: Determination, check: CrossCheck | None) -> tuple[np.ndarray
     allowed, rejected = np.zeros(18, bool), np.zeros(18, bool)
     if check is None:
         return allowed, rejected
-    g, a = check.verdict("gyro"), check.verdict("accelerometer")
+    g, a = _sg_verdict(check), check.verdict("accelerometer")
     if g == "agrees" and a == "agrees" and check.verdict("full") == "disagrees":
         a = "disagrees"
     for part, verdict in ((sg, g), (acc, a)):
         allowed |= part & det.determined & (verdict == "agrees")
         rejected |= part & det.determined & (verdict == "disagrees")
     return allowed, rejected
+
+
+def _sg_verdict(check: CrossCheck) -> str:
+    """S, G's verdict: the ``gyro`` variant's (S, G with the raw accelerometer), or — when that does not agree and the
+    accelerometer's does — S, G judged on top of the accelerometer they are applied with
+    (:data:`~calib.session.decision.heldout.GYRO_GIVEN_ACC`): a raw accelerometer sets the gravity the pairs are
+    scored against and can hide what S, G do."""
+    g = check.verdict("gyro")
+    if g != "agrees" and check.verdict("accelerometer") == "agrees" and check.verdict(GYRO_GIVEN_ACC) == "agrees":
+        return "agrees"
+    return g
 
 
 def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Calibration], prior: Prior,
@@ -516,9 +530,10 @@ def _check_line(check: CrossCheck) -> str:
     best = next((s for s in check.sources if s.name.startswith("reference") and s.informative(check.params)), None)
     best = best or next((s for s in check.sources if s.informative(check.params)), check.sources[0])
     shown = next((v for v in ("full", "gyro", "accelerometer") if v in best.rms), "bias")
-    verdicts = ", ".join(f"{name} {check.verdict(v)}" for name, v in (("S, G", "gyro"), ("accelerometer",
+    shown_verdicts = {"gyro": _sg_verdict(check), "accelerometer": check.verdict("accelerometer")}
+    verdicts = ", ".join(f"{name} {shown_verdicts[v]}" for name, v in (("S, G", "gyro"), ("accelerometer",
                                                                                          "accelerometer"))
-                         if check.verdict(v) != "inconclusive" or v in best.rms)
+                         if shown_verdicts[v] != "inconclusive" or v in best.rms)
     return (f"held-out check ({spans}): {verdicts or 'nothing to test'}; {best.name.replace('_', ' ')} RMS raw "
             f"{best.rms['raw']:.2f}, bias only {best.rms['bias']:.2f}"
             + (f", calibrated {best.rms[shown]:.2f}" if shown != "bias" else "") + f" {best.unit}"

@@ -59,9 +59,11 @@ from gyrosim.strapdown import integrate_gyro
 sp_signal = lazy_module("scipy.signal")   # imported on first use: not before a bad file is refused
 
 __all__ = ["HeldOutParams", "HeldOutCheck", "CrossCheck", "SourceScore", "held_out_check", "split_recording",
-           "split_point", "VARIANTS", "has_measured_reference", "linear_compensate"]
+           "split_point", "VARIANTS", "GYRO_GIVEN_ACC", "has_measured_reference", "linear_compensate"]
 
 VARIANTS = ("raw", "bias", "gyro", "accelerometer", "full")
+# the verdict on S, G with the accelerometer calibrated ("full" against "accelerometer"): :func:`_given_accelerometer`
+GYRO_GIVEN_ACC = "gyro_given_accelerometer"
 SOURCES = {"gyro": ("gravity_pairs", "rests", "reference_rotation"),
            "accelerometer": ("gravity_pairs", "rests", "rest_gravity", "reference_inclination"),
            "full": ("gravity_pairs", "rests", "rest_gravity", "reference_rotation", "reference_inclination"),
@@ -99,6 +101,7 @@ class SourceScore:
     rms: dict
     vs_bias: dict
     vs_raw: dict
+    vs_accelerometer: dict = field(default_factory=dict)   # "full" against the accelerometer alone
 
     def informative(self, p: HeldOutParams) -> bool:
         return self.items >= (2 if self.name in FEW_ITEM_SOURCES else p.min_items)
@@ -114,7 +117,9 @@ class SourceScore:
         r = lambda x: round(float(x), 5)  # noqa: E731
         return {"items": self.items, "unit": self.unit, "rms": {k: r(v) for k, v in self.rms.items()},
                 "vs_bias_only": {k: [r(m), r(s)] for k, (m, s) in self.vs_bias.items()},
-                "vs_raw": {k: [r(m), r(s)] for k, (m, s) in self.vs_raw.items()}}
+                "vs_raw": {k: [r(m), r(s)] for k, (m, s) in self.vs_raw.items()},
+                **({"vs_accelerometer_only": {k: [r(m), r(s)] for k, (m, s) in self.vs_accelerometer.items()}}
+                   if self.vs_accelerometer else {})}
 
 
 @dataclass(frozen=True)
@@ -344,7 +349,11 @@ def held_out_check(predicted: Recording, variants: dict, rests: tuple[tuple[int,
             rms[name] = float(np.sqrt(np.mean(v**2))) if v.size else float("nan")
             vs_b[name] = _paired(v - base, t, params.block_s)
             vs_r[name] = _paired(v - raw, t, params.block_s)
-        sources.append(SourceScore(src, UNITS.get(src, "°"), int(t.size), rms, vs_b, vs_r))
+        vs_a = {}
+        if "full" in errs and "accelerometer" in errs:   # S, G on top of the calibrated accelerometer
+            _, acc_only = errs["accelerometer"][src]
+            vs_a = {"full": _paired(errs["full"][src][1] - acc_only, t, params.block_s)}
+        sources.append(SourceScore(src, UNITS.get(src, "°"), int(t.size), rms, vs_b, vs_r, vs_a))
     verdicts = {}
     for name in errs:
         if name == "raw":
@@ -356,7 +365,23 @@ def held_out_check(predicted: Recording, variants: dict, rests: tuple[tuple[int,
             verdicts[name] = "disagrees"
         else:
             verdicts[name] = "agrees"
+    if "full" in errs and "accelerometer" in errs:
+        verdicts[GYRO_GIVEN_ACC] = _given_accelerometer(sources, params)
     return HeldOutCheck(trained_s, predicted_s, tuple(sources), verdicts, params, notes)
+
+
+def _given_accelerometer(sources: list[SourceScore], params: HeldOutParams) -> str:
+    """S, G judged on top of the calibrated accelerometer: ``full`` against ``accelerometer`` alone on the sources
+    S, G reach — no worse on any with enough items (``z`` standard errors) and better on one.  With the accelerometer
+    left raw (the ``gyro`` variant) its own errors set the gravity the pairs are scored against and can hide what S, G
+    do."""
+    used = [s for s in sources if s.name in SOURCES["gyro"] and s.informative(params) and "full" in s.vs_accelerometer]
+    if not used:
+        return "inconclusive"
+    diffs = [s.vs_accelerometer["full"] for s in used]
+    if any(m > params.z * se for m, se in diffs) or not any(m < 0.0 for m, _ in diffs):
+        return "disagrees"
+    return "agrees"
 
 
 @dataclass(frozen=True)
@@ -380,7 +405,7 @@ class CrossCheck:
         return "agrees" if "agrees" in v else "inconclusive"
 
     def to_dict(self) -> dict:
-        return {"verdicts": {v: self.verdict(v) for v in VARIANTS if v != "raw"},
+        return {"verdicts": {v: self.verdict(v) for v in VARIANTS + (GYRO_GIVEN_ACC,) if v != "raw"},
                 "folds": [f.to_dict() for f in self.folds], "notes": list(self.notes),
                 "split": "at the rest nearest the middle when one lies in the middle half (both halves start at a "
                          "rest: two folds), else at the middle (the first half predicts the second)"}
