@@ -71,7 +71,7 @@ SENSOR_NOMINALS = 3 * len(SENSOR_EXTRA_BLOCKS)  # c_b, s_T, k, c_a, δ (calib.se
 
 __all__ = ["BatchResult", "FilterRecord", "FilterRun", "LeverJacobian", "Signals", "Start", "Settings", "Shaping",
            "RecordArrays", "FilterInputs", "filter_inputs", "run_batch", "run_filter", "regressor_half_window",
-           "ext_acc_discrete", "HAND_NOMINALS", "SENSOR_NOMINALS"]
+           "ext_acc_discrete", "HAND_NOMINALS", "SENSOR_NOMINALS", "warm_up"]
 
 
 __getattr__ = moved_attribute(__name__)   # crlb, crlb_joint: calib.session.bounds
@@ -160,6 +160,60 @@ class RecordArrays(NamedTuple):
     updated: np.ndarray
 
 
+class Outputs(NamedTuple):
+    """What the compiled loop writes (:class:`FilterRun`'s arrays), allocated by :func:`run_filter`: θ̂, P, the hand's
+    and the sensor's extra nominals start as copies of :class:`Start`'s; NIS, innovations and whitened innovations
+    as NaN (no update); the histories (B, N − 1 | 0, …) filled when ``Settings.keep``."""
+
+    theta: np.ndarray           # (B, 18)
+    P: np.ndarray               # (B, n, n)
+    hand: np.ndarray            # (B, HAND_NOMINALS)
+    sensor: np.ndarray          # (B, SENSOR_NOMINALS)
+    quat: np.ndarray            # (B, 4)
+    nis: np.ndarray             # (B, N − 1)
+    innovation: np.ndarray      # (B, N − 1, 3)
+    whitened: np.ndarray        # (B, N − 1, 3)
+    sd_history: np.ndarray      # (B, N − 1 | 0, n)
+    theta_history: np.ndarray   # (B, N − 1 | 0, 18)
+
+
+class Scratch(NamedTuple):
+    """The loop's working arrays, allocated once by :func:`run_filter` (numba compiles every numpy allocation the loop
+    itself would make): the shaping filter's rows, Φ's φ rows E and H by their non-zero columns, the update's
+    products (P Hᵀ, T Hᵀ, K, T, S, S⁻¹, z, x, the error state's mean), 3 × 3 matrices (M̂⁻¹, Ĉ mid-step,
+    −Ĉ M̂⁻¹ Δt, Ĉ, M̂_a⁻¹, Ĉ M̂_a⁻¹, two products, the identity) and Ĉ J."""
+
+    lrow: np.ndarray
+    lv: np.ndarray
+    E: np.ndarray
+    ecols: np.ndarray
+    A: np.ndarray
+    EPE: np.ndarray
+    Hc: np.ndarray
+    hcols: np.ndarray
+    J: np.ndarray
+    dlt: np.ndarray
+    PHt: np.ndarray
+    THt: np.ndarray
+    K: np.ndarray
+    T: np.ndarray
+    S: np.ndarray
+    Si: np.ndarray
+    z: np.ndarray
+    x: np.ndarray
+    xs: np.ndarray
+    Mi: np.ndarray
+    Cm: np.ndarray
+    CM: np.ndarray
+    C: np.ndarray
+    Mia: np.ndarray
+    CMa: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    I3: np.ndarray
+    CJ: np.ndarray
+
+
 class FilterInputs(NamedTuple):
     """Everything the compiled loop reads, checked and broadcast by :func:`filter_inputs`."""
 
@@ -173,8 +227,13 @@ class FilterInputs(NamedTuple):
 # ---------------------------------------------------------------------------------------------------------------------
 # small compiled helpers: 3-vectors, quaternions, 3 × 3 matrices, H stored by its non-zero columns
 
+# the loop's helpers are called from compiled code only: no Python entry point (numba otherwise builds, optimises and
+# emits one per function, a tenth of the first compile), and no cache of their own (their code is linked into
+# _kernel's, which is cached)
+_loop_helper = njit(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
-@njit
+
+@_loop_helper
 def _nb_qmul(p, q):  # pragma: no cover - compiled
     """p ⊗ q, quaternions (w, x, y, z) as 4-tuples of floats."""
     return (p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
@@ -183,7 +242,7 @@ def _nb_qmul(p, q):  # pragma: no cover - compiled
             p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0])
 
 
-@njit
+@_loop_helper
 def _nb_qexp(v0, v1, v2):  # pragma: no cover - compiled
     """Exp of the rotation vector (v0, v1, v2) (rad) as a 4-tuple."""
     th = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
@@ -191,14 +250,14 @@ def _nb_qexp(v0, v1, v2):  # pragma: no cover - compiled
     return (math.cos(0.5 * th), k * v0, k * v1, k * v2)
 
 
-@njit
+@_loop_helper
 def _nb_qnormalised(q):  # pragma: no cover - compiled
     """q / |q| (4-tuple)."""
     s = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
     return (q[0] / s, q[1] / s, q[2] / s, q[3] / s)
 
 
-@njit
+@_loop_helper
 def _nb_qmat(q, m):  # pragma: no cover - compiled
     """m (3 × 3) = the rotation matrix of the 4-tuple q (body → nav)."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -207,7 +266,7 @@ def _nb_qmat(q, m):  # pragma: no cover - compiled
     m[2, 0], m[2, 1], m[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
 
 
-@njit
+@_loop_helper
 def _nb_minv(s, g, a, mi):  # pragma: no cover - compiled
     """mi = (I + diag(s) + N(g) − [a×])⁻¹ (3-tuples; a = 0 without the gyro's rotation against the accelerometer):
     the adjugate over the determinant (symmetric when a = 0)."""
@@ -225,7 +284,7 @@ def _nb_minv(s, g, a, mi):  # pragma: no cover - compiled
     mi[2, 2] = (m00 * m11 - m01 * m10) / det
 
 
-@njit
+@_loop_helper
 def _nb_mv(m, v):  # pragma: no cover - compiled
     """m v for a 3 × 3 array and a 3-tuple, as a 3-tuple (summed in column order)."""
     return (m[0, 0] * v[0] + m[0, 1] * v[1] + m[0, 2] * v[2],
@@ -233,7 +292,7 @@ def _nb_mv(m, v):  # pragma: no cover - compiled
             m[2, 0] * v[0] + m[2, 1] * v[1] + m[2, 2] * v[2])
 
 
-@njit
+@_loop_helper
 def _nb_matmul(a, b, out):  # pragma: no cover - compiled
     """out (3 × c) = a (3 × 3) b (3 × c), summed in column order."""
     for i in range(3):
@@ -241,7 +300,7 @@ def _nb_matmul(a, b, out):  # pragma: no cover - compiled
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@njit
+@_loop_helper
 def _nb_jg(w, c, j):  # pragma: no cover - compiled
     """j = J_G(ω) = ∂(N(G) ω)/∂G (calib.session.model.jacobian_nonorthogonality) for c = +1, and [ω×] = ∂(ω × α)/∂α
     (the misalignment's column of δω) for c = −1: the same pattern with entries (0, 1), (1, 2), (2, 0) times c."""
@@ -250,7 +309,7 @@ def _nb_jg(w, c, j):  # pragma: no cover - compiled
     j[2, 0], j[2, 1], j[2, 2] = c * w[1], w[0], 0.0
 
 
-@njit
+@_loop_helper
 def _nb_put(dst, cols, start, block, first, v, c, offset):  # pragma: no cover - compiled
     """Write 3 columns of ``block`` (3 × ≥ 3, from column ``first``), column j times v[j] and c, into ``dst`` from
     column ``start``, naming them state ``offset`` … ``offset + 2`` in ``cols``; returns the next free column.
@@ -263,7 +322,7 @@ def _nb_put(dst, cols, start, block, first, v, c, offset):  # pragma: no cover -
     return start + 3
 
 
-@njit
+@_loop_helper
 def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
     """out (n × m) = A Hᵀ for H stored by its non-zero columns ``hc`` (3 × nh) at states ``hcols``."""
     for r in range(a.shape[0]):
@@ -274,7 +333,7 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
             out[r, i] = s
 
 
-@njit
+@_loop_helper
 def _nb_hph(hc, hcols, nh, pht, m, r_var, out):  # pragma: no cover - compiled
     """out (m × m) = H (P Hᵀ) + R I for H stored by its non-zero columns (``_nb_times_ht``) and ``pht`` = P Hᵀ."""
     for i in range(m):
@@ -286,7 +345,7 @@ def _nb_hph(hc, hcols, nh, pht, m, r_var, out):  # pragma: no cover - compiled
         out[i, i] += r_var
 
 
-@njit
+@_loop_helper
 def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
     """Si = S⁻¹ for m = 2 or 3 (adjugate over determinant)."""
     if m == 2:
@@ -329,7 +388,7 @@ def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
 # one step of the filter, block by block (each called from _kernel)
 
 
-@njit
+@_loop_helper
 def _propagate_gauss_markov(Pb, xs, hd, o_ea, o_el, o_e2, al, be, gm_var):  # pragma: no cover - compiled
     """a_e = x − z (− z₂) per nav axis: x ← α x (α = e^{−Δt/τ}, Q = σ²(1 − α²)), z ← β z + (1 − β) x and
     z₂ ← β z₂ + (1 − β)(x − z) with the old x, z (β = e^{−Δt/τ_h}): nominal ``hd``, error-state mean ``xs`` and
@@ -361,7 +420,7 @@ def _propagate_gauss_markov(Pb, xs, hd, o_ea, o_el, o_e2, al, be, gm_var):  # pr
         Pb[c, c] += gm_var * (1.0 - al * al)
 
 
-@njit
+@_loop_helper
 def _propagate_shaping(Pb, xs, hd, d, offs_ae, phi, q, lrow, lv):  # pragma: no cover - compiled
     """a_e's general shaping filter per nav axis j: x ← Φ x (nominal ``hd`` and error-state mean ``xs``),
     P ← Φ P Φᵀ + Q_d on the axis's d states (Φ block-diagonal over the axes: its zeros skipped)."""
@@ -407,7 +466,7 @@ def _propagate_shaping(Pb, xs, hd, d, offs_ae, phi, q, lrow, lv):  # pragma: no 
                 Pb[offs_ae[i] + j, offs_ae[l] + j] += q[i, l]
 
 
-@njit
+@_loop_helper
 def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o_ma, X, Y):  # pragma: no cover
     """The φ rows of Φ − I, E (3 × ne) in the columns ``ecols``, with CM = −Ĉ M̂⁻¹ Δt: the gyro error δω = M̂⁻¹ (X(ω)
     [δS; δG] + δb + …) turns the attitude by −Ĉ δω Δt (``wr``, ``fm`` 3-tuples; ``X``, ``Y`` 3 × 3 scratch).
@@ -433,7 +492,7 @@ def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o
     return ne
 
 
-@njit
+@_loop_helper
 def _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, qd, o_bg, bias_q):  # pragma: no cover - compiled
     """x ← (I + E) x (non-zero only before the first update: the prior mean x₀); P ← (I + E) P (I + E)ᵀ + Q =
     P + EP + (EP)ᵀ + E P Eᵀ + Q, Q_φφ = N_g² Δt I (``qd``), Q_bb = q_b Δt I (``bias_q``, with a bias block)."""
@@ -472,7 +531,7 @@ def _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, qd, o_bg, bias_q):  #
             Pb[o_bg + j, o_bg + j] += bias_q
 
 
-@njit
+@_loop_helper
 def _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force, k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
     """K r̂ was built at the pass's θ₀ and the nominal moved since: dlt = θ̂ − θ₀ for (S, G, b) (and α̂ − α₀ when J has
     the misalignment's columns), with θ̂'s S and b at this sample's temperature (and force, read at sample ``k`` with
@@ -497,7 +556,7 @@ def _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force, k, o_ts, o_tb, o_gs): 
     return (s0, s1, s2)
 
 
-@njit
+@_loop_helper
 def _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, d, lti_c):  # pragma: no cover - compiled
     """z = Ĉ f̂ − g_up − â_e (nav): the levelling residual at the nominal (f̂ already compensated, lever arm removed)."""
     for i in range(3):
@@ -516,7 +575,7 @@ def _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, d, lti_c):  # pragma: no cover
                 z[i] -= lti_c[l] * hd[3 + 3 * l + i]
 
 
-@njit
+@_loop_helper
 def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J, jac_on, offs, offs_x,
                  o_ea, o_el, o_e2, sh, I3, CMa, X, Y, CJ):  # pragma: no cover - compiled
     """H (rows × n) stored by its non-zero columns: [g_up×] on φ, Ĉ M̂_a⁻¹ [I, diag(f), J_G(f)] on the accelerometer,
@@ -577,7 +636,7 @@ def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J
     return nh
 
 
-@njit
+@_loop_helper
 def _update_covariance(Pb, K, PHt, Si, T, THt, Hc, hcols, nh, m, r_var):  # pragma: no cover - compiled
     """K = P Hᵀ S⁻¹, then the Joseph form P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ as T = P − K (P Hᵀ)ᵀ,
     P = T − (T Hᵀ) Kᵀ + K R Kᵀ, re-symmetrised."""
@@ -608,7 +667,7 @@ def _update_covariance(Pb, K, PHt, Si, T, THt, Hc, hcols, nh, m, r_var):  # prag
             Pb[c, r] = v
 
 
-@njit
+@_loop_helper
 def _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh):  # pragma: no cover - compiled
     """x = x⁻ + K (z − H x⁻) (``z`` already the innovation), then the reset: θ̂ += δθ̂, the hand's and the sensor's
     extra nominals += their δ, and the error state back to zero (the attitude's part is applied by the caller)."""
@@ -654,7 +713,7 @@ def _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh):  # 
             sx[15 + j] += x[offs_x[5] + j]
 
 
-@njit
+@_loop_helper
 def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs, o_ma, Mi, Cm, CM):  # pragma: no cover
     """The nominal's step k−1 → k (one run's arrays, sample index ``k``): M̂⁻¹ (into ``Mi``) and b̂ at the step's mid
     temperature (ΔT = ``dtm``; and mid specific force with the g-sensitivity: b_g,i += k_i f_i), the compensated rates
@@ -687,7 +746,7 @@ def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs, o_m
     return q, wr, fm
 
 
-@njit
+@_loop_helper
 def _corrected_force(C, th, sx, th0, sx0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
                      offs_x, jac_on, Mia):  # pragma: no cover - compiled
     """The compensated specific force at sample ``k`` (body): f̂ = M̂_a⁻¹(f̃ − b̂_a − ĉ_a ΔT) + δ̂ ⊙ ḟ̃ − K r̂ − J (θ̂ − θ₀),
@@ -720,7 +779,7 @@ def _corrected_force(C, th, sx, th0, sx0, acc_k, temp_k, acc_rate, lever, force,
     return fh, fr
 
 
-@njit
+@_loop_helper
 def _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_row, wht_row):  # pragma: no cover - compiled
     """ν = z − H x (``z`` in place), its NIS νᵀS⁻¹ν and the whitened levelling rows L⁻¹ν (S = L Lᵀ), written to
     ``inn_row``, ``wht_row``; returns the NIS."""
@@ -743,7 +802,7 @@ def _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_row, wht_row):  # pragma: no
     return nis
 
 
-@njit
+@_loop_helper
 def _record_transition(rec, k, E, ecols, ne, gm_on, dt, gm_tau, hp_tau):  # pragma: no cover - compiled
     """Step k's propagation into the linear error model (:class:`FilterRecord`)."""
     rec.ne[k] = ne
@@ -756,7 +815,7 @@ def _record_transition(rec, k, E, ecols, ne, gm_on, dt, gm_tau, hp_tau):  # prag
         rec.decay[k, 1] = math.exp(-dt / hp_tau)
 
 
-@njit
+@_loop_helper
 def _record_update(rec, k, Hc, hcols, nh, K, m):  # pragma: no cover - compiled
     """Step k's update (gain and H) into the linear error model (:class:`FilterRecord`)."""
     rec.updated[k] = True
@@ -775,29 +834,16 @@ def _record_update(rec, k, Hc, hcols, nh, K, m):  # pragma: no cover - compiled
 
 
 @njit(cache=True, fastmath=False)
-def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
-    """B runs of N samples (:func:`run_filter`); returns (θ̂, P, q, NIS, innovations, √diag P history, θ̂ history,
-    the hand's nominals, whitened innovations, the sensor's extra nominals)."""
+def _kernel(t, sig, start, st, sh, rec, out, w):  # pragma: no cover - compiled
+    """B runs of N samples (:func:`run_filter`) into ``out`` (:class:`Outputs`, θ̂, P and the extra nominals already
+    holding the start), with the scratch ``w`` (:class:`Scratch`)."""
     B, N = sig.gyro.shape[0], sig.gyro.shape[1]
     n = start.P.shape[1]
-    theta = start.theta.copy()
-    # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
-    # (general shaping filter, sh.d > 0: component i of axis j at 3 + 3i + j)
-    hand = start.hand.copy()
-    # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15),
-    # the gyro's misalignment α (15:18): calib.session.model.SENSOR_EXTRA_BLOCKS
-    sens = start.sensor.copy()
-    P = start.P.copy()
-    qout = np.zeros((B, 4))
-    nis_out = np.empty((B, N - 1))
-    nis_out.fill(np.nan)
-    inn_out = np.empty((B, N - 1, 3))
-    inn_out.fill(np.nan)
-    wht_out = np.empty((B, N - 1, 3))                         # whitened innovations L⁻¹ν, S = L Lᵀ
-    wht_out.fill(np.nan)
-    nk = N - 1 if st.keep else 0
-    hsd = np.zeros((B, nk, n))
-    hth = np.zeros((B, nk, 18))
+    # hand: nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12) (general shaping filter,
+    # sh.d > 0: component i of axis j at 3 + 3i + j); sens: the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9),
+    # the accelerometer's c_a (9:12) and delay δ (12:15), the gyro's misalignment α (15:18) (SENSOR_EXTRA_BLOCKS)
+    theta, P, hand, sens, qout = out.theta, out.P, out.hand, out.sensor, out.quat
+    nis_out, inn_out, wht_out, hsd, hth = out.nis, out.innovation, out.whitened, out.sd_history, out.theta_history
     offs, offs_x = st.offsets, st.sensor_offsets
     o_sg, o_gg, o_bg, o_lv = offs[1], offs[2], offs[3], offs[7]
     o_ea, o_el = offs[8], offs[9]
@@ -806,33 +852,10 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
         o_ea, o_el, o_e2 = -1, -1, -1
     o_tb, o_ts, o_gs, o_ma = offs_x[0], offs_x[1], offs_x[2], offs_x[5]
     gz, m = st.gravity, st.rows
-    lrow = np.zeros((9, n))
-    lv = np.zeros(9)
-    E = np.zeros((3, E_COLS))
-    ecols = np.zeros(E_COLS, dtype=np.int64)
-    A = np.zeros((3, n))
-    EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, H_COLS))                                 # H's non-zero columns (H_COLS)
-    hcols = np.zeros(H_COLS, dtype=np.int64)
     jac_on = o_lv >= 0 and sig.jac_rate.shape[1] > 1           # K r̂'s dependence on the gyro's errors (LeverJacobian)
-    J = np.zeros((3, sig.jac_d_rate.shape[3]))             # (S, G, b[, α])
-    dlt = np.zeros(J.shape[1])
-    PHt = np.zeros((n, 3))
-    THt = np.zeros((n, 3))
-    K = np.zeros((n, 3))
-    T = np.zeros((n, n))
-    S = np.zeros((3, 3))
-    Si = np.zeros((3, 3))
-    z = np.zeros(3)
-    x = np.zeros(n)
-    xs = np.zeros(n)
-    # 3 × 3 scratch: M̂⁻¹, Ĉ mid-step, −Ĉ M̂⁻¹ Δt, Ĉ, M̂_a⁻¹, Ĉ M̂_a⁻¹, two products, the identity; Ĉ J
-    Mi, Cm, CM, C, Mia, CMa = (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)),
-                               np.zeros((3, 3)), np.zeros((3, 3)))
-    X, Y, I3 = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
-    for i in range(3):
-        I3[i, i] = 1.0
-    CJ = np.zeros((3, J.shape[1]))
+    lrow, lv, E, ecols, A, EPE, Hc, hcols = w.lrow, w.lv, w.E, w.ecols, w.A, w.EPE, w.Hc, w.hcols
+    J, dlt, PHt, THt, K, T, S, Si, z, x, xs = w.J, w.dlt, w.PHt, w.THt, w.K, w.T, w.S, w.Si, w.z, w.x, w.xs
+    Mi, Cm, CM, C, Mia, CMa, X, Y, I3, CJ = w.Mi, w.Cm, w.CM, w.C, w.Mia, w.CMa, w.X, w.Y, w.I3, w.CJ
     for b in range(B):
         Pb = P[b]
         th = theta[b]
@@ -889,7 +912,6 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
                     hth[b, k - 1, i] = th[i]
         qout[b, 0], qout[b, 1], qout[b, 2], qout[b, 3] = q   # element by element: a slice assignment compiles
                                                                # numba's shape-mismatch error text
-    return theta, P, qout, nis_out, inn_out, hsd, hth, hand, wht_out, sens
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -1095,6 +1117,25 @@ def filter_inputs(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.
     return FilterInputs(t, signals, start, settings, _shaping(layout, config, t))
 
 
+def _outputs(start: Start, N: int, keep: bool) -> Outputs:
+    """The loop's outputs, before it runs (:class:`Outputs`)."""
+    B, n = start.P.shape[:2]
+    nk = N - 1 if keep else 0
+    return Outputs(start.theta.copy(), start.P.copy(), start.hand.copy(), start.sensor.copy(), np.zeros((B, 4)),
+                   np.full((B, N - 1), np.nan), np.full((B, N - 1, 3), np.nan), np.full((B, N - 1, 3), np.nan),
+                   np.zeros((B, nk, n)), np.zeros((B, nk, 18)))
+
+
+def _scratch(n: int, jac_columns: int) -> Scratch:
+    """The loop's working arrays (:class:`Scratch`) for n states and the lever arm Jacobian's columns."""
+    z33 = [np.zeros((3, 3)) for _ in range(8)]
+    return Scratch(np.zeros((9, n)), np.zeros(9), np.zeros((3, E_COLS)), np.zeros(E_COLS, np.int64), np.zeros((3, n)),
+                   np.zeros((3, 3)), np.zeros((3, H_COLS)), np.zeros(H_COLS, np.int64), np.zeros((3, jac_columns)),
+                   np.zeros(jac_columns), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, n)),
+                   np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.zeros(n), np.zeros(n), *z33, np.eye(3),
+                   np.zeros((3, jac_columns)))
+
+
 def _record_arrays(n: int, N: int, on: bool) -> RecordArrays:
     """Room for the first run's linear error model (one row per step when ``on``, else placeholders)."""
     nr = N if on else 1
@@ -1148,17 +1189,30 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     st = inp.settings
     B, N = inp.signals.gyro.shape[:2]
     rec = _record_arrays(layout.n, N, st.record)
-    theta, p, q, nis, inn, hsd, hth, hand, wht, sens = _kernel(inp.t, inp.signals, inp.start, st, inp.shaping, rec)
+    out = _outputs(inp.start, N, st.keep)
+    _kernel(inp.t, inp.signals, inp.start, st, inp.shaping, rec, out,
+            _scratch(layout.n, inp.signals.jac_d_rate.shape[3]))
     return FilterRun(
-        layout, theta, p, q, nis, inn,
-        hsd if st.keep else None,
-        hth if st.keep else None,
-        hand if layout.models_hand else None,
-        wht,
-        sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay
+        layout, out.theta, out.P, out.quat, out.nis, out.innovation,
+        out.sd_history if st.keep else None,
+        out.theta_history if st.keep else None,
+        out.hand if layout.models_hand else None,
+        out.whitened,
+        out.sensor if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay
                  or layout.models_misalignment) else None,
         FilterRecord(*rec, rows=st.rows) if st.record else None,
     )
+
+
+def warm_up() -> None:
+    """Compile the loop (or load it from numba's cache) by running the paper's filter on 3 still samples: every layout
+    and option reaches :func:`_kernel` with the same argument types (:func:`filter_inputs` makes each array float64,
+    int64 or bool, C-contiguous, of a fixed rank), so this one compile serves them all."""
+    config = FilterConfig(arw_rad_s_sqrt_hz=1e-4, vrw_m_s2_sqrt_hz=1e-3)
+    acc = np.zeros((1, 3, 3))
+    acc[..., 2] = config.gravity_m_s2
+    run_filter(np.zeros((1, 3, 3)), acc, np.arange(3) / 100.0, np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(18),
+               initial_covariance(PAPER, config), PAPER, config, 100.0)
 
 
 @dataclass(frozen=True)
