@@ -365,8 +365,7 @@ def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
         Si[2, 0], Si[2, 1], Si[2, 2] = c02 / d, c12 / d, c22 / d
 
 
-@njit(cache=True)
-def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
+def _lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
     """out (3 × 9 | 12) = ∂(K(ω, ω̇) r)/∂(S, G, b[, α]) at ω = ``ws`` (the low-passed compensated rate), for the rate's
     low-passed sensitivities ``ld`` = L ∂ω/∂θ (3 × 9) and ``ldd`` = d/dt of it: with a = ω̇ × r + ω × (ω × r),
     δa = δω̇ × r + δω × (ω × r) + ω × (δω × r) (:func:`calib.session.hand.lever.lever_jacobian`)."""
@@ -382,6 +381,10 @@ def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
         out[0, c] = (d1 * r[2] - d2 * r[1]) + (v1 * u2 - v2 * u1) + (ws[1] * p2 - ws[2] * p1)
         out[1, c] = (d2 * r[0] - d0 * r[2]) + (v2 * u0 - v0 * u2) + (ws[2] * p0 - ws[0] * p2)
         out[2, c] = (d0 * r[1] - d1 * r[0]) + (v0 * u1 - v1 * u0) + (ws[0] * p1 - ws[1] * p0)
+
+
+lever_jacobian_columns = njit(cache=True)(_lever_jacobian_columns)   # from Python (the reference filter, tests)
+_nb_lever_jacobian = _loop_helper(_lever_jacobian_columns)            # from the loop: no Python entry point
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -772,7 +775,7 @@ def _corrected_force(C, th, sx, th0, sx0, acc_k, temp_k, acc_rate, lever, force,
         kr = _nb_mv(lever[k], (hd[0], hd[1], hd[2]))
         fh = (fh[0] - kr[0], fh[1] - kr[1], fh[2] - kr[2])
     if jac_on:                                             # K was built at the pass's θ₀, the nominal moved since:
-        lever_jacobian_columns(jw[k], jd[k], jdd[k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
+        _nb_lever_jacobian(jw[k], jd[k], jdd[k], hd[0:3], J)       # J = ∂(K r̂)/∂(S, G, b) (body)
         # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
         sh_k = _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force, k, o_ts, o_tb, o_gs)
         fh = (fh[0] - sh_k[0], fh[1] - sh_k[1], fh[2] - sh_k[2])
