@@ -7,6 +7,7 @@ attitude on a second session of the same device, write the recording, the report
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -41,6 +42,7 @@ def run_demo(
     method: str | None = None,
     progress: Callable[[int], None] | None = None,
     log: Callable[[str], None] = lambda msg: None,
+    compile_ahead: bool = True,
 ) -> DemoResult:
     """Simulate ``schedule`` × ``hand`` × ``sensor`` (seed ``seed``), calibrate it with ``method`` (a registered name;
     None: ``calib run``'s default, :func:`calib.session.defaults.default_method` — the hand-aware ``kf_hand_joint``,
@@ -48,7 +50,19 @@ def run_demo(
     ``method="kf_joint"`` still does: Zhou's Figures 2–3 on the paper's sensor), validate the
     attitude on the free-style session of seed + 1000 (:func:`calib.session.validation.validate_attitude`), and write
     :data:`DEMO_FILES` into ``out`` (created).  ``progress(physics_steps)`` follows the simulation; ``log(text)`` the
-    stages."""
+    stages.  ``compile_ahead``: compile the filter in a background process while the session is simulated
+    (:class:`calib.app.warmup.FilterWarmup`; the first run on a machine is ~20 s shorter, later runs load it from
+    numba's cache either way)."""
+    from calib.app.warmup import FilterWarmup
+
+    with FilterWarmup() if compile_ahead else nullcontext() as warm:
+        return _run_demo(Path(out), schedule, hand, sensor, rate_hz, seed, accelerometer, method, progress, log, warm)
+
+
+def _run_demo(out: Path, schedule: str, hand: str, sensor: str, rate_hz: float, seed: int, accelerometer: str,
+              method: str | None, progress: Callable[[int], None] | None, log: Callable[[str], None],
+              warm) -> DemoResult:
+    """:func:`run_demo`'s steps; ``warm`` the filter's background compile (or None), waited for before calibrating."""
     from gyrosim.hand import load_hand
     from gyrosim.recording import save_hdf5
     from gyrosim.schedule import load_schedule
@@ -61,12 +75,13 @@ def run_demo(
     from calib.session.paper import calibrate, true_gyro_parameters
     from calib.session.validation import validate_attitude
 
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     sched, hnd, model = load_schedule(schedule), load_hand(hand), load_sensor(sensor)
     rec = simulate(sched, hnd, model, rate_hz, seed=seed, progress=progress)
     rec_path = save_hdf5(rec, out / "session.h5")
     name = method or default_method(accelerometer)
+    if warm is not None:
+        warm.wait(log)                                     # the filter compiled in the background: loaded, not rebuilt
     log(f"calibrating {rec.n} samples ({name}) …")
     result = calibrate(rec, name, accelerometer=accelerometer)
     truth = true_gyro_parameters(rec)

@@ -31,6 +31,13 @@ the loop is a small compiled helper — ``_step_nominal`` (the attitude), ``_tra
 and ``_residual`` (z), ``_measurement`` (H), ``_innovation``, ``_update_covariance`` (Joseph), ``_inject`` (the reset)
 — so the loop reads as the filter's steps; a helper reads a block's per-sample regressor only when the layout has
 the block (the others are (B, 1, …) placeholders).
+
+**Compile time.**  numba compiles the loop once per machine (``cache=True``; the helpers' code is linked into it, so
+only :func:`_kernel` is cached) and most of that time is numba typing and lowering each function and each numpy
+construct it meets.  So the helpers are written in scalars: quaternions and 3-vectors are tuples, 3 × 3 products
+are written out (:func:`_nb_mv`, :func:`_nb_matmul`) into scratch arrays the loop allocates once — no array
+allocated per step, no ``@`` (BLAS), no array expressions, no slice assignment (whose shape check compiles an error
+message with string formatting), no literal constant arguments (each compiles a specialisation of its own).
 """
 
 from __future__ import annotations
@@ -64,7 +71,7 @@ SENSOR_NOMINALS = 3 * len(SENSOR_EXTRA_BLOCKS)  # c_b, s_T, k, c_a, δ (calib.se
 
 __all__ = ["BatchResult", "FilterRecord", "FilterRun", "LeverJacobian", "Signals", "Start", "Settings", "Shaping",
            "RecordArrays", "FilterInputs", "filter_inputs", "run_batch", "run_filter", "regressor_half_window",
-           "ext_acc_discrete", "HAND_NOMINALS", "SENSOR_NOMINALS"]
+           "ext_acc_discrete", "HAND_NOMINALS", "SENSOR_NOMINALS", "warm_up"]
 
 
 __getattr__ = moved_attribute(__name__)   # crlb, crlb_joint: calib.session.bounds
@@ -153,6 +160,60 @@ class RecordArrays(NamedTuple):
     updated: np.ndarray
 
 
+class Outputs(NamedTuple):
+    """What the compiled loop writes (:class:`FilterRun`'s arrays), allocated by :func:`run_filter`: θ̂, P, the hand's
+    and the sensor's extra nominals start as copies of :class:`Start`'s; NIS, innovations and whitened innovations
+    as NaN (no update); the histories (B, N − 1 | 0, …) filled when ``Settings.keep``."""
+
+    theta: np.ndarray           # (B, 18)
+    P: np.ndarray               # (B, n, n)
+    hand: np.ndarray            # (B, HAND_NOMINALS)
+    sensor: np.ndarray          # (B, SENSOR_NOMINALS)
+    quat: np.ndarray            # (B, 4)
+    nis: np.ndarray             # (B, N − 1)
+    innovation: np.ndarray      # (B, N − 1, 3)
+    whitened: np.ndarray        # (B, N − 1, 3)
+    sd_history: np.ndarray      # (B, N − 1 | 0, n)
+    theta_history: np.ndarray   # (B, N − 1 | 0, 18)
+
+
+class Scratch(NamedTuple):
+    """The loop's working arrays, allocated once by :func:`run_filter` (numba compiles every numpy allocation the loop
+    itself would make): the shaping filter's rows, Φ's φ rows E and H by their non-zero columns, the update's
+    products (P Hᵀ, T Hᵀ, K, T, S, S⁻¹, z, x, the error state's mean), 3 × 3 matrices (M̂⁻¹, Ĉ mid-step,
+    −Ĉ M̂⁻¹ Δt, Ĉ, M̂_a⁻¹, Ĉ M̂_a⁻¹, two products, the identity) and Ĉ J."""
+
+    lrow: np.ndarray
+    lv: np.ndarray
+    E: np.ndarray
+    ecols: np.ndarray
+    A: np.ndarray
+    EPE: np.ndarray
+    Hc: np.ndarray
+    hcols: np.ndarray
+    J: np.ndarray
+    dlt: np.ndarray
+    PHt: np.ndarray
+    THt: np.ndarray
+    K: np.ndarray
+    T: np.ndarray
+    S: np.ndarray
+    Si: np.ndarray
+    z: np.ndarray
+    x: np.ndarray
+    xs: np.ndarray
+    Mi: np.ndarray
+    Cm: np.ndarray
+    CM: np.ndarray
+    C: np.ndarray
+    Mia: np.ndarray
+    CMa: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    I3: np.ndarray
+    CJ: np.ndarray
+
+
 class FilterInputs(NamedTuple):
     """Everything the compiled loop reads, checked and broadcast by :func:`filter_inputs`."""
 
@@ -166,60 +227,54 @@ class FilterInputs(NamedTuple):
 # ---------------------------------------------------------------------------------------------------------------------
 # small compiled helpers: 3-vectors, quaternions, 3 × 3 matrices, H stored by its non-zero columns
 
+# the loop's helpers are called from compiled code only: no Python entry point (numba otherwise builds, optimises and
+# emits one per function, a tenth of the first compile), and no cache of their own (their code is linked into
+# _kernel's, which is cached)
+_loop_helper = njit(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
-@njit(cache=True)
+
+@_loop_helper
 def _nb_qmul(p, q):  # pragma: no cover - compiled
-    return np.array([p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
-                     p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2],
-                     p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1],
-                     p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]])
+    """p ⊗ q, quaternions (w, x, y, z) as 4-tuples of floats."""
+    return (p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
+            p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2],
+            p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1],
+            p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0])
 
 
-@njit(cache=True)
-def _nb_qexp(v):  # pragma: no cover - compiled
-    th = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+@_loop_helper
+def _nb_qexp(v0, v1, v2):  # pragma: no cover - compiled
+    """Exp of the rotation vector (v0, v1, v2) (rad) as a 4-tuple."""
+    th = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     k = 0.5 - th * th / 48.0 if th < 1e-6 else math.sin(0.5 * th) / th
-    return np.array([math.cos(0.5 * th), k * v[0], k * v[1], k * v[2]])
+    return (math.cos(0.5 * th), k * v0, k * v1, k * v2)
 
 
-@njit(cache=True)
-def _nb_qmat(q):  # pragma: no cover - compiled
+@_loop_helper
+def _nb_qnormalised(q):  # pragma: no cover - compiled
+    """q / |q| (4-tuple)."""
+    s = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    return (q[0] / s, q[1] / s, q[2] / s, q[3] / s)
+
+
+@_loop_helper
+def _nb_qmat(q, m):  # pragma: no cover - compiled
+    """m (3 × 3) = the rotation matrix of the 4-tuple q (body → nav)."""
     w, x, y, z = q[0], q[1], q[2], q[3]
-    m = np.empty((3, 3))
     m[0, 0], m[0, 1], m[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
     m[1, 0], m[1, 1], m[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
     m[2, 0], m[2, 1], m[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
-    return m
 
 
-@njit(cache=True)
-def _nb_minv(s, g):  # pragma: no cover - compiled
-    """(I + diag(s) + N(g))⁻¹ by cofactors (symmetric)."""
-    m00, m11, m22 = 1.0 + s[0], 1.0 + s[1], 1.0 + s[2]
-    m01, m02, m12 = g[2], g[1], g[0]
-    c00 = m11 * m22 - m12 * m12
-    c01 = m02 * m12 - m01 * m22
-    c02 = m01 * m12 - m02 * m11
-    c11 = m00 * m22 - m02 * m02
-    c12 = m01 * m02 - m00 * m12
-    c22 = m00 * m11 - m01 * m01
-    det = m00 * c00 + m01 * c01 + m02 * c02
-    mi = np.empty((3, 3))
-    mi[0, 0], mi[0, 1], mi[0, 2] = c00 / det, c01 / det, c02 / det
-    mi[1, 0], mi[1, 1], mi[1, 2] = c01 / det, c11 / det, c12 / det
-    mi[2, 0], mi[2, 1], mi[2, 2] = c02 / det, c12 / det, c22 / det
-    return mi
-
-
-@njit(cache=True)
-def _nb_minv_rot(s, g, a):  # pragma: no cover - compiled
-    """(I + diag(s) + N(g) − [a×])⁻¹ (the gyro's axis matrix with its rotation against the accelerometer)."""
+@_loop_helper
+def _nb_minv(s, g, a, mi):  # pragma: no cover - compiled
+    """mi = (I + diag(s) + N(g) − [a×])⁻¹ (3-tuples; a = 0 without the gyro's rotation against the accelerometer):
+    the adjugate over the determinant (symmetric when a = 0)."""
     m00, m01, m02 = 1.0 + s[0], g[2] + a[2], g[1] - a[1]
     m10, m11, m12 = g[2] - a[2], 1.0 + s[1], g[0] + a[0]
     m20, m21, m22 = g[1] + a[1], g[0] - a[0], 1.0 + s[2]
     c00, c01, c02 = m11 * m22 - m12 * m21, m12 * m20 - m10 * m22, m10 * m21 - m11 * m20   # cofactors
     det = m00 * c00 + m01 * c01 + m02 * c02
-    mi = np.empty((3, 3))                                  # the adjugate over the determinant (C order, as _nb_minv)
     mi[0, 0], mi[1, 0], mi[2, 0] = c00 / det, c01 / det, c02 / det
     mi[0, 1] = (m02 * m21 - m01 * m22) / det
     mi[1, 1] = (m00 * m22 - m02 * m20) / det
@@ -227,41 +282,47 @@ def _nb_minv_rot(s, g, a):  # pragma: no cover - compiled
     mi[0, 2] = (m01 * m12 - m02 * m11) / det
     mi[1, 2] = (m02 * m10 - m00 * m12) / det
     mi[2, 2] = (m00 * m11 - m01 * m10) / det
-    return mi
 
 
-@njit(cache=True)
-def _nb_cross_matrix(w):  # pragma: no cover - compiled
-    """[ω×]: ∂(ω × α)/∂α, the misalignment's column of δω."""
-    j = np.empty((3, 3))
-    j[0, 0], j[0, 1], j[0, 2] = 0.0, -w[2], w[1]
-    j[1, 0], j[1, 1], j[1, 2] = w[2], 0.0, -w[0]
-    j[2, 0], j[2, 1], j[2, 2] = -w[1], w[0], 0.0
-    return j
+@_loop_helper
+def _nb_mv(m, v):  # pragma: no cover - compiled
+    """m v for a 3 × 3 array and a 3-tuple, as a 3-tuple (summed in column order)."""
+    return (m[0, 0] * v[0] + m[0, 1] * v[1] + m[0, 2] * v[2],
+            m[1, 0] * v[0] + m[1, 1] * v[1] + m[1, 2] * v[2],
+            m[2, 0] * v[0] + m[2, 1] * v[1] + m[2, 2] * v[2])
 
 
-@njit(cache=True)
-def _nb_jg(w):  # pragma: no cover - compiled
-    """J_G(ω) = ∂(N(G) ω)/∂G (calib.session.model.jacobian_nonorthogonality)."""
-    j = np.empty((3, 3))
-    j[0, 0], j[0, 1], j[0, 2] = 0.0, w[2], w[1]
-    j[1, 0], j[1, 1], j[1, 2] = w[2], 0.0, w[0]
-    j[2, 0], j[2, 1], j[2, 2] = w[1], w[0], 0.0
-    return j
+@_loop_helper
+def _nb_matmul(a, b, out):  # pragma: no cover - compiled
+    """out (3 × c) = a (3 × 3) b (3 × c), summed in column order."""
+    for i in range(3):
+        for j in range(b.shape[1]):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@njit(cache=True)
-def _nb_put(dst, cols, start, block, offset):  # pragma: no cover - compiled
-    """Write the 3 columns of ``block`` (3×3) into ``dst`` from column ``start``, naming them state
-    ``offset`` … ``offset + 2`` in ``cols``; returns the next free column."""
+@_loop_helper
+def _nb_jg(w, c, j):  # pragma: no cover - compiled
+    """j = J_G(ω) = ∂(N(G) ω)/∂G (calib.session.model.jacobian_nonorthogonality) for c = +1, and [ω×] = ∂(ω × α)/∂α
+    (the misalignment's column of δω) for c = −1: the same pattern with entries (0, 1), (1, 2), (2, 0) times c."""
+    j[0, 0], j[0, 1], j[0, 2] = 0.0, c * w[2], w[1]
+    j[1, 0], j[1, 1], j[1, 2] = w[2], 0.0, c * w[0]
+    j[2, 0], j[2, 1], j[2, 2] = c * w[1], w[0], 0.0
+
+
+@_loop_helper
+def _nb_put(dst, cols, start, block, first, v, c, offset):  # pragma: no cover - compiled
+    """Write 3 columns of ``block`` (3 × ≥ 3, from column ``first``), column j times v[j] and c, into ``dst`` from
+    column ``start``, naming them state ``offset`` … ``offset + 2`` in ``cols``; returns the next free column.
+    Callers pass ``start`` and ``first`` as int64 (``np.int64(3)``, not ``3``): numba compiles a literal constant
+    argument into a specialisation of its own per value."""
     for j in range(3):
         for i in range(3):
-            dst[i, start + j] = block[i, j]
+            dst[i, start + j] = block[i, first + j] * v[j] * c
         cols[start + j] = offset + j
     return start + 3
 
 
-@njit(cache=True)
+@_loop_helper
 def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
     """out (n × m) = A Hᵀ for H stored by its non-zero columns ``hc`` (3 × nh) at states ``hcols``."""
     for r in range(a.shape[0]):
@@ -272,7 +333,7 @@ def _nb_times_ht(a, hc, hcols, nh, m, out):  # pragma: no cover - compiled
             out[r, i] = s
 
 
-@njit(cache=True)
+@_loop_helper
 def _nb_hph(hc, hcols, nh, pht, m, r_var, out):  # pragma: no cover - compiled
     """out (m × m) = H (P Hᵀ) + R I for H stored by its non-zero columns (``_nb_times_ht``) and ``pht`` = P Hᵀ."""
     for i in range(m):
@@ -284,7 +345,7 @@ def _nb_hph(hc, hcols, nh, pht, m, r_var, out):  # pragma: no cover - compiled
         out[i, i] += r_var
 
 
-@njit(cache=True)
+@_loop_helper
 def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
     """Si = S⁻¹ for m = 2 or 3 (adjugate over determinant)."""
     if m == 2:
@@ -304,8 +365,7 @@ def _nb_inv_small(S, m, Si):  # pragma: no cover - compiled
         Si[2, 0], Si[2, 1], Si[2, 2] = c02 / d, c12 / d, c22 / d
 
 
-@njit(cache=True)
-def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
+def _lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
     """out (3 × 9 | 12) = ∂(K(ω, ω̇) r)/∂(S, G, b[, α]) at ω = ``ws`` (the low-passed compensated rate), for the rate's
     low-passed sensitivities ``ld`` = L ∂ω/∂θ (3 × 9) and ``ldd`` = d/dt of it: with a = ω̇ × r + ω × (ω × r),
     δa = δω̇ × r + δω × (ω × r) + ω × (δω × r) (:func:`calib.session.hand.lever.lever_jacobian`)."""
@@ -323,11 +383,15 @@ def lever_jacobian_columns(ws, ld, ldd, r, out):  # pragma: no cover - compiled
         out[2, c] = (d0 * r[1] - d1 * r[0]) + (v0 * u1 - v1 * u0) + (ws[0] * p1 - ws[1] * p0)
 
 
+lever_jacobian_columns = njit(cache=True)(_lever_jacobian_columns)   # from Python (the reference filter, tests)
+_nb_lever_jacobian = _loop_helper(_lever_jacobian_columns)            # from the loop: no Python entry point
+
+
 # ---------------------------------------------------------------------------------------------------------------------
 # one step of the filter, block by block (each called from _kernel)
 
 
-@njit(cache=True)
+@_loop_helper
 def _propagate_gauss_markov(Pb, xs, hd, o_ea, o_el, o_e2, al, be, gm_var):  # pragma: no cover - compiled
     """a_e = x − z (− z₂) per nav axis: x ← α x (α = e^{−Δt/τ}, Q = σ²(1 − α²)), z ← β z + (1 − β) x and
     z₂ ← β z₂ + (1 − β)(x − z) with the old x, z (β = e^{−Δt/τ_h}): nominal ``hd``, error-state mean ``xs`` and
@@ -359,7 +423,7 @@ def _propagate_gauss_markov(Pb, xs, hd, o_ea, o_el, o_e2, al, be, gm_var):  # pr
         Pb[c, c] += gm_var * (1.0 - al * al)
 
 
-@njit(cache=True)
+@_loop_helper
 def _propagate_shaping(Pb, xs, hd, d, offs_ae, phi, q, lrow, lv):  # pragma: no cover - compiled
     """a_e's general shaping filter per nav axis j: x ← Φ x (nominal ``hd`` and error-state mean ``xs``),
     P ← Φ P Φᵀ + Q_d on the axis's d states (Φ block-diagonal over the axes: its zeros skipped)."""
@@ -405,26 +469,33 @@ def _propagate_shaping(Pb, xs, hd, d, offs_ae, phi, q, lrow, lv):  # pragma: no 
                 Pb[offs_ae[i] + j, offs_ae[l] + j] += q[i, l]
 
 
-@njit(cache=True)
-def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o_ma):  # pragma: no cover - compiled
+@_loop_helper
+def _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o_ma, X, Y):  # pragma: no cover
     """The φ rows of Φ − I, E (3 × ne) in the columns ``ecols``, with CM = −Ĉ M̂⁻¹ Δt: the gyro error δω = M̂⁻¹ (X(ω)
-    [δS; δG] + δb + …) turns the attitude by −Ĉ δω Δt.  Returns ne."""
-    ne = _nb_put(E, ecols, 0, CM * wr, o_sg)               # scale: column j × ω_j
-    ne = _nb_put(E, ecols, ne, CM @ _nb_jg(wr), o_gg)      # non-orthogonality: J_G(ω)
+    [δS; δG] + δb + …) turns the attitude by −Ĉ δω Δt (``wr``, ``fm`` 3-tuples; ``X``, ``Y`` 3 × 3 scratch).
+    Returns ne."""
+    one = (1.0, 1.0, 1.0)
+    c0 = np.int64(0)
+    ne = _nb_put(E, ecols, c0, CM, c0, wr, 1.0, o_sg)      # scale: column j × ω_j
+    _nb_jg(wr, 1.0, X)
+    _nb_matmul(CM, X, Y)
+    ne = _nb_put(E, ecols, ne, Y, c0, one, 1.0, o_gg)      # non-orthogonality: J_G(ω)
     if o_bg >= 0:
-        ne = _nb_put(E, ecols, ne, CM, o_bg)               # bias
+        ne = _nb_put(E, ecols, ne, CM, c0, one, 1.0, o_bg)  # bias
     if o_tb >= 0:
-        ne = _nb_put(E, ecols, ne, CM * dtm, o_tb)         # bias temperature coefficient: (T − T₀)
+        ne = _nb_put(E, ecols, ne, CM, c0, one, dtm, o_tb)  # bias temperature coefficient: (T − T₀)
     if o_ts >= 0:
-        ne = _nb_put(E, ecols, ne, CM * wr * dtm, o_ts)    # scale temperature coefficient: ω_j (T − T₀)
+        ne = _nb_put(E, ecols, ne, CM, c0, wr, dtm, o_ts)   # scale temperature coefficient: ω_j (T − T₀)
     if o_gs >= 0:
-        ne = _nb_put(E, ecols, ne, CM * fm, o_gs)          # g-sensitivity: column j × f_j
+        ne = _nb_put(E, ecols, ne, CM, c0, fm, 1.0, o_gs)   # g-sensitivity: column j × f_j
     if o_ma >= 0:
-        ne = _nb_put(E, ecols, ne, CM @ _nb_cross_matrix(wr), o_ma)   # misalignment: −[δα×] ω = [ω×] δα
+        _nb_jg(wr, -1.0, X)
+        _nb_matmul(CM, X, Y)
+        ne = _nb_put(E, ecols, ne, Y, c0, one, 1.0, o_ma)   # misalignment: −[δα×] ω = [ω×] δα
     return ne
 
 
-@njit(cache=True)
+@_loop_helper
 def _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, qd, o_bg, bias_q):  # pragma: no cover - compiled
     """x ← (I + E) x (non-zero only before the first update: the prior mean x₀); P ← (I + E) P (I + E)ᵀ + Q =
     P + EP + (EP)ᵀ + E P Eᵀ + Q, Q_φφ = N_g² Δt I (``qd``), Q_bb = q_b Δt I (``bias_q``, with a bias block)."""
@@ -463,11 +534,11 @@ def _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, qd, o_bg, bias_q):  #
             Pb[o_bg + j, o_bg + j] += bias_q
 
 
-@njit(cache=True)
-def _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force_k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
+@_loop_helper
+def _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force, k, o_ts, o_tb, o_gs):  # pragma: no cover - compiled
     """K r̂ was built at the pass's θ₀ and the nominal moved since: dlt = θ̂ − θ₀ for (S, G, b) (and α̂ − α₀ when J has
-    the misalignment's columns), with θ̂'s S and b at this sample's temperature (and force); returns J dlt (3,), the
-    first-order change of K r̂."""
+    the misalignment's columns), with θ̂'s S and b at this sample's temperature (and force, read at sample ``k`` with
+    the g-sensitivity only); returns J dlt (a 3-tuple), the first-order change of K r̂."""
     for j in range(3):
         dlt[j] = th[j] - th0[j]
         dlt[3 + j] = th[3 + j] - th0[3 + j]
@@ -477,19 +548,18 @@ def _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force_k, o_ts, o_tb, o_gs):  
         if o_tb >= 0:
             dlt[6 + j] += sx[j] * temp_k
         if o_gs >= 0:
-            dlt[6 + j] += sx[6 + j] * force_k[j]
+            dlt[6 + j] += sx[6 + j] * force[k, j]
         if J.shape[1] > 9:                                 # the misalignment α
             dlt[9 + j] = sx[15 + j] - sx0[15 + j]
-    out = np.zeros(3)
-    for i in range(3):
-        s = 0.0
-        for c in range(J.shape[1]):
-            s += J[i, c] * dlt[c]
-        out[i] = s
-    return out
+    s0, s1, s2 = 0.0, 0.0, 0.0
+    for c in range(J.shape[1]):
+        s0 += J[0, c] * dlt[c]
+        s1 += J[1, c] * dlt[c]
+        s2 += J[2, c] * dlt[c]
+    return (s0, s1, s2)
 
 
-@njit(cache=True)
+@_loop_helper
 def _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, d, lti_c):  # pragma: no cover - compiled
     """z = Ĉ f̂ − g_up − â_e (nav): the levelling residual at the nominal (f̂ already compensated, lever arm removed)."""
     for i in range(3):
@@ -508,12 +578,13 @@ def _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, d, lti_c):  # pragma: no cover
                 z[i] -= lti_c[l] * hd[3 + 3 * l + i]
 
 
-@njit(cache=True)
+@_loop_helper
 def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J, jac_on, offs, offs_x,
-                 o_ea, o_el, o_e2, sh):  # pragma: no cover - compiled
+                 o_ea, o_el, o_e2, sh, I3, CMa, X, Y, CJ):  # pragma: no cover - compiled
     """H (rows × n) stored by its non-zero columns: [g_up×] on φ, Ĉ M̂_a⁻¹ [I, diag(f), J_G(f)] on the accelerometer,
     its temperature and delay columns, Ĉ K on the lever arm, ±I (or C_l I) on a_e's states, Ĉ J on the gyro's
-    states through the lever arm term (per-run arrays read at sample ``k`` only with their block).  Returns nh, the
+    states through the lever arm term (per-run arrays read at sample ``k`` only with their block; ``fr`` a 3-tuple;
+    ``I3`` the identity, ``CMa``, ``X``, ``Y`` 3 × 3 and ``CJ`` 3 × J's columns scratch).  Returns nh, the
     number of columns used."""
     for i in range(3):
         for e in range(H_COLS):
@@ -522,48 +593,53 @@ def _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, force, acc_rate, lever, k, J
     hcols[0] = 0
     Hc[0, 1] = -gz                                         # [g_up×] on φ_y
     hcols[1] = 1
-    nh = 2
+    nh = np.int64(2)
+    one = (1.0, 1.0, 1.0)
+    c0, c3, c6, c9 = np.int64(0), np.int64(3), np.int64(6), np.int64(9)   # H's column groups in CJ
     o_sg, o_gg, o_bg, o_ba, o_sa, o_ga, o_lv = offs[1], offs[2], offs[3], offs[4], offs[5], offs[6], offs[7]
     o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
     if o_ba >= 0:
-        CMa = C @ Mia
-        nh = _nb_put(Hc, hcols, nh, CMa, o_ba)             # Ĉ M̂_a⁻¹
-        nh = _nb_put(Hc, hcols, nh, CMa * fr, o_sa)        # Ĉ M̂_a⁻¹ diag(f)
-        nh = _nb_put(Hc, hcols, nh, CMa @ _nb_jg(fr), o_ga)  # Ĉ M̂_a⁻¹ J_G(f)
+        _nb_matmul(C, Mia, CMa)
+        nh = _nb_put(Hc, hcols, nh, CMa, c0, one, 1.0, o_ba)   # Ĉ M̂_a⁻¹
+        nh = _nb_put(Hc, hcols, nh, CMa, c0, fr, 1.0, o_sa)    # Ĉ M̂_a⁻¹ diag(f)
+        _nb_jg(fr, 1.0, X)
+        _nb_matmul(CMa, X, Y)
+        nh = _nb_put(Hc, hcols, nh, Y, c0, one, 1.0, o_ga)     # Ĉ M̂_a⁻¹ J_G(f)
         if o_ta >= 0:
-            nh = _nb_put(Hc, hcols, nh, CMa * temp_k, o_ta)  # Ĉ M̂_a⁻¹ (T − T₀): c_a
-    if o_dl >= 0:
-        nh = _nb_put(Hc, hcols, nh, -(C * acc_rate[k]), o_dl)  # −Ĉ diag(ḟ): f̃ = f − δ ḟ
+            nh = _nb_put(Hc, hcols, nh, CMa, c0, one, temp_k, o_ta)   # Ĉ M̂_a⁻¹ (T − T₀): c_a
+    if o_dl >= 0:                                          # −Ĉ diag(ḟ): f̃ = f − δ ḟ
+        nh = _nb_put(Hc, hcols, nh, C, c0, (acc_rate[k, 0], acc_rate[k, 1], acc_rate[k, 2]), -1.0, o_dl)
     if o_lv >= 0:
-        nh = _nb_put(Hc, hcols, nh, C @ lever[k], o_lv)    # Ĉ K(ω, ω̇)
+        _nb_matmul(C, lever[k], Y)
+        nh = _nb_put(Hc, hcols, nh, Y, c0, one, 1.0, o_lv)     # Ĉ K(ω, ω̇)
     if o_ea >= 0:
-        nh = _nb_put(Hc, hcols, nh, np.eye(3), o_ea)       # I (nav)
+        nh = _nb_put(Hc, hcols, nh, I3, c0, one, 1.0, o_ea)    # I (nav)
     if o_el >= 0:
-        nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_el)      # −I (nav): a_e = x − z
+        nh = _nb_put(Hc, hcols, nh, I3, c0, one, -1.0, o_el)   # −I (nav): a_e = x − z
     if o_e2 >= 0:
-        nh = _nb_put(Hc, hcols, nh, -np.eye(3), o_e2)      # −I (nav): a_e = x − z − z₂
+        nh = _nb_put(Hc, hcols, nh, I3, c0, one, -1.0, o_e2)   # −I (nav): a_e = x − z − z₂
     if sh.d > 0:
         for l in range(sh.d):
             if sh.c[l] != 0.0:
-                nh = _nb_put(Hc, hcols, nh, sh.c[l] * np.eye(3), sh.offsets[l])   # C_l I (nav)
+                nh = _nb_put(Hc, hcols, nh, I3, c0, one, sh.c[l], sh.offsets[l])   # C_l I (nav)
     if jac_on:                                             # Ĉ J: the lever arm term through the rate's errors
-        CJ = C @ J
-        nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3], o_sg)      # Ĉ ∂(K r̂)/∂S
-        nh = _nb_put(Hc, hcols, nh, CJ[:, 3:6], o_gg)      # Ĉ ∂(K r̂)/∂G
+        _nb_matmul(C, J, CJ)
+        nh = _nb_put(Hc, hcols, nh, CJ, c0, one, 1.0, o_sg)    # Ĉ ∂(K r̂)/∂S
+        nh = _nb_put(Hc, hcols, nh, CJ, c3, one, 1.0, o_gg)    # Ĉ ∂(K r̂)/∂G
         if o_bg >= 0:
-            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9], o_bg)  # Ĉ ∂(K r̂)/∂b
+            nh = _nb_put(Hc, hcols, nh, CJ, c6, one, 1.0, o_bg)   # Ĉ ∂(K r̂)/∂b
         if o_ts >= 0:
-            nh = _nb_put(Hc, hcols, nh, CJ[:, 0:3] * temp_k, o_ts)   # s_T: S's column × (T − T₀)
+            nh = _nb_put(Hc, hcols, nh, CJ, c0, one, temp_k, o_ts)   # s_T: S's column × (T − T₀)
         if o_tb >= 0:
-            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * temp_k, o_tb)   # c_b: b's column × (T − T₀)
-        if o_gs >= 0:
-            nh = _nb_put(Hc, hcols, nh, CJ[:, 6:9] * force[k], o_gs)  # k: b's column j × f_j
+            nh = _nb_put(Hc, hcols, nh, CJ, c6, one, temp_k, o_tb)   # c_b: b's column × (T − T₀)
+        if o_gs >= 0:                                      # k: b's column j × f_j
+            nh = _nb_put(Hc, hcols, nh, CJ, c6, (force[k, 0], force[k, 1], force[k, 2]), 1.0, o_gs)
         if offs_x[5] >= 0 and J.shape[1] > 9:
-            nh = _nb_put(Hc, hcols, nh, CJ[:, 9:12], offs_x[5])       # Ĉ ∂(K r̂)/∂α
+            nh = _nb_put(Hc, hcols, nh, CJ, c9, one, 1.0, offs_x[5])   # Ĉ ∂(K r̂)/∂α
     return nh
 
 
-@njit(cache=True)
+@_loop_helper
 def _update_covariance(Pb, K, PHt, Si, T, THt, Hc, hcols, nh, m, r_var):  # pragma: no cover - compiled
     """K = P Hᵀ S⁻¹, then the Joseph form P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ as T = P − K (P Hᵀ)ᵀ,
     P = T − (T Hᵀ) Kᵀ + K R Kᵀ, re-symmetrised."""
@@ -594,7 +670,7 @@ def _update_covariance(Pb, K, PHt, Si, T, THt, Hc, hcols, nh, m, r_var):  # prag
             Pb[c, r] = v
 
 
-@njit(cache=True)
+@_loop_helper
 def _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh):  # pragma: no cover - compiled
     """x = x⁻ + K (z − H x⁻) (``z`` already the innovation), then the reset: θ̂ += δθ̂, the hand's and the sensor's
     extra nominals += their δ, and the error state back to zero (the attitude's part is applied by the caller)."""
@@ -640,73 +716,73 @@ def _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh):  # 
             sx[15 + j] += x[offs_x[5] + j]
 
 
-@njit(cache=True)
-def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs, o_ma):  # pragma: no cover - compiled
-    """The nominal's step k−1 → k (one run's arrays, sample index ``k``): M̂⁻¹ and b̂ at the step's mid temperature
-    (ΔT = ``dtm``; and mid specific force with the g-sensitivity: b_g,i += k_i f_i), the compensated rates at both
-    ends, q̂ ← q̂ ⊗ Exp(φ) (trapezoid + coning).  Returns (q̂, −Ĉ M̂⁻¹ Δt at the step's middle, the rate regressor ω
-    — zero at rest, else the leave-out mean at t_{k−½} —, f at the step's middle)."""
-    if o_ma >= 0:                                          # with the rotation against the accelerometer, α̂
-        Mi = _nb_minv_rot(th[0:3] + sx[3:6] * dtm, th[3:6], sx[15:18])
-    else:
-        Mi = _nb_minv(th[0:3] + sx[3:6] * dtm, th[3:6])
-    bg = th[6:9] + sx[0:3] * dtm
-    fm = np.zeros(3)
+@_loop_helper
+def _step_nominal(q, th, sx, gyro, gyro_reg, still, force, k, dt, dtm, o_gs, o_ma, Mi, Cm, CM):  # pragma: no cover
+    """The nominal's step k−1 → k (one run's arrays, sample index ``k``): M̂⁻¹ (into ``Mi``) and b̂ at the step's mid
+    temperature (ΔT = ``dtm``; and mid specific force with the g-sensitivity: b_g,i += k_i f_i), the compensated rates
+    at both ends, q̂ ← q̂ ⊗ Exp(φ) (trapezoid + coning), ``CM`` = −Ĉ M̂⁻¹ Δt at the step's middle (``Cm`` scratch).
+    Returns (q̂, the rate regressor ω — zero at rest, else the leave-out mean at t_{k−½} —, f at the step's middle),
+    quaternion and vectors as tuples."""
+    a = (sx[15], sx[16], sx[17]) if o_ma >= 0 else (0.0, 0.0, 0.0)   # with the rotation against the accelerometer
+    _nb_minv((th[0] + sx[3] * dtm, th[1] + sx[4] * dtm, th[2] + sx[5] * dtm), (th[3], th[4], th[5]), a, Mi)
+    bg = (th[6] + sx[0] * dtm, th[7] + sx[1] * dtm, th[8] + sx[2] * dtm)
+    fm = (0.0, 0.0, 0.0)
     if o_gs >= 0:
-        fm = 0.5 * (force[k - 1] + force[k])
-        bg = bg + sx[6:9] * fm
-    wp = Mi @ (gyro[k - 1] - bg)
-    wn = Mi @ (gyro[k] - bg)
-    cr = np.array([wp[1] * wn[2] - wp[2] * wn[1], wp[2] * wn[0] - wp[0] * wn[2], wp[0] * wn[1] - wp[1] * wn[0]])
-    phi = 0.5 * (wp + wn) * dt + cr * (dt * dt / 12.0)
-    Cm = _nb_qmat(_nb_qmul(q, _nb_qexp(0.5 * phi)))
-    q = _nb_qmul(q, _nb_qexp(phi))
-    q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-    if still[k]:                                           # at rest the true rate is zero
-        wr = np.zeros(3)
-    else:
-        wr = Mi @ (gyro_reg[k] - bg)                       # leave-out regressor at t_{k−½}
-    return q, -dt * (Cm @ Mi), wr, fm
+        fm = (0.5 * (force[k - 1, 0] + force[k, 0]), 0.5 * (force[k - 1, 1] + force[k, 1]),
+              0.5 * (force[k - 1, 2] + force[k, 2]))
+        bg = (bg[0] + sx[6] * fm[0], bg[1] + sx[7] * fm[1], bg[2] + sx[8] * fm[2])
+    wp = _nb_mv(Mi, (gyro[k - 1, 0] - bg[0], gyro[k - 1, 1] - bg[1], gyro[k - 1, 2] - bg[2]))
+    wn = _nb_mv(Mi, (gyro[k, 0] - bg[0], gyro[k, 1] - bg[1], gyro[k, 2] - bg[2]))
+    cr = (wp[1] * wn[2] - wp[2] * wn[1], wp[2] * wn[0] - wp[0] * wn[2], wp[0] * wn[1] - wp[1] * wn[0])
+    h = dt * dt / 12.0
+    phi = (0.5 * (wp[0] + wn[0]) * dt + cr[0] * h, 0.5 * (wp[1] + wn[1]) * dt + cr[1] * h,
+           0.5 * (wp[2] + wn[2]) * dt + cr[2] * h)
+    _nb_qmat(_nb_qmul(q, _nb_qexp(0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2])), Cm)
+    q = _nb_qnormalised(_nb_qmul(q, _nb_qexp(phi[0], phi[1], phi[2])))
+    wr = (0.0, 0.0, 0.0)                                   # at rest the true rate is zero
+    if not still[k]:
+        wr = _nb_mv(Mi, (gyro_reg[k, 0] - bg[0], gyro_reg[k, 1] - bg[1], gyro_reg[k, 2] - bg[2]))   # leave-out
+    _nb_matmul(Cm, Mi, CM)
+    for i in range(3):
+        for j in range(3):
+            CM[i, j] = -dt * CM[i, j]
+    return q, wr, fm
 
 
-@njit(cache=True)
+@_loop_helper
 def _corrected_force(C, th, sx, th0, sx0, acc_k, temp_k, acc_rate, lever, force, jw, jd, jdd, hd, J, dlt, k, gz, offs,
-                     offs_x, jac_on):  # pragma: no cover - compiled
+                     offs_x, jac_on, Mia):  # pragma: no cover - compiled
     """The compensated specific force at sample ``k`` (body): f̂ = M̂_a⁻¹(f̃ − b̂_a − ĉ_a ΔT) + δ̂ ⊙ ḟ̃ − K r̂ − J (θ̂ − θ₀),
     and the H regressor Ĉᵀ g_up (gravity predicted in the body).  Per-run arrays (``acc_rate``, ``lever``, ``force``,
-    ``jw``, ``jd``, ``jdd``) are read at ``k`` only when their block is in the layout.  Returns (f̂, the regressor,
-    M̂_a⁻¹)."""
+    ``jw``, ``jd``, ``jdd``) are read at ``k`` only when their block is in the layout.  Returns (f̂, the regressor) as
+    3-tuples, M̂_a⁻¹ into ``Mia``."""
     o_ba, o_lv = offs[4], offs[7]
     o_tb, o_ts, o_gs, o_ta, o_dl = offs_x[0], offs_x[1], offs_x[2], offs_x[3], offs_x[4]
     if o_ba >= 0:
-        Mia = _nb_minv(th[12:15], th[15:18])
+        _nb_minv((th[12], th[13], th[14]), (th[15], th[16], th[17]), (0.0, 0.0, 0.0), Mia)
     else:
-        Mia = np.eye(3)
-    ba = th[9:12]
+        for i in range(3):
+            for j in range(3):
+                Mia[i, j] = 1.0 if i == j else 0.0
+    ba = (th[9], th[10], th[11])
     if o_ta >= 0:                                          # the accelerometer bias at this sample's temperature
-        ba = ba + sx[9:12] * temp_k
-    fh = Mia @ (acc_k - ba)
+        ba = (th[9] + sx[9] * temp_k, th[10] + sx[10] * temp_k, th[11] + sx[11] * temp_k)
+    fh = _nb_mv(Mia, (acc_k[0] - ba[0], acc_k[1] - ba[1], acc_k[2] - ba[2]))
     if o_dl >= 0:                                          # the accelerometer's delay: f(t) = f̃(t) + δ ḟ̃(t)
-        for i in range(3):
-            fh[i] += sx[12 + i] * acc_rate[k, i]
-    fr = np.empty(3)                                       # regressor: gravity predicted in the body frame
-    for i in range(3):
-        fr[i] = C[2, i] * gz                               # Ĉᵀ g_up
+        fh = (fh[0] + sx[12] * acc_rate[k, 0], fh[1] + sx[13] * acc_rate[k, 1], fh[2] + sx[14] * acc_rate[k, 2])
+    fr = (C[2, 0] * gz, C[2, 1] * gz, C[2, 2] * gz)        # regressor: gravity predicted in the body frame, Ĉᵀ g_up
     if o_lv >= 0:                                          # minus the lever arm's K r̂ (body)
-        kr = lever[k] @ hd[0:3]
-        for i in range(3):
-            fh[i] -= kr[i]
+        kr = _nb_mv(lever[k], (hd[0], hd[1], hd[2]))
+        fh = (fh[0] - kr[0], fh[1] - kr[1], fh[2] - kr[2])
     if jac_on:                                             # K was built at the pass's θ₀, the nominal moved since:
-        lever_jacobian_columns(jw[k], jd[k], jdd[k], hd[0:3], J)   # J = ∂(K r̂)/∂(S, G, b) (body)
+        _nb_lever_jacobian(jw[k], jd[k], jdd[k], hd[0:3], J)       # J = ∂(K r̂)/∂(S, G, b) (body)
         # K(θ̂) r̂ ≈ K(θ₀) r̂ + J (θ̂ − θ₀), with θ̂'s S and b at this sample's temperature (and force)
-        f_k = force[k] if o_gs >= 0 else np.zeros(3)
-        sh_k = _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, f_k, o_ts, o_tb, o_gs)
-        for i in range(3):
-            fh[i] -= sh_k[i]
-    return fh, fr, Mia
+        sh_k = _lever_shift(J, dlt, th, th0, sx, sx0, temp_k, force, k, o_ts, o_tb, o_gs)
+        fh = (fh[0] - sh_k[0], fh[1] - sh_k[1], fh[2] - sh_k[2])
+    return fh, fr
 
 
-@njit(cache=True)
+@_loop_helper
 def _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_row, wht_row):  # pragma: no cover - compiled
     """ν = z − H x (``z`` in place), its NIS νᵀS⁻¹ν and the whitened levelling rows L⁻¹ν (S = L Lᵀ), written to
     ``inn_row``, ``wht_row``; returns the NIS."""
@@ -729,7 +805,7 @@ def _innovation(z, S, Si, Hc, hcols, nh, xs, m, inn_row, wht_row):  # pragma: no
     return nis
 
 
-@njit(cache=True)
+@_loop_helper
 def _record_transition(rec, k, E, ecols, ne, gm_on, dt, gm_tau, hp_tau):  # pragma: no cover - compiled
     """Step k's propagation into the linear error model (:class:`FilterRecord`)."""
     rec.ne[k] = ne
@@ -742,7 +818,7 @@ def _record_transition(rec, k, E, ecols, ne, gm_on, dt, gm_tau, hp_tau):  # prag
         rec.decay[k, 1] = math.exp(-dt / hp_tau)
 
 
-@njit(cache=True)
+@_loop_helper
 def _record_update(rec, k, Hc, hcols, nh, K, m):  # pragma: no cover - compiled
     """Step k's update (gain and H) into the linear error model (:class:`FilterRecord`)."""
     rec.updated[k] = True
@@ -761,26 +837,16 @@ def _record_update(rec, k, Hc, hcols, nh, K, m):  # pragma: no cover - compiled
 
 
 @njit(cache=True, fastmath=False)
-def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
-    """B runs of N samples (:func:`run_filter`); returns (θ̂, P, q, NIS, innovations, √diag P history, θ̂ history,
-    the hand's nominals, whitened innovations, the sensor's extra nominals)."""
+def _kernel(t, sig, start, st, sh, rec, out, w):  # pragma: no cover - compiled
+    """B runs of N samples (:func:`run_filter`) into ``out`` (:class:`Outputs`, θ̂, P and the extra nominals already
+    holding the start), with the scratch ``w`` (:class:`Scratch`)."""
     B, N = sig.gyro.shape[0], sig.gyro.shape[1]
     n = start.P.shape[1]
-    theta = start.theta.copy()
-    # nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12)
-    # (general shaping filter, sh.d > 0: component i of axis j at 3 + 3i + j)
-    hand = start.hand.copy()
-    # the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9), the accelerometer's c_a (9:12) and delay δ (12:15),
-    # the gyro's misalignment α (15:18): calib.session.model.SENSOR_EXTRA_BLOCKS
-    sens = start.sensor.copy()
-    P = start.P.copy()
-    qout = np.zeros((B, 4))
-    nis_out = np.full((B, N - 1), np.nan)
-    inn_out = np.full((B, N - 1, 3), np.nan)
-    wht_out = np.full((B, N - 1, 3), np.nan)                   # whitened innovations L⁻¹ν, S = L Lᵀ
-    nk = N - 1 if st.keep else 0
-    hsd = np.zeros((B, nk, n))
-    hth = np.zeros((B, nk, 18))
+    # hand: nominal lever arm (0:3), external acceleration x (3:6), z (6:9), z₂ (9:12) (general shaping filter,
+    # sh.d > 0: component i of axis j at 3 + 3i + j); sens: the gyro's c_b (0:3), s_T (3:6), g-sensitivity k (6:9),
+    # the accelerometer's c_a (9:12) and delay δ (12:15), the gyro's misalignment α (15:18) (SENSOR_EXTRA_BLOCKS)
+    theta, P, hand, sens, qout = out.theta, out.P, out.hand, out.sensor, out.quat
+    nis_out, inn_out, wht_out, hsd, hth = out.nis, out.innovation, out.whitened, out.sd_history, out.theta_history
     offs, offs_x = st.offsets, st.sensor_offsets
     o_sg, o_gg, o_bg, o_lv = offs[1], offs[2], offs[3], offs[7]
     o_ea, o_el = offs[8], offs[9]
@@ -789,26 +855,10 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
         o_ea, o_el, o_e2 = -1, -1, -1
     o_tb, o_ts, o_gs, o_ma = offs_x[0], offs_x[1], offs_x[2], offs_x[5]
     gz, m = st.gravity, st.rows
-    lrow = np.zeros((9, n))
-    lv = np.zeros(9)
-    E = np.zeros((3, E_COLS))
-    ecols = np.zeros(E_COLS, dtype=np.int64)
-    A = np.zeros((3, n))
-    EPE = np.zeros((3, 3))
-    Hc = np.zeros((3, H_COLS))                                 # H's non-zero columns (H_COLS)
-    hcols = np.zeros(H_COLS, dtype=np.int64)
     jac_on = o_lv >= 0 and sig.jac_rate.shape[1] > 1           # K r̂'s dependence on the gyro's errors (LeverJacobian)
-    J = np.zeros((3, sig.jac_d_rate.shape[3]))             # (S, G, b[, α])
-    dlt = np.zeros(J.shape[1])
-    PHt = np.zeros((n, 3))
-    THt = np.zeros((n, 3))
-    K = np.zeros((n, 3))
-    T = np.zeros((n, n))
-    S = np.zeros((3, 3))
-    Si = np.zeros((3, 3))
-    z = np.zeros(3)
-    x = np.zeros(n)
-    xs = np.zeros(n)
+    lrow, lv, E, ecols, A, EPE, Hc, hcols = w.lrow, w.lv, w.E, w.ecols, w.A, w.EPE, w.Hc, w.hcols
+    J, dlt, PHt, THt, K, T, S, Si, z, x, xs = w.J, w.dlt, w.PHt, w.THt, w.K, w.T, w.S, w.Si, w.z, w.x, w.xs
+    Mi, Cm, CM, C, Mia, CMa, X, Y, I3, CJ = w.Mi, w.Cm, w.CM, w.C, w.Mia, w.CMa, w.X, w.Y, w.I3, w.CJ
     for b in range(B):
         Pb = P[b]
         th = theta[b]
@@ -816,16 +866,15 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
         sx = sens[b]
         for i in range(n):                                     # the error state's mean: x0, zero after a reset
             xs[i] = start.x[b, i]
-        q = start.quat[b].copy()
-        q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+        q = _nb_qnormalised((start.quat[b, 0], start.quat[b, 1], start.quat[b, 2], start.quat[b, 3]))
         for k in range(1, N):
             dt = t[k] - t[k - 1]
             # ---- propagation: nominal attitude with the compensated rate; the temperature blocks' nominals at the
             # step's mid temperature (T − T₀; zero without them)
             dtm = 0.5 * (sig.temp_rel[b, k - 1] + sig.temp_rel[b, k])
-            q, CM, wr, fm = _step_nominal(q, th, sx, sig.gyro[b], sig.gyro_reg[b], sig.still[b], sig.force[b], k, dt,
-                                          dtm, o_gs, o_ma)
-            ne = _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o_ma)
+            q, wr, fm = _step_nominal(q, th, sx, sig.gyro[b], sig.gyro_reg[b], sig.still[b], sig.force[b], k, dt,
+                                      dtm, o_gs, o_ma, Mi, Cm, CM)
+            ne = _transition(E, ecols, CM, wr, dtm, fm, o_sg, o_gg, o_bg, o_tb, o_ts, o_gs, o_ma, X, Y)
             if o_ea >= 0:                                      # Gauss–Markov a_e: Φ = diag(e^{−Δt/τ}), Q = σ²(1 − Φ²)
                 al = math.exp(-dt / st.gm_tau)
                 be = math.exp(-dt / st.hp_tau)                 # z ← β z + (1 − β) x: z the low-pass of x (τ_h)
@@ -838,15 +887,15 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
             _propagate_attitude_rows(Pb, xs, E, ecols, ne, A, EPE, st.arw2 * dt, o_bg, st.bias_rw2 * dt)
             # ---- update with the accelerometer sample
             if sig.update[b, k]:
-                C = _nb_qmat(q)
+                _nb_qmat(q, C)
                 temp_k = sig.temp_rel[b, k]
-                fh, fr, Mia = _corrected_force(C, th, sx, start.theta[b], start.sensor[b], sig.acc[b, k], temp_k,
-                                               sig.acc_rate[b], sig.lever[b], sig.force[b], sig.jac_rate[b],
-                                               sig.jac_d_rate[b], sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs,
-                                               offs_x, jac_on)
+                fh, fr = _corrected_force(C, th, sx, start.theta[b], start.sensor[b], sig.acc[b, k], temp_k,
+                                          sig.acc_rate[b], sig.lever[b], sig.force[b], sig.jac_rate[b],
+                                          sig.jac_d_rate[b], sig.jac_d_rate_dot[b], hd, J, dlt, k, gz, offs,
+                                          offs_x, jac_on, Mia)
                 _residual(z, C, fh, hd, gz, o_ea, o_el, o_e2, sh.d, sh.c)
                 nh = _measurement(Hc, hcols, C, Mia, fr, gz, temp_k, sig.force[b], sig.acc_rate[b], sig.lever[b], k,
-                                  J, jac_on, offs, offs_x, o_ea, o_el, o_e2, sh)
+                                  J, jac_on, offs, offs_x, o_ea, o_el, o_e2, sh, I3, CMa, X, Y, CJ)
                 r_var = sig.r_var[b, k]
                 _nb_times_ht(Pb, Hc, hcols, nh, m, PHt)        # P Hᵀ
                 _nb_hph(Hc, hcols, nh, PHt, m, r_var, S)       # S = H P Hᵀ + R
@@ -858,15 +907,14 @@ def _kernel(t, sig, start, st, sh, rec):  # pragma: no cover - compiled
                     if st.record and b == 0:                   # the update's gain and H (calib.session.spectral)
                         _record_update(rec, k, Hc, hcols, nh, K, m)
                     _inject(x, xs, K, z, m, th, hd, sx, offs, offs_x, o_ea, o_el, o_e2, sh)
-                    q = _nb_qmul(_nb_qexp(x[0:3]), q)          # Ĉ ← (I + [φ×]) Ĉ
-                    q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+                    q = _nb_qnormalised(_nb_qmul(_nb_qexp(x[0], x[1], x[2]), q))   # Ĉ ← (I + [φ×]) Ĉ
             if st.keep:
                 for i in range(n):
                     hsd[b, k - 1, i] = math.sqrt(max(Pb[i, i], 0.0))
                 for i in range(18):
                     hth[b, k - 1, i] = th[i]
-        qout[b] = q
-    return theta, P, qout, nis_out, inn_out, hsd, hth, hand, wht_out, sens
+        qout[b, 0], qout[b, 1], qout[b, 2], qout[b, 3] = q   # element by element: a slice assignment compiles
+                                                               # numba's shape-mismatch error text
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -1072,6 +1120,25 @@ def filter_inputs(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.
     return FilterInputs(t, signals, start, settings, _shaping(layout, config, t))
 
 
+def _outputs(start: Start, N: int, keep: bool) -> Outputs:
+    """The loop's outputs, before it runs (:class:`Outputs`)."""
+    B, n = start.P.shape[:2]
+    nk = N - 1 if keep else 0
+    return Outputs(start.theta.copy(), start.P.copy(), start.hand.copy(), start.sensor.copy(), np.zeros((B, 4)),
+                   np.full((B, N - 1), np.nan), np.full((B, N - 1, 3), np.nan), np.full((B, N - 1, 3), np.nan),
+                   np.zeros((B, nk, n)), np.zeros((B, nk, 18)))
+
+
+def _scratch(n: int, jac_columns: int) -> Scratch:
+    """The loop's working arrays (:class:`Scratch`) for n states and the lever arm Jacobian's columns."""
+    z33 = [np.zeros((3, 3)) for _ in range(8)]
+    return Scratch(np.zeros((9, n)), np.zeros(9), np.zeros((3, E_COLS)), np.zeros(E_COLS, np.int64), np.zeros((3, n)),
+                   np.zeros((3, 3)), np.zeros((3, H_COLS)), np.zeros(H_COLS, np.int64), np.zeros((3, jac_columns)),
+                   np.zeros(jac_columns), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, n)),
+                   np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.zeros(n), np.zeros(n), *z33, np.eye(3),
+                   np.zeros((3, jac_columns)))
+
+
 def _record_arrays(n: int, N: int, on: bool) -> RecordArrays:
     """Room for the first run's linear error model (one row per step when ``on``, else placeholders)."""
     nr = N if on else 1
@@ -1125,17 +1192,30 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, t_s: np.ndarray, quat0: np.nda
     st = inp.settings
     B, N = inp.signals.gyro.shape[:2]
     rec = _record_arrays(layout.n, N, st.record)
-    theta, p, q, nis, inn, hsd, hth, hand, wht, sens = _kernel(inp.t, inp.signals, inp.start, st, inp.shaping, rec)
+    out = _outputs(inp.start, N, st.keep)
+    _kernel(inp.t, inp.signals, inp.start, st, inp.shaping, rec, out,
+            _scratch(layout.n, inp.signals.jac_d_rate.shape[3]))
     return FilterRun(
-        layout, theta, p, q, nis, inn,
-        hsd if st.keep else None,
-        hth if st.keep else None,
-        hand if layout.models_hand else None,
-        wht,
-        sens if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay
+        layout, out.theta, out.P, out.quat, out.nis, out.innovation,
+        out.sd_history if st.keep else None,
+        out.theta_history if st.keep else None,
+        out.hand if layout.models_hand else None,
+        out.whitened,
+        out.sensor if (layout.models_temperature or layout.models_g_sensitivity or layout.models_acc_delay
                  or layout.models_misalignment) else None,
         FilterRecord(*rec, rows=st.rows) if st.record else None,
     )
+
+
+def warm_up() -> None:
+    """Compile the loop (or load it from numba's cache) by running the paper's filter on 3 still samples: every layout
+    and option reaches :func:`_kernel` with the same argument types (:func:`filter_inputs` makes each array float64,
+    int64 or bool, C-contiguous, of a fixed rank), so this one compile serves them all."""
+    config = FilterConfig(arw_rad_s_sqrt_hz=1e-4, vrw_m_s2_sqrt_hz=1e-3)
+    acc = np.zeros((1, 3, 3))
+    acc[..., 2] = config.gravity_m_s2
+    run_filter(np.zeros((1, 3, 3)), acc, np.arange(3) / 100.0, np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(18),
+               initial_covariance(PAPER, config), PAPER, config, 100.0)
 
 
 @dataclass(frozen=True)
