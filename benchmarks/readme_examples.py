@@ -10,7 +10,7 @@ The blocks are read from README.md itself (not copied here), in order:
 * the Python quick start, as a script;
 * "your own IMU": its commands run on files of the shape they name — ``imu.csv``, the quick start's session written
   as a logger would (time in s, gyro in °/s, accelerometer in g) and ``static.csv``, an hour of a still board
-  (white noise at an MPU-9250's datasheet densities, a gyro bias random walk), seeded.
+  (white noise at an MPU-9250's datasheet densities, MEMS-class bias random walks on both triads), seeded.
 
 The ``pip install`` halves of the set-up are measured by ``benchmarks/install_weight.sh``.  A row's time is the
 wall clock of its process (the machine's load average at the start is in the stamp: on a shared machine read it
@@ -60,9 +60,11 @@ def _write_own_imu_files(folder: Path, rng: np.random.Generator) -> None:
                header="time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,acc_x_g,acc_y_g,acc_z_g", comments="")
     rate, n = 100.0, 360_000
     t = np.arange(n) / rate
-    n_g, n_a, k_g = 1.75e-4, 2.9e-3, 2e-5   # rad/s/√Hz, m/s²/√Hz (MPU-9250 datasheet); rad/s/√s
+    # white noise: rad/s/√Hz, m/s²/√Hz (MPU-9250 datasheet); bias random walks: rad/s/√s, m/s²/√s (MEMS-class)
+    n_g, n_a, k_g, k_a = 1.75e-4, 2.9e-3, 2e-5, 3e-4
     gyro = rng.normal(0, n_g * math.sqrt(rate), (n, 3)) + np.cumsum(rng.normal(0, k_g / math.sqrt(rate), (n, 3)), 0)
-    acc = rng.normal(0, n_a * math.sqrt(rate), (n, 3)) + [0.0, 0.0, 9.80665]
+    acc = (rng.normal(0, n_a * math.sqrt(rate), (n, 3)) + np.cumsum(rng.normal(0, k_a / math.sqrt(rate), (n, 3)), 0)
+           + [0.0, 0.0, 9.80665])
     np.savetxt(folder / "static.csv", np.column_stack([t, gyro, acc]), delimiter=",", fmt="%.7g",
                header="time_s,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z", comments="")
 
