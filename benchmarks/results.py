@@ -207,6 +207,9 @@ REGISTRY: tuple[Result, ...] = (
            (S("python benchmarks/false_alarm.py --table {results}/false_alarm_before.json {results}/false_alarm.json "
               "--markdown {results}/false_alarm.md"),),
            ("false_alarm.md",), 0.1, inputs=("false_alarm_before.json", "false_alarm.json")),
+    Result("readme_examples", "every README command run as written in a fresh folder: exit code and wall time",
+           (S("python benchmarks/readme_examples.py --out {results}/readme_examples.md"),),
+           ("readme_examples.md",), 2),
     Result("measured", "calib run, apply and mag as a user runs them on every measured recording, judged by what "
            "comes next", (S("python -m benchmarks.measured {results}"),), ("measured.json", "measured.md"), 11,
            data=True),
