@@ -556,7 +556,7 @@ FILE_CASES = [
     # a bag's float64 values and whole-ns stamps from 0 give the CSV's numbers: float rounding only
     _file_case("bag", "run", "bag", (), **ok(r"ROS bag topic /imu/data", SAME)),
     Case("run-dataset_unknown", lambda b, t: ["run", "dataset:no_such_set", "--json", str(t / "out.json")], (2,),
-         r"dataset:no_such_set (is not in .*available: |: no data folder at ).*GYROSIM_DATA"),
+         r"dataset:no_such_set( is not in .*available: |: no data folder at ).*GYROSIM_DATA"),
 ]
 
 
