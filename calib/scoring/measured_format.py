@@ -69,12 +69,15 @@ def _run_line(run) -> str:
 def _calibration_lines(cal: dict) -> list[str]:
     if not cal:
         return ["  applied: nothing (no calibration was written)"]
+    def g(key: str):   # what calib apply uses (the estimate in a file written before the applied block)
+        return cal.get(f"applied_gyro_{key}", cal.get(f"gyro_{key}"))
+
     lines = [f"  applied ({cal.get('method')}, status {cal.get('status')}; accelerometer {cal.get('accelerometer')}):",
-             f"    gyro bias (°/s)  {_vec(cal.get('gyro_bias_rad_s'), RAD2DEG)}",
-             f"    gyro S           {_pm(cal.get('gyro_scale_factor'), cal.get('gyro_scale_factor_std'))}",
-             f"    gyro G           {_pm(cal.get('gyro_nonorthogonality'), cal.get('gyro_nonorthogonality_std'))}"]
-    if cal.get("gyro_misalignment_rad") is not None:
-        alpha = _vec(cal.get("gyro_misalignment_rad"), RAD2DEG)
+             f"    gyro bias (°/s)  {_vec(g('bias_rad_s'), RAD2DEG)}",
+             f"    gyro S           {_pm(g('scale_factor'), g('scale_factor_std'))}",
+             f"    gyro G           {_pm(g('nonorthogonality'), g('nonorthogonality_std'))}"]
+    if g("misalignment_rad") is not None:
+        alpha = _vec(g("misalignment_rad"), RAD2DEG)
         lines.append(f"    gyro α (°)       {alpha}   (its rotation against the accelerometer)")
     if cal.get("accelerometer") != "assumed calibrated":
         lines += [f"    acc. bias (m/s²) {_vec(cal.get('acc_bias_m_s2'))}",
