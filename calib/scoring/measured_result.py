@@ -148,12 +148,10 @@ def _summary(cal_json: Path) -> dict[str, Any]:
     applied = d.get("applied")   # what calib apply applies (absent in a file written before the block existed)
     shown = applied if isinstance(applied, dict) else d   # the values calib apply uses
     out: dict[str, Any] = {"method": d.get("method"), "status": d.get("status")}
-    for key in ("bias_rad_s", "scale_factor", "nonorthogonality", "misalignment_rad"):   # the method's estimate
-        out[f"gyro_{key}"] = gyro.get(key)
-        out[f"gyro_{key}_std"] = gyro.get("std", {}).get(key)
-    for key in ("bias_rad_s", "scale_factor", "nonorthogonality", "misalignment_rad"):   # what calib apply uses
-        out[f"applied_gyro_{key}"] = shown.get("gyro", {}).get(key)
-        out[f"applied_gyro_{key}_std"] = shown.get("gyro", {}).get("std", {}).get(key)
+    for prefix, block in (("", gyro), ("applied_", shown.get("gyro", {}))):   # the estimate; what calib apply uses
+        for key in ("bias_rad_s", "scale_factor", "nonorthogonality", "misalignment_rad"):
+            out[f"{prefix}gyro_{key}"] = block.get(key)
+            out[f"{prefix}gyro_{key}_std"] = block.get("std", {}).get(key)
     acc = d.get("accelerometer")
     applied_acc = shown.get("accelerometer") if isinstance(applied, dict) else None
     prior_acc = bool(applied_acc) and any(v for key in ("bias_m_s2", "scale_factor", "nonorthogonality")

@@ -2,7 +2,8 @@
 
 A Ferraris session rests the device on each face of its box in turn: the x axis up (``x_p``), down (``x_a``), then
 y and z.  The faces are at right angles, so the six mean readings say more than |f| = g does: with the columns
-U₊, U₋ the poses' mean readings (body x, y, z up; down), the bias is the mean of (U₊ + U₋)/2 and the matrix
+U₊, U₋ the poses' mean readings (body x, y, z up; down), the bias is the diagonal of (U₊ + U₋)/2 (each axis from
+the pair that turned it up and down) and the matrix
 
     A = (U₊ − U₋) / (2 g)        (raw reading − bias = A e for gravity along the box's axis e)
 

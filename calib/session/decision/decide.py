@@ -65,10 +65,10 @@ from calib.session.decision.prior import (
 
 # the beginnings of the warnings this layer adds (the terminal shows their reason on the status line)
 MOTION_WARNING = "inconsistent: the motion is not a hand turning the device"
+CHECK_WARNING = "inconsistent: calibrated on one half,"
 # a sequence of static poses whose |f| = g fit then measures the accelerometer alone: one pose per parameter at the
 # least (imu_tk's protocol takes 36–50, Tedaldi et al. 2014)
 REST_FIT_MIN_POSES = 9
-CHECK_WARNING = "inconsistent: calibrated on one half,"
 
 __all__ = ["MOTION_WARNING", "CHECK_WARNING", "DecisionParams", "Decision", "decide", "estimate_vector",
            "rest_pose_accelerometer", "compensate_prior", "determined_misalignment"]
@@ -98,6 +98,13 @@ class Decision:
     lines: tuple[str, ...] = ()
     motion_note: str = ""
     report: dict = field(default_factory=dict)
+
+
+def _mask(part: slice) -> np.ndarray:
+    """(18,) True over ``part`` of θ (:data:`~calib.session.decision.prior.SG`, ``ACC``)."""
+    m = np.zeros(18, bool)
+    m[part] = True
+    return m
 
 
 def estimate_vector(cal: Calibration) -> tuple[np.ndarray, np.ndarray]:
@@ -235,10 +242,7 @@ def _motion(rec: Recording, cal: Calibration, before: MotionClassification, para
 
 def _gates(cal: Calibration, motion: MotionClassification, acc_from_rests: bool) -> tuple[Gate, ...]:
     gates = []
-    acc = np.zeros(18, bool)
-    acc[ACC] = True
-    sg = np.zeros(18, bool)
-    sg[SG] = True
+    acc, sg = _mask(ACC), _mask(SG)
     if not cal.has("accelerometer", "bias") and not acc_from_rests:
         gates.append(Gate(acc, "the accelerometer was taken as calibrated: left at the prior"))
     if cal.status == "diverged":
@@ -360,8 +364,7 @@ def _permitted(det: Determination, check: CrossCheck | None) -> tuple[np.ndarray
     parameters beyond the bias.  A part (S, G; the accelerometer) is applied when its variant agrees, rejected when
     it disagrees (the accelerometer too when S, G alone agree and everything together disagrees) and held back,
     untested, when the check could not judge it (no half determined it, or no source had enough items)."""
-    sg, acc = np.zeros(18, bool), np.zeros(18, bool)
-    sg[SG], acc[ACC] = True, True
+    sg, acc = _mask(SG), _mask(ACC)
     allowed, rejected = np.zeros(18, bool), np.zeros(18, bool)
     if check is None:
         return allowed, rejected
@@ -407,16 +410,11 @@ def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
     values, sig = _session_values(theta, sigma, prior, replace(det, determined=session))
     untested = det.determined & ~session & ~rejected
     status, why = _status(cal.status, motion, det, rejected)
-    summary = _summary(det, session, prior)
+    alpha = determined_misalignment(cal, motion, params.ratio) if session[SG].any() else None
+    summary = _summary(det, session, prior, ("its misalignment to the accelerometer",) if alpha is not None else ())
     lines = _lines(motion, motion_note, det, rejected, untested, check, prior, summary)
     if poses is not None:
         lines.insert(next(i for i, line in enumerate(lines) if line.startswith("applied:")), _pose_line(poses))
-    alpha = determined_misalignment(cal, motion, params.ratio) if session[SG].any() else None
-    if alpha is not None:   # named with the gyro's group: "gyro bias, S, G, its misalignment …; accelerometer …"
-        cut = min((i for i in (summary.find("; accelerometer"), summary.find("; at the prior")) if i >= 0),
-                  default=len(summary))
-        summary = summary[:cut] + ", its misalignment to the accelerometer" + summary[cut:]
-        lines = [f"applied: {summary}" if line.startswith("applied: ") else line for line in lines]
     applied = Applied(values, sig, session, det.determined, prior.source, summary, tuple(lines),
                       *(alpha if alpha is not None else (None, None)))
     warnings = tuple(w for w in (why,) if w)
@@ -438,8 +436,7 @@ def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, 
     where the hand's acceleration and the gyro's errors enter; the rests measure the accelerometer alone (imu_tk's
     and Tedaldi's method).  Agrees → the fit on every pose is applied (``theta``, ``sigma``, ``allowed`` updated in
     place); disagrees → rejected.  None when there was nothing to check or too few poses."""
-    acc = np.zeros(18, bool)
-    acc[ACC] = True
+    acc = _mask(ACC)
     untested = det.determined & ~allowed & ~rejected & acc
     if not params.check or not (det.determined & acc).any():
         return None
@@ -464,11 +461,12 @@ def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, 
 
 def _pose_line(poses: dict) -> str:
     r = poses["rms_m_s2"]
-    head = (f"accelerometer from its {poses['poses']} rest poses (|f| = g; a smaller σ than the filter's), held out"
-            if poses.get("replaces_method") else f"accelerometer held out by rest pose ({poses['poses']} poses")
-    return (f"{head}{',' if poses.get('replaces_method') else ''} each pose predicted by the others"
-            f"{'' if poses.get('replaces_method') else ')'}: |f| − g RMS raw {r['raw']:.3f}, calibrated "
-            f"{r['fit']:.3f} m/s² — {poses['verdict']}")
+    if poses.get("replaces_method"):
+        head = (f"accelerometer from its {poses['poses']} rest poses (|f| = g; a smaller σ than the filter's), held "
+                "out, each pose predicted by the others")
+    else:
+        head = f"accelerometer held out by rest pose ({poses['poses']} poses, each predicted by the others)"
+    return f"{head}: |f| − g RMS raw {r['raw']:.3f}, calibrated {r['fit']:.3f} m/s² — {poses['verdict']}"
 
 
 def _status(method_status: str, motion: MotionClassification, det: Determination, rejected: np.ndarray
@@ -485,12 +483,13 @@ def _status(method_status: str, motion: MotionClassification, det: Determination
     return "ok", ""
 
 
-def _summary(det: Determination, session: np.ndarray, prior: Prior) -> str:
-    """One line: what comes from this session and what stays at the prior."""
+def _summary(det: Determination, session: np.ndarray, prior: Prior, gyro_also: tuple[str, ...] = ()) -> str:
+    """One line: what comes from this session (``gyro_also``: beyond the 18, e.g. the gyro's rotation) and what
+    stays at the prior."""
     rest = np.ones(18, bool) & ~session
     rest[0:3] &= False   # the bias is always the session's
     tail = f"; at the prior ({prior.source}): {det.grouped(rest)}" if rest.any() else ""
-    return f"from this session: gyro {det.grouped(session)}" + tail
+    return f"from this session: gyro {det.grouped(session, gyro_also)}" + tail
 
 
 def _lines(motion: MotionClassification, motion_note: str, det: Determination, rejected: np.ndarray,

@@ -50,11 +50,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gyrosim.effects import nonortho_matrix
 from gyrosim.lazy import lazy_module
 from gyrosim.recording import Recording
-from gyrosim.rotations import quat_conjugate, quat_multiply, quat_rotate, skew
+from gyrosim.rotations import quat_conjugate, quat_multiply, quat_rotate
 from gyrosim.strapdown import integrate_gyro
+
+from calib.session.model import gyro_axis_matrix
 
 sp_signal = lazy_module("scipy.signal")   # imported on first use: not before a bad file is refused
 
@@ -195,9 +196,7 @@ def has_measured_reference(rec: Recording) -> bool:
 def linear_compensate(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """x̂ = M⁻¹ (x̃ − b) for θ = [b, S, G] (9,), rows of ``x`` (N, 3); θ (12,) = [b, S, G, α] adds the gyro's
     rotation against the accelerometer, M = I + diag(S) + N(G) − [α×] (:class:`gyrosim.effects.GyroAccMisalignment`)."""
-    m = np.eye(3) + np.diag(theta[3:6]) + nonortho_matrix(theta[6:9])
-    if len(theta) == 12:
-        m = m - skew(np.asarray(theta[9:12], float))
+    m = gyro_axis_matrix(theta[3:6], theta[6:9], theta[9:12] if len(theta) == 12 else None)
     return np.linalg.solve(m, (np.asarray(x, float) - theta[0:3]).T).T
 
 
@@ -359,12 +358,7 @@ def held_out_check(predicted: Recording, variants: dict, rests: tuple[tuple[int,
         if name == "raw":
             continue
         used = [s for s in sources if s.name in SOURCES[name] and s.informative(params)]
-        if not used:
-            verdicts[name] = "inconclusive"
-        elif any(s.worse(name, params) for s in used) or not any(s.better_than_raw(name) for s in used):
-            verdicts[name] = "disagrees"
-        else:
-            verdicts[name] = "agrees"
+        verdicts[name] = _verdict([(s.worse(name, params), s.better_than_raw(name)) for s in used])
     if "full" in errs and "accelerometer" in errs:
         verdicts[GYRO_GIVEN_ACC] = _given_accelerometer(sources, params)
     return HeldOutCheck(trained_s, predicted_s, tuple(sources), verdicts, params, notes)
@@ -376,12 +370,15 @@ def _given_accelerometer(sources: list[SourceScore], params: HeldOutParams) -> s
     left raw (the ``gyro`` variant) its own errors set the gravity the pairs are scored against and can hide what S, G
     do."""
     used = [s for s in sources if s.name in SOURCES["gyro"] and s.informative(params) and "full" in s.vs_accelerometer]
-    if not used:
+    return _verdict([(m > params.z * se, m < 0.0) for m, se in (s.vs_accelerometer["full"] for s in used)])
+
+
+def _verdict(judged: list[tuple[bool, bool]]) -> str:
+    """The verdict over the sources with enough items, each judged (significantly worse, better): ``disagrees`` when
+    one is worse or none is better, ``agrees`` otherwise, ``inconclusive`` without a source."""
+    if not judged:
         return "inconclusive"
-    diffs = [s.vs_accelerometer["full"] for s in used]
-    if any(m > params.z * se for m, se in diffs) or not any(m < 0.0 for m, _ in diffs):
-        return "disagrees"
-    return "agrees"
+    return "disagrees" if any(w for w, _ in judged) or not any(b for _, b in judged) else "agrees"
 
 
 @dataclass(frozen=True)

@@ -191,9 +191,10 @@ class Determination:
                     out.append(("acc " if triad == "accelerometer" else "") + f"{short[kind]}_{ax}")
         return out
 
-    def grouped(self, mask: np.ndarray) -> str:
+    def grouped(self, mask: np.ndarray, gyro_also: tuple[str, ...] = ()) -> str:
         """The parameters in ``mask`` for a terminal line, grouped: "S, G_y; accelerometer b, S" (a kind whose
-        three axes are all in it by its letter alone), '' for none."""
+        three axes are all in it by its letter alone), '' for none; ``gyro_also``: further names in the gyro's
+        group (a term beyond the 18, e.g. its rotation against the accelerometer)."""
         short = {"bias": "b", "scale_factor": "S", "nonorthogonality": "G"}
         parts: dict[str, list[str]] = {"gyro": [], "accelerometer": []}
         for i, (triad, kind, _) in enumerate(PARAMETERS):
@@ -205,6 +206,7 @@ class Determination:
         text = ", ".join(parts["gyro"]).replace("b, ", "bias, ") if parts["gyro"] else ""
         if text == "b":
             text = "bias"
+        text = ", ".join(t for t in (text, *gyro_also) if t)
         acc = ", ".join(parts["accelerometer"])
         return "; ".join(t for t in (text, f"accelerometer {acc}" if acc else "") if t)
 
