@@ -47,7 +47,7 @@ from calib.closeloop.candidates import BuildOptions, Candidate, FittedTerm, Unte
 from calib.closeloop.catalogue import build_candidate, candidate_kinds, family_for
 from calib.closeloop.confounding import overlap_summary
 from calib.closeloop.driver import LoopTrace, NotTaken, Round, run_rounds
-from calib.closeloop.fit import FitResult, cluster_robust, design_rows, fit_model
+from calib.closeloop.fit import FitResult, cluster_robust, design_rows, fit_model, held_out_score
 from calib.closeloop.identify import Excitation
 from calib.closeloop.jsonview import JsonView
 from calib.closeloop.mag.loop import MagLoopResult, reference_frame_note, run_mag_loop
@@ -79,7 +79,12 @@ class RateEvidence(JsonView):
     """Why a gyro effect was added (``report.json`` ``found[i].evidence``): its round, held-out gain G
     for Δp added parameters, n_eff, the held-out residual RMS before → after (row units), the share
     of the residual's power it explains (1 − (RMS₁/RMS₀)²), what its regressor follows, the rivals it
-    was confounded with, the gate's verdict and the held-out metrics' changes."""
+    was confounded with, the gate's verdict and the held-out metrics' changes.
+
+    ``gain_given_the_others``: the same held-out G for this term added last, to the final model without
+    it — what it explains with every other finding in.  The rounds' order depends on the path (a term
+    whose symptom another effect hides shows only once that effect is in); this does not, and ranks the
+    findings by size (None: an output-stage term, whose value is undone on the gyro, not refitted)."""
 
     round: int
     criterion_gain: float
@@ -92,6 +97,7 @@ class RateEvidence(JsonView):
     identifiability: Excitation | None
     metrics: tuple[MetricChange, ...]
     summary: str
+    gain_given_the_others: float | None = None
 
     @property
     def explained_fraction(self) -> float:
@@ -103,7 +109,8 @@ class RateEvidence(JsonView):
                 "held_out_rms_after": self.held_out_rms_after, "explained_fraction": self.explained_fraction,
                 "follows": self.follows, "rivals": self.rivals,
                 "identifiability": self.identifiability.to_json() if self.identifiability is not None else None,
-                "metrics": [m.to_json() for m in self.metrics], "summary": self.summary}
+                "metrics": [m.to_json() for m in self.metrics], "summary": self.summary,
+                "gain_given_the_others": self.gain_given_the_others}
 
 
 @dataclass(frozen=True)
@@ -177,6 +184,12 @@ class CloseloopResult(LoopReport):
     follows_series: dict = field(repr=False, default_factory=dict)
     rows_of: Callable | None = field(repr=False, default=None)   # per-sample (N, 3) → residual rows
     magnetometer: MagLoopResult | None = None    # the loop on the magnetometer channel (None: no channel)
+
+    def ranked_by_size(self) -> list[tuple[str, float]]:
+        """The findings, largest first, as (effect, held-out G of the effect added last with the others in)
+        — :attr:`RateEvidence.gain_given_the_others`; findings without one are left out."""
+        sized = [(f.effect, f.evidence.gain_given_the_others) for f in self.found]
+        return sorted(((k, g) for k, g in sized if g is not None), key=lambda kg: -kg[1])
 
     def to_json_dict(self) -> dict:
         out = {k: self._json(k) for k in JSON_KEYS}
@@ -383,7 +396,19 @@ def _residual_without(setup: LoopSetup, final: ModelState, index: int):
     return compute
 
 
-def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, rnd: Round[ModelState]) -> Finding:
+def _gain_given_the_others(setup: LoopSetup, final: ModelState, index: int) -> float | None:
+    """Held-out G of ``final.terms[index]`` added last: the final model refitted without it (fit rows), scored
+    with it on the held-out rows (:func:`calib.closeloop.fit.held_out_score`); None for an output-stage term."""
+    term = final.terms[index]
+    if term.family.output_stage:
+        return None
+    without = refit(setup, tuple(t for i, t in enumerate(final.terms) if i != index))
+    score = held_out_score(setup.ref, without.terms, without.fit, [term], without.gyro_rad_s)
+    return float(score.gain) if math.isfinite(score.gain) else None
+
+
+def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, rnd: Round[ModelState],
+             given_others: float | None) -> Finding:
     """A term the loop added (``final.terms[index]``, added in round ``rnd``): its parameters and σ from
     the fit on every row (``full``), its family's summary, the evidence and the trace that says why."""
     term = final.terms[index]
@@ -399,7 +424,7 @@ def _finding(setup: LoopSetup, final: ModelState, full: FitResult, index: int, r
     metrics = rnd.pick.metrics
     evidence = RateEvidence(rnd.round, s.gain, s.added_parameters, s.n_eff, s.held_out_rms_before,
                             s.held_out_rms_after, term.follows, group.rivals if group is not None else [],
-                            rnd.excitation, metrics, rep.summary)
+                            rnd.excitation, metrics, rep.summary, given_others)
     unit, scale = _row_display(setup.ref)
     trace = trace_of(term.follows, rep.summary, "residual", s.held_out_rms_before * scale, s.held_out_rms_after * scale,
                      unit, s.gain, s.added_parameters, metrics, "held_out_residual_rms")
@@ -449,7 +474,10 @@ def _report(setup: LoopSetup, check, declared: list[str], trace: LoopTrace[Model
     if weak:
         notes.append("weakly determined (σ > 0.1 %: little motion excites them): " + ", ".join(weak))
     added = trace.added
-    found = [_finding(setup, full_state, full, n_decl + k, r) for k, r in enumerate(added)]
+    # with one finding, "added last" is its own round; with more, each is refitted without it
+    given = ([_gain_given_the_others(setup, state, n_decl + k) for k in range(len(added))] if len(added) > 1
+             else [r.score.gain for r in added])
+    found = [_finding(setup, full_state, full, n_decl + k, r, given[k]) for k, r in enumerate(added)]
 
     err_b, err_a = _errors(setup, declared_state), _errors(setup, state)
     raw = _attitude_rms(setup.rec, setup.measured_gyro)

@@ -165,7 +165,7 @@ def test_cli_writes_report_json_md_plots_and_rrd(tmp_path, typical_session):
                           "rounds", "metrics", "rejected", "disagreements", "tested", "identifiability", "recording"]
     assert list(data["found"][0]["evidence"]) == [
         "round", "criterion_gain", "added_parameters", "n_eff", "held_out_rms_before", "held_out_rms_after",
-        "explained_fraction", "follows", "rivals", "identifiability", "metrics", "summary"]
+        "explained_fraction", "follows", "rivals", "identifiability", "metrics", "summary", "gain_given_the_others"]
     assert set(data["unexplained"]) == {"spectral_lines", "channel_correlations", "whiteness", "variance_growth",
                                         "summary"}
     assert data["declared"] == ["bias", "scale_factor", "nonorthogonality"]
@@ -233,6 +233,11 @@ def test_imu_tk_session_names_the_gyros_rotation_against_the_accelerometer_after
     assert "held_out_tilt_rms_deg" in alpha.trace
     assert res.error_after["held_out_tilt_rms_deg"] < 0.5 * res.error_before["held_out_tilt_rms_deg"]
     assert found[0] == "g_sensitivity"
+    # judged with the others in (each added last), the order is the same: the rounds' order is not an artefact of
+    # the path; the last one added scores as in its own round (the same two models)
+    ranked = res.ranked_by_size()
+    assert [k for k, _ in ranked] == found and all(g > 0 for _, g in ranked), ranked
+    assert dict(ranked)[found[-1]] == pytest.approx(res.found[-1].evidence.criterion_gain, rel=1e-3)
     # the premise of that order: per rest, the mean rate against (a) a constant, (b) a constant + G·f, (c) a cubic
     # in time; leave-one-out RMS over the rests
     from calib.session.rest import detect_rest

@@ -45,6 +45,10 @@ def cmd_closeloop(args: argparse.Namespace) -> int:
         print(f"  found: {f.trace}")
     if not res.found:
         print("  found nothing beyond the declared model")
+    ranked = res.ranked_by_size()
+    if len(ranked) > 1:
+        print("  largest first, each judged with the others in (held-out G): "
+              + ", ".join(f"{kind} {gain:.0f}" for kind, gain in ranked))
     print(f"  unexplained: {res.unexplained.get('summary', '')}")
     print(f"  error before: {res.error_before}\n  error after:  {res.error_after}")
     mag = res.magnetometer
