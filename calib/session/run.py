@@ -154,7 +154,7 @@ def _estimate(rec: Recording, name: str, mode: str, options: RunOptions, keep_hi
     prep = prepare(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2,
                    external_acc_allowance_m_s2=options.external_acc_allowance_m_s2)
     if SESSION_METHODS[name][0] == "hand":
-        params = HandParams(misalignment=True) if _poses(options) else None
+        params = HandParams(misalignment=True, accelerometer_source=_poses_source(options)) if _poses(options) else None
         result = kf_hand(rec, accelerometer=mode, gravity_m_s2=options.gravity_m_s2, keep_history=keep_history,
                          prepared=prep, turns=turns, params=params)
     else:
@@ -179,6 +179,11 @@ def _poses(options: RunOptions) -> bool:
     return options.turns is not None and bool(options.turns.poses)
 
 
+def _poses_source(options: RunOptions) -> str:
+    """The protocol's poses as the messages name them."""
+    return f"the {options.turns.source}'s six box-face poses"
+
+
 def protocol_prior(rec: Recording, options: RunOptions, prior: Prior) -> tuple[Prior, RunOptions, dict | None]:
     """With a protocol's six box-face poses (``options.turns.poses``): the prior with the accelerometer they measure
     (:func:`calib.session.six_poses.protocol_accelerometer`, at the run's gravity or g₀), the options with the
@@ -190,8 +195,7 @@ def protocol_prior(rec: Recording, options: RunOptions, prior: Prior) -> tuple[P
 
     g = options.gravity_m_s2 or G0
     poses, sigma = protocol_accelerometer(rec.acc_m_s2, rec.t_s, options.turns.poses, g)
-    prior = prior.with_accelerometer(poses.theta(), sigma, f"the accelerometer from the {options.turns.source}'s six "
-                                     "box-face poses")
+    prior = prior.with_accelerometer(poses.theta(), sigma, f"the accelerometer from {_poses_source(options)}")
     if options.method is None and options.accelerometer is None:
         options = replace(options, accelerometer="calibrated")
     return prior, options, {**poses.to_dict(), "std": sigma.tolist()}

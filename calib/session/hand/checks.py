@@ -149,12 +149,13 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                            tremor_band_rms_m_s2: float, lever_arm_m: np.ndarray,
                            lever_arm_std_m: np.ndarray, check_accelerometer: bool = True,
                            slow_residual_m_s2: np.ndarray | None = None, slow_residual_t_s: np.ndarray | None = None,
-                           rate_hz: float | None = None) -> HandAssumptions:
+                           rate_hz: float | None = None, accelerometer_source: str | None = None) -> HandAssumptions:
     """The checks of the module docstring.  ``rests``: (start, stop) sample ranges; ``sigma_sg``:
     σ of the six S, G the estimator reports; the rest from ``kf_hand``'s hand diagnostics.
     ``check_accelerometer`` False: the accelerometer is estimated with the gyro (``kf_hand_joint``), whose
     own |f̂| = g test at the rests replaces check 1.  ``slow_residual_m_s2`` (with its times and rate):
-    |f_lp − K r̂| − g over the filtered span, for check 4 (skipped when None)."""
+    |f_lp − K r̂| − g over the filtered span, for check 4 (skipped when None).  ``accelerometer_source``: what
+    calibrated the accelerometer (None: assumed calibrated), named by check 1 instead of its advice to calibrate it."""
     notes: list[str] = []
     ok = True
     details: dict = {}
@@ -177,12 +178,18 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                          "poses; rests in several attitudes (or a multi-pose accelerometer calibration) would test it")
         elif eps > sig and eps > NOISE_Z * noise:
             ok = False
-            notes.append(f"inconsistent: the accelerometer is not calibrated: |f| at rest differs between the "
-                         f"{means.shape[0]} rest poses by up to {eps * 1e3:.1f} mg (noise {noise * 1e3:.2f} mg), "
-                         f"which tilts kf_hand's gravity reference by ~{math.degrees(eps):.2f}° between poses and can "
-                         f"bias S, G by ~{eps:.1e} — more than their σ (median {sig:.1e}). kf_hand assumes a "
-                         "calibrated accelerometer: calibrate it first or use calib run's default "
-                         "(--accelerometer estimate)")
+            found = (f"|f| at rest differs between the {means.shape[0]} rest poses by up to {eps * 1e3:.1f} mg (noise "
+                     f"{noise * 1e3:.2f} mg), which tilts kf_hand's gravity reference by ~{math.degrees(eps):.2f}° "
+                     f"between poses and can bias S, G by ~{eps:.1e} — more than their σ (median {sig:.1e})")
+            if accelerometer_source is None:
+                notes.append(f"inconsistent: the accelerometer is not calibrated: {found}. kf_hand assumes a "
+                             "calibrated accelerometer: calibrate it first or use calib run's default "
+                             "(--accelerometer estimate)")
+            else:
+                notes.append(f"inconsistent: with the accelerometer from {accelerometer_source}, {found}: that "
+                             "calibration does not hold at every pose of this session. Take S, G as good to "
+                             f"~{eps:.1e}, not their σ; rests in more attitudes would calibrate the accelerometer "
+                             "for all of them")
     if tremor_band_rms_m_s2 > TREMOR_MAX_M_S2:
         ok = False
         notes.append(

@@ -765,7 +765,8 @@ def _hand(ses: _Session, fit: _Fit, cov: np.ndarray, sig: _Sigma, tremor: _Tremo
     assumptions = check_hand_assumptions(rec.acc_m_s2, rec.t_s, ses.prep.rest.index_ranges,
                                          np.sqrt(np.diag(cov[3:9, 3:9])), tremor.rms, r_hat, r_sd,
                                          check_accelerometer=not ses.estimate, slow_residual_m_s2=sig.slow_resid,
-                                         slow_residual_t_s=ses.t, rate_hz=ses.fs)
+                                         slow_residual_t_s=ses.t, rate_hz=ses.fs,
+                                         accelerometer_source=ses.params.accelerometer_source)
     hand = {
         "lever_arm_m": r_hat.tolist(),
         "lever_arm_std_m": r_sd.tolist(),

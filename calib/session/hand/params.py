@@ -70,6 +70,9 @@ class HandParams:
     is then the body's, and the independent generator's hand cells hold α's σ honest — NEES(3) 6.9 over 4 seeds),
     except on noise-free input (its floor lets α take the discretisation error); off with it calibrated (kf_hand: its
     NEES cells are not yet measured with α).
+    ``accelerometer_source``: what calibrated the accelerometer the recording is read through (e.g. a protocol's
+    six box-face poses), for the check of kf_hand's calibrated-accelerometer assumption to name; None: the
+    accelerometer is assumed calibrated (by its maker, or by the user before the session).
     """
 
     cutoff_hz: float = CUTOFF_HZ
@@ -86,6 +89,7 @@ class HandParams:
     joint_gyro_temp_bias: bool = False
     drift_quantile: float = DRIFT_QUANTILE
     misalignment: bool | None = None
+    accelerometer_source: str | None = None
 
     def __post_init__(self) -> None:
         if self.sway not in SWAY_MODELS:
