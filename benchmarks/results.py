@@ -207,6 +207,9 @@ REGISTRY: tuple[Result, ...] = (
            (S("python benchmarks/false_alarm.py --table {results}/false_alarm_before.json {results}/false_alarm.json "
               "--markdown {results}/false_alarm.md"),),
            ("false_alarm.md",), 0.1, inputs=("false_alarm_before.json", "false_alarm.json")),
+    Result("sz_ferraris", "imucal's Ferraris session: what pulls the gyro's S_z, per move and per kf_hand variant",
+           (S("python benchmarks/sz_ferraris.py", capture="sz_ferraris.md", fmt="markdown"),),
+           ("sz_ferraris.md",), 1, data=True),
     Result("readme_examples", "every README command run as written in a fresh folder: exit code and wall time",
            (S("python benchmarks/readme_examples.py --out {results}/readme_examples.md"),),
            ("readme_examples.md",), 2),
