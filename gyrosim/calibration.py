@@ -275,6 +275,21 @@ class Calibration:
 
         return cls(gyro=build(gyro), accelerometer=build(accelerometer), covariance=covariance, **kwargs)
 
+    def as_applied(self) -> "Calibration":
+        """The calibration as :meth:`compensate` applies it, for exports: with an :attr:`applied` block, its effects
+        (the values the session determined, the prior's for the rest; the gyro's rotation when applied) with this
+        calibration's noise terms, σ from the block (no cross-covariance); without one, this calibration itself.
+        Another tool given the export then applies what ``calib apply`` would."""
+        a = self.applied
+        if a is None:
+            return self
+        gyro = a.effects("gyro") + tuple(e for e in self.gyro if e.stochastic)
+        acc = a.effects("accelerometer") + tuple(e for e in self.accelerometer if e.stochastic)
+        alpha_std = a.gyro_misalignment_std_rad if a.gyro_misalignment_std_rad is not None else np.full(3, np.nan)
+        sigma = [a.sigma[:9]] + ([alpha_std] if a.gyro_misalignment_rad is not None else [])
+        sigma = np.concatenate(sigma + [a.sigma[9:]])
+        return replace(self, gyro=gyro, accelerometer=acc, covariance=np.diag(sigma**2), applied=None)
+
     # ------------------------------------------------------------------ parameters
     def parameter_names(self) -> list[str]:
         """``triad.kind.field[i]`` of every parameter of every deterministic effect (covariance order)."""

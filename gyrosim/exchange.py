@@ -29,6 +29,10 @@ the triad: I + diag(S) + N(G), and the gyro's −[α×] when the calibration has
 accelerometer) is written as K = diag(‖row_i(M)‖), R = K⁻¹ M; b_g in °/s; K_ga = 0 (not estimated).  imucal has
 no term of its own for the gyro–accelerometer misalignment: its R_g is a general matrix, so the rotation is in it.
 The file loads with ``imucal.management.load_calibration_info`` and ``calibrate()`` gives our compensation.
+
+Both write a calibration as ``calib apply`` applies it (:meth:`gyrosim.calibration.Calibration.as_applied`): with
+an ``applied`` block, the parameters the session determined and the prior's values for the rest — not the
+estimate of a parameter the motion left undetermined.
 """
 
 from __future__ import annotations
@@ -62,9 +66,11 @@ def kalibr_imu_yaml(cal: Calibration, update_rate_hz: float, *, rostopic: str = 
                     noise: Mapping[str, float | None] | None = None) -> str:
     """Kalibr's ``imu.yaml`` for ``cal`` (module docstring; densities averaged over the three axes).
     ``noise``: Kalibr's four keys (SI, None for a number not measured), e.g. from ``calib allan --json``; the two
-    random walks given as arguments win over it, and it wins over the calibration's own noise effects."""
+    random walks given as arguments win over it, and it wins over the calibration's own noise effects.  The
+    intrinsics in its comments are what ``calib apply`` applies (:meth:`Calibration.as_applied`)."""
     if not (math.isfinite(update_rate_hz) and update_rate_hz > 0):
         raise GyrosimError(f"update rate must be a positive number of Hz, got {update_rate_hz}")
+    cal = cal.as_applied()
     noise = dict(noise or {})
     given = {"gyroscope_random_walk": gyro_random_walk, "accelerometer_random_walk": acc_random_walk}
     own = {"gyroscope_noise_density": ("gyro", "white_noise", "density"),
@@ -106,7 +112,7 @@ def kalibr_imu_yaml(cal: Calibration, update_rate_hz: float, *, rostopic: str = 
         f"rostopic:                    {rostopic}   #the IMU ROS topic",
         f"update_rate:                 {update_rate_hz:.6g}   #Hz (for discretization of the values above)",
         "",
-        "# intrinsics estimated by calib (body frame RFU; raw = (I + diag(S) + N(G)) x + b), for reference:",
+        "# intrinsics as calib apply applies them (body frame RFU; raw = (I + diag(S) + N(G)) x + b), for reference:",
     ]
     for triad, unit in (("gyro", "rad/s"), ("accelerometer", "m/s^2")):
         for kind, label in (("bias", f"bias ({unit})"), ("scale_factor", "scale factor S"),
@@ -172,8 +178,11 @@ def _k_r(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def imucal_json(cal: Calibration, comment: str = "") -> str:
-    """imucal's Ferraris JSON layout for ``cal`` (module docstring); raises if a triad is missing."""
+    """imucal's Ferraris JSON layout for ``cal`` as ``calib apply`` applies it (:meth:`Calibration.as_applied`: the
+    parameters the session determined, the prior's for the rest; module docstring); raises if a triad is missing."""
     from .effects import nonortho_matrix
+
+    cal = cal.as_applied()
 
     for triad in ("gyro", "accelerometer"):
         if not any(cal.has(triad, k) for k in LINEAR_KINDS):

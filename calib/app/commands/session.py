@@ -400,7 +400,9 @@ def _add_apply_export_inspect(sub) -> None:
     ap.add_argument("--force", action="store_true", help="apply even a calibration whose status is 'diverged'")
     ap.set_defaults(func=cmd_apply)
     ex = sub.add_parser("export", help="write a calibration for Kalibr or imucal",
-                        description="Write a calibration JSON in another tool's format (Kalibr imu.yaml, imucal JSON).")
+                        description="Write a calibration JSON in another tool's format (Kalibr imu.yaml, imucal JSON): "
+                                    "the values calib apply applies (its applied block: what the session determined, "
+                                    "the prior's for the rest).")
     ex.add_argument("calibration", help="calibration JSON written by calib run --json")
     ex.add_argument(
         "--format",
