@@ -69,24 +69,27 @@ def _run_demo(out: Path, schedule: str, hand: str, sensor: str, rate_hz: float, 
     from gyrosim.sensor_model import load_sensor
     from gyrosim.simulate import simulate
 
-    from calib.app.report import write_session_report
+    from calib.app.report import import_plotting, write_session_report
     from calib.app.rerun import save_calibration_rrd
     from calib.session.defaults import default_method
     from calib.session.paper import calibrate, true_gyro_parameters
-    from calib.session.validation import validate_attitude
+    from calib.session.validation import validate_attitude, validation_session
 
     out.mkdir(parents=True, exist_ok=True)
     sched, hnd, model = load_schedule(schedule), load_hand(hand), load_sensor(sensor)
     rec = simulate(sched, hnd, model, rate_hz, seed=seed, progress=progress)
     rec_path = save_hdf5(rec, out / "session.h5")
     name = method or default_method(accelerometer)
+    log("simulating a free-style session of the same device, to validate the attitude on …")
+    free = validation_session(rec, hand=hnd.name, seed=seed + 1000)   # needs no filter: while it compiles
+    import_plotting()                                      # the report's first plot imports matplotlib: now too
     if warm is not None:
         warm.wait(log)                                     # the filter compiled in the background: loaded, not rebuilt
     log(f"calibrating {rec.n} samples ({name}) …")
     result = calibrate(rec, name, accelerometer=accelerometer)
     truth = true_gyro_parameters(rec)
-    log("validating the attitude on a free-style session of the same device …")
-    validation = validate_attitude(rec, result, hand=hnd.name, seed=seed + 1000)
+    log("validating the attitude on the free-style session …")
+    validation = validate_attitude(rec, result, session=free)
     report = write_session_report(out, rec, result, truth, schedule=sched, hand=hnd, sensor=model, seed=seed,
                                   validation=validation)
     rrd = save_calibration_rrd(out / "session.rrd", rec, result, truth)

@@ -17,12 +17,20 @@ from calib.session.defaults import method_label
 __all__ = ["write_session_report", "plot_convergence"]
 
 
-def plot_convergence(result, truth: dict | None, path: Path) -> Path:
-    """Estimates and ±√P of S and G over time (PNG): the picture of Zhou 2020 Figs. 2–3."""
+def import_plotting():
+    """matplotlib's pyplot on its file backend (Agg), imported on first use: ~1 s, which the demo spends while the
+    filter compiles instead of after it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_convergence(result, truth: dict | None, path: Path) -> Path:
+    """Estimates and ±√P of S and G over time (PNG): the picture of Zhou 2020 Figs. 2–3."""
+    plt = import_plotting()
 
     h = result.history.arrays()
     t, sd = h["t_s"], np.sqrt(h["p_diag"])

@@ -23,7 +23,8 @@ from gyrosim.sensor_model import SensorModel
 from gyrosim.simulate import apply_sensor, simulate_truth
 from gyrosim.strapdown import integrate_gyro
 
-__all__ = ["AttitudeErrors", "attitude_errors", "validate_attitude", "windowed_rotation_error_deg"]
+__all__ = ["AttitudeErrors", "ValidationSession", "attitude_errors", "validate_attitude", "validation_session",
+           "windowed_rotation_error_deg"]
 
 
 @dataclass(frozen=True)
@@ -72,16 +73,34 @@ def windowed_rotation_error_deg(t_s: np.ndarray, gyro_rad_s: np.ndarray, quat_re
     return float(np.sqrt(np.mean(ang**2)))
 
 
-def validate_attitude(calibration_recording: Recording, result, *, schedule: str = "freestyle",
-                      hand: str = "typical", seed: int = 1000) -> AttitudeErrors:
-    """Table 12 for the device in ``calibration_recording`` calibrated as ``result``."""
+@dataclass(frozen=True)
+class ValidationSession:
+    """The free-style session of the calibrated device: its truth and what the device measured."""
+
+    truth: Recording
+    measured: Recording
+
+
+def validation_session(calibration_recording: Recording, *, schedule: str = "freestyle", hand: str = "typical",
+                       seed: int = 1000) -> ValidationSession:
+    """The device of ``calibration_recording`` (its stored sensor model) on a new ``schedule`` session, fresh noise
+    (seed ``seed``): needs no calibration, so it can be simulated while the filter is still compiling."""
     raw = calibration_recording.meta.get("sensor_model")
     if not raw:
         raise ValueError("attitude validation needs a simulated recording that stores its sensor model")
     device = SensorModel.from_dict(raw if isinstance(raw, dict) else json.loads(raw))
-    rate = calibration_recording.rate_hz
-    truth = simulate_truth(schedule, hand, rate, seed=seed)
-    rec = apply_sensor(truth, device, np.random.default_rng(seed), realize=False)
+    truth = simulate_truth(schedule, hand, calibration_recording.rate_hz, seed=seed)
+    return ValidationSession(truth, apply_sensor(truth, device, np.random.default_rng(seed), realize=False))
+
+
+def validate_attitude(calibration_recording: Recording, result, *, schedule: str = "freestyle",
+                      hand: str = "typical", seed: int = 1000, session: ValidationSession | None = None
+                      ) -> AttitudeErrors:
+    """Table 12 for the device in ``calibration_recording`` calibrated as ``result``; ``session``: the free-style
+    session already simulated (:func:`validation_session` with the same arguments), else simulated here."""
+    if session is None:
+        session = validation_session(calibration_recording, schedule=schedule, hand=hand, seed=seed)
+    truth, rec = session.truth, session.measured
     q0 = truth.truth.quat_nb[0]
     w_bias = rec.gyro_rad_s - result.bias_rad_s
     m = np.eye(3) + np.diag(result.scale_factor) + nonortho_matrix(result.nonorthogonality)
