@@ -44,6 +44,7 @@ from gyrosim.effects import (
     NonOrthogonality,
     RandomWalk,
     RateRamp,
+    ScaleAsymmetry,
     ScaleFactor,
     ScaleNonlinearity,
     SignalContext,
@@ -199,6 +200,20 @@ class ScaleNonlinearityFamily(_RateDriven):
 
     def plausible_max(self, kind, ctx):
         return 5e-3
+
+
+@register_family
+class ScaleAsymmetryFamily(_RateDriven):
+    effects = (ScaleAsymmetry,)
+    driver = "|ω| on the same axis"
+    separated_by = "turns of the same size in both directions about every axis"
+
+    def build(self, kind, ctx, ref, options):
+        return _class_candidate(self, ctx, "|ω| on the same axis (the scale differs with the turn's sign)",
+                                np.abs(ctx.omega_true_rad_s))
+
+    def plausible_max(self, kind, ctx):
+        return 0.02
 
 
 @register_family

@@ -11,6 +11,7 @@ noise — then the size is the schedule's detection limit, which is itself a fin
 | time_offset | 3.4 ms | 1–10 ms filter/bus latency |
 | g_sensitivity | 0.08–0.12 °/s/g (diagonal) | MPU-9250 0.1 °/s/g |
 | scale_nonlinearity | 1.5–2.5e-3 1/(rad/s) (≈ 1.7 % at 500 °/s) | 0.1–0.5 % FS; smaller: below this schedule's reach |
+| scale_asymmetry | 1.0–2.0e-3 (scale ± 0.1–0.2 % by the rate's sign) | ≈ 4e-3 measured on a NilsPod's z axis |
 | misalignment | 2–6 mrad | cross-axis 1–2 % |
 | temperature_bias | 0.02–0.03 °/s/°C over an 8 °C warm-up | MPU-9250 ±0.24 °/s/°C worst |
 | temperature_scale | 2–3e-4 /°C | MPU-9255 ±4 % over 125 °C |
@@ -139,6 +140,7 @@ SUITE: dict[str, SuiteCase] = {
     "time_offset": _single(E.TimeOffset(delay_s=0.0034)),
     "g_sensitivity": _single(E.GSensitivity(value=np.diag([0.10, 0.08, 0.12]) * D / G0)),
     "scale_nonlinearity": _single(E.ScaleNonlinearity(value=[2.0e-3, -1.5e-3, 2.5e-3])),
+    "scale_asymmetry": _single(E.ScaleAsymmetry(value=[1.5e-3, -1.0e-3, 2.0e-3])),
     "misalignment": SuiteCase((E.Misalignment(value=[0.005, -0.003, 0.004, 0.002, -0.006, 0.003]),),
                               description="misalignment", equivalent=(("misalignment", "gyro_acc_misalignment"),)),
     "temperature_bias": _single(E.TemperatureBias(coefficients=np.array([[0.03], [-0.02], [0.025]]) * D), WARM_UP),

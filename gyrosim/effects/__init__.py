@@ -40,8 +40,8 @@ from __future__ import annotations
 # the vocabulary's order (the model loop proposes candidates in it): not sorted
 # isort: off
 from .base import EFFECTS, Effect, SignalContext, VectorEffect, effect_from_dict, unregister_effect, zeros_field
-from .error_terms import (Bias, GSensitivity, GyroAccMisalignment, Misalignment, NonOrthogonality, ScaleFactor,
-                          ScaleNonlinearity, nonortho_matrix)
+from .error_terms import (Bias, GSensitivity, GyroAccMisalignment, Misalignment, NonOrthogonality, ScaleAsymmetry,
+                          ScaleFactor, ScaleNonlinearity, nonortho_matrix)
 from .thermal import TemperatureBias, TemperaturePiecewise, TemperatureRBF, TemperatureScale, ThermalHysteresis
 from .environment import EARTH_RATE_RAD_S, EarthRate, MagneticSensitivity
 from .magnetometer import AttachedMagnet, FrameRotation, HardIron, SoftIron, rotation_matrix
@@ -54,7 +54,7 @@ __all__ = [
     "SignalContext", "Effect", "VectorEffect", "EFFECTS", "effect_from_dict", "unregister_effect", "zeros_field",
     "rotation_matrix", "nonortho_matrix", "spectral_noise", "haar_gain2", "EARTH_RATE_RAD_S",
     "Bias", "ScaleFactor", "NonOrthogonality", "Misalignment", "GyroAccMisalignment", "ScaleNonlinearity",
-    "GSensitivity",
+    "ScaleAsymmetry", "GSensitivity",
     "TemperatureBias", "TemperatureScale", "ThermalHysteresis", "TemperaturePiecewise", "TemperatureRBF",
     "EarthRate", "MagneticSensitivity", "HardIron", "SoftIron", "FrameRotation", "AttachedMagnet",
     "WhiteNoise", "BiasInstability", "RandomWalk", "GaussMarkov", "QuantizationNoise", "RateRamp",

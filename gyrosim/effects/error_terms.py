@@ -245,6 +245,36 @@ class ScaleNonlinearity(VectorEffect):
 
 
 @dataclass(frozen=True)
+class ScaleAsymmetry(VectorEffect):
+    """Scale factor that differs with the sign of the input: δ_i = a_i |x_i|, so axis i reads (1 + S_i + a_i) x_i
+    for x_i > 0 and (1 + S_i − a_i) x_i for x_i < 0 (dimensionless, even in x: a turn and its return do not
+    cancel).  Measured on imucal's Ferraris session: the NilsPod gyro's z axis carries gravity best at S_z ≈ −0.008
+    turning +z and ≈ −0.001 turning −z (docs/real_imu.md), a ≈ −0.004.  The model loop's candidate
+    (``calib closeloop``) regresses on |ω|; a Monte Carlo sensor may draw it like any vector effect."""
+
+    kind: ClassVar[str] = "scale_asymmetry"
+    display_units: ClassVar[dict[str, tuple[float, str]]] = {"gyro": (1e6, "ppm")}
+    quantities: ClassVar[dict[str, str]] = {"gyro": "fraction", "accelerometer": "fraction"}
+    pointwise: ClassVar[bool] = True
+    labels: ClassVar[tuple[str, str]] = ("scale asymmetry", "scale asymmetry sigma")
+
+    def delta(self, x, ctx, rng=None):
+        return self.value * np.abs(x)
+
+    def delta_dx(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = self.value[i] * np.sign(x[:, i])
+        return out
+
+    def sensitivity(self, x, ctx):
+        out = np.zeros(x.shape + (3,))
+        for i in range(3):
+            out[:, i, i] = np.abs(x[:, i])
+        return out
+
+
+@dataclass(frozen=True)
 class GSensitivity(Effect):
     """Gyro sensitivity to specific force: δ = K f, K 3×3 in (rad/s)/(m/s²) (gyro only)."""
 

@@ -60,6 +60,7 @@ def deterministic_effects():
         ("gyro", Misalignment(value=[0.01, -0.02, 0.005, 0.01, -0.01, 0.02])),
         ("gyro", E.GyroAccMisalignment(value=[0.015, -0.0075, 0.004])),
         ("gyro", ScaleNonlinearity(value=[2e-3, -1e-3, 1.5e-3])),
+        ("gyro", E.ScaleAsymmetry(value=[2e-3, -1e-3, 1.5e-3])),
         ("gyro", GSensitivity(value=np.arange(9).reshape(3, 3) * 1e-4)),
         ("gyro", TemperatureBias(coefficients=[[1e-3, 2e-5], [-2e-3, 0.0], [5e-4, -1e-5]])),
         ("gyro", TemperatureScale(coefficients=[[3e-4], [-2e-4], [1e-4]])),
