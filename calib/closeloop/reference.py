@@ -383,6 +383,27 @@ def calibrate_accelerometer_at_rest(means_m_s2: np.ndarray):
     return (lambda f: (f - b) @ minv.T), note
 
 
+def _accelerometer_of(rec: Recording, means_m_s2: np.ndarray):
+    """The accelerometer the gravity directions are read through: from a Ferraris section list's six box-face poses
+    when the recording carries one (meta ``segments`` with ``x_p`` … ``z_a``: the box's right angles fix what the
+    |f| = g₀ fit of a few poses cannot), else :func:`calibrate_accelerometer_at_rest`.  Returns (f ↦ f̂, a note)."""
+    from calib.inputs.errors import TurnsError
+    from calib.session.gravityfit import compensate_acc
+    from calib.session.six_poses import six_pose_accelerometer
+
+    try:
+        theta = six_pose_accelerometer(rec.acc_m_s2, rec.meta.get("segments") or {}, G0).theta()
+    except TurnsError:
+        return calibrate_accelerometer_at_rest(means_m_s2)
+    mags = np.linalg.norm(means_m_s2, axis=1)
+    after = np.linalg.norm(compensate_acc(means_m_s2, theta), axis=1)
+    return (lambda f: compensate_acc(f, theta)), (
+        f"accelerometer from the section list's six box-face poses (Ferraris; bias "
+        f"{np.array2string(theta[:3], precision=3)} m/s², scale {np.array2string(theta[3:6] * 100, precision=2)} %): "
+        f"|f| − g₀ RMS over the {mags.size} rests {np.sqrt(np.mean((mags - G0) ** 2)):.3f} → "
+        f"{np.sqrt(np.mean((after - G0) ** 2)):.4f} m/s²")
+
+
 def gravity_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> GravityReference:
     from calib.session.rest import detect_rest  # local: calib.session.rest imports nothing from here
 
@@ -394,7 +415,7 @@ def gravity_reference(rec: Recording, holdout_s: float, exclude: np.ndarray) -> 
             "rest segment(s): the recording cannot separate candidate effects (record rests between rotations)")
     acc = np.asarray(rec.acc_m_s2)
     means = np.array([acc[a:b].mean(axis=0) for a, b in rests])
-    acc_cal, acc_note = calibrate_accelerometer_at_rest(means)
+    acc_cal, acc_note = _accelerometer_of(rec, means)
     dirs = acc_cal(means)
     mags = np.linalg.norm(dirs, axis=1)
     dirs = dirs / mags[:, None]

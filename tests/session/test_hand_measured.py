@@ -16,6 +16,7 @@ import warnings
 
 import numpy as np
 import pytest
+from imucal_reference import IMUCAL_SG
 
 from gyrosim.errors import RecordingError
 from gyrosim.loaders import available_datasets
@@ -131,9 +132,6 @@ def test_raw_accelerometer_is_flagged(name):
     assert not any(w.startswith("noise-free input") for w in cal.warnings)
 
 
-# imucal 2.6.0's FerrarisCalibration of the same file in our frame (the symmetric part of its gyro matrix,
-# docs/real_imu.md, computed by benchmarks/real_imu.py): S_x, S_y, S_z, G_x, G_y, G_z.
-IMUCAL_SG = np.array([0.02785, -0.01765, -0.00172, 0.00244, 0.00166, -0.00006])
 
 
 def _ferraris_with_six_pose_accelerometer():
