@@ -34,11 +34,12 @@ from gyrosim.rotations import skew
 from calib.inputs.turns import Turns
 from calib.session.model import gyro_axis_matrix, nonorthogonality_jacobians
 
-__all__ = ["TurnRow", "turn_rows", "apply_known_turns", "GYRO_KINDS"]
+__all__ = ["TurnRow", "turn_rows", "apply_known_turns", "known_turns_lines", "GYRO_KINDS", "TURN_OFF_SIGMA"]
 
 # the gyro's parameter blocks a turn measures, in the Calibration's covariance order (gyro first)
 GYRO_KINDS = ("bias", "scale_factor", "nonorthogonality", "gyro_acc_misalignment")
 ITERATIONS = 4   # Gauss–Newton steps on the turns' rows (S moves by ~1e-2 at most: converged after 2)
+TURN_OFF_SIGMA = 3.0   # a turn whose calibrated angle misses the stated one by more than this many σ is named
 
 
 @dataclass(frozen=True)
@@ -132,3 +133,23 @@ def _with_accelerometer(cal: Calibration, dx: np.ndarray, kinds: list[str]) -> C
                                                                    3 * acc_kinds.index(e.kind) + 3])
                 if e.kind in acc_kinds else e for e in cal.accelerometer)
     return replace(cal, accelerometer=acc)
+
+
+def known_turns_lines(report: dict) -> list[str]:
+    """The terminal's lines from ``diagnostics["known_turns"]``: each turn's angle after the calibration against the
+    stated one; and, when one misses it by more than :data:`TURN_OFF_SIGMA` σ, a second line saying what that means —
+    the turns and the session's other motion disagree on that axis's scale (on imucal's Ferraris session a gyro
+    whose scale differs with the turn's direction does this, docs/real_imu.md)."""
+    turns = report.get("turns") or []
+    if not turns:
+        return []
+    lines = [f"known turns ({report.get('source', 'given')}, σ {turns[0]['sigma_deg']:.2g}°), after the calibration: "
+             + ", ".join(f"{t['label']} {t['integrated_after_deg']:+.2f}° of {t['stated_deg']:+.0f}°" for t in turns)]
+    off = [(t["label"], (t["integrated_after_deg"] - t["stated_deg"]) / t["sigma_deg"]) for t in turns
+           if t["sigma_deg"] > 0]
+    off = [(label, z) for label, z in off if abs(z) > TURN_OFF_SIGMA]
+    if off:
+        lines.append(", ".join(f"{label} {z:+.1f}σ off" for label, z in off) + ": the turns and the other motion "
+                     "disagree on that axis's scale (a scale that differs with the turn's direction does this); "
+                     "S there holds for the other motion")
+    return lines

@@ -81,3 +81,20 @@ def test_calib_run_refuses_turns_it_cannot_use(tmp_path, capsys):
     assert "either as --turns FILE or by --protocol" in capsys.readouterr().err
     assert calib_main(base + ["--protocol", "ferraris"]) == 2
     assert "s_list.json" in capsys.readouterr().err
+
+
+def test_the_terminal_names_a_turn_the_calibration_misses_by_more_than_three_sigma():
+    """A turn 2.27° off with σ 0.5° (imucal's z turn after calib run's calibration) is named with what it means; one
+    0.9° off (1.8σ) is only listed."""
+    from calib.session.known_turns import TURN_OFF_SIGMA, known_turns_lines
+
+    def report(after_deg):
+        return {"source": "protocol ferraris", "turns": [
+            {"label": lab, "stated_deg": -360.0, "integrated_after_deg": a, "sigma_deg": 0.5}
+            for lab, a in zip(("x_rot", "z_rot"), after_deg)]}
+
+    lines = known_turns_lines(report([-360.89, -362.27]))
+    assert len(lines) == 2 and "z_rot -362.27° of -360°" in lines[0]
+    assert lines[1].startswith("z_rot -4.5σ off") and "x_rot" not in lines[1]
+    assert len(known_turns_lines(report([-360.89, -360.0 + 0.5 * TURN_OFF_SIGMA * 0.99]))) == 1   # just inside
+    assert known_turns_lines({}) == []

@@ -149,6 +149,7 @@ def _print_run(recording: str, cal, verbose: bool = False) -> None:
     and the whole text under ``verbose``), what is applied and why (the motion, the held-out check), and the
     status."""
     from calib.session.coach import Coaching
+    from calib.session.known_turns import known_turns_lines
     from calib.session.run import SESSION_METHODS, method_warnings
 
     rest = cal.to_dict()["rest_segments"]
@@ -158,6 +159,8 @@ def _print_run(recording: str, cal, verbose: bool = False) -> None:
     sg_applied = cal.applied is None or bool(cal.applied.from_session[3:9].any())
     _print_calibration(cal, verbose or sg_applied)
     print_input_warnings(cal.report["input"]["warnings"])
+    for line in known_turns_lines(cal.diagnostics.get("known_turns") or {}):
+        print(f"  {line}")
     if verbose or sg_applied:
         for line in Coaching.from_dict(cal.report["coaching"]).lines():
             print(f"  {line}")
