@@ -330,6 +330,16 @@ class Effect:
         return d
 
 
+def diagonal_jacobian(per_axis: np.ndarray) -> np.ndarray:
+    """(N, 3) → (N, 3, 3) with ``per_axis`` on each sample's diagonal, zero elsewhere: the Jacobian (∂δ/∂x or
+    ∂δ/∂θ) of an effect whose axes act each on their own."""
+    d = np.asarray(per_axis, dtype=float)
+    out = np.zeros(d.shape + (3,))
+    axes = np.arange(3)
+    out[:, axes, axes] = d
+    return out
+
+
 def zeros_field(*shape: int) -> Any:
     """A dataclass field defaulting to a fresh zero array of ``shape``."""
     return field(default_factory=lambda: np.zeros(shape))

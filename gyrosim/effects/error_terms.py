@@ -16,7 +16,7 @@ from ..errors import GyrosimError
 from ..lazy import lazy_module
 from ..rotations import skew
 from ..units import G0, RAD2DEG
-from .base import Effect, VectorEffect, _check_invertible, zeros_field
+from .base import Effect, VectorEffect, _check_invertible, diagonal_jacobian, zeros_field
 
 # heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
 kern = lazy_module("gyrosim._kernels")
@@ -81,10 +81,7 @@ class ScaleFactor(VectorEffect):
         return np.broadcast_to(np.diag(self.value), x.shape + (3,))
 
     def sensitivity(self, x, ctx):
-        out = np.zeros(x.shape + (3,))
-        for i in range(3):
-            out[:, i, i] = x[:, i]
-        return out
+        return diagonal_jacobian(x)
 
 
 @dataclass(frozen=True)
@@ -232,16 +229,10 @@ class ScaleNonlinearity(VectorEffect):
         kern.add_nonlinearity(y, x, self.value)
 
     def delta_dx(self, x, ctx):
-        out = np.zeros(x.shape + (3,))
-        for i in range(3):
-            out[:, i, i] = 2 * self.value[i] * np.abs(x[:, i])
-        return out
+        return diagonal_jacobian(2 * self.value * np.abs(x))
 
     def sensitivity(self, x, ctx):
-        out = np.zeros(x.shape + (3,))
-        for i in range(3):
-            out[:, i, i] = x[:, i] * np.abs(x[:, i])
-        return out
+        return diagonal_jacobian(x * np.abs(x))
 
 
 @dataclass(frozen=True)
@@ -262,16 +253,10 @@ class ScaleAsymmetry(VectorEffect):
         return self.value * np.abs(x)
 
     def delta_dx(self, x, ctx):
-        out = np.zeros(x.shape + (3,))
-        for i in range(3):
-            out[:, i, i] = self.value[i] * np.sign(x[:, i])
-        return out
+        return diagonal_jacobian(self.value * np.sign(x))
 
     def sensitivity(self, x, ctx):
-        out = np.zeros(x.shape + (3,))
-        for i in range(3):
-            out[:, i, i] = np.abs(x[:, i])
-        return out
+        return diagonal_jacobian(np.abs(x))
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import GyrosimError
 from ..lazy import lazy_module
 from ..units import RAD2DEG
-from .base import Effect, SignalContext, VectorEffect
+from .base import Effect, SignalContext, VectorEffect, diagonal_jacobian
 
 # heavy libraries the functions below call, imported on first use (gyrosim.lazy): not at start-up
 sp_signal = lazy_module("scipy.signal")
@@ -109,10 +109,7 @@ class TemperatureScale(TemperatureBias):
 
     def delta_dx(self, x, ctx):
         s = _poly(self._dT(ctx), self.coefficients)
-        out = np.zeros(x.shape + (3,))
-        for i in range(3):
-            out[:, i, i] = s[:, i]
-        return out
+        return diagonal_jacobian(s)
 
     def sensitivity(self, x, ctx):
         # ∂δ_i/∂s_ip = x_i ΔT^p: the bias sensitivity times the input on that axis
@@ -205,10 +202,7 @@ class TemperaturePiecewise(Effect):
 
     def delta_dx(self, x, ctx):
         s = self._h(ctx) @ self.scale.T
-        out = np.zeros(x.shape + (3,))
-        for i in range(3):
-            out[:, i, i] = s[:, i]
-        return out
+        return diagonal_jacobian(s)
 
     def sensitivity(self, x, ctx):
         h = self._h(ctx)
