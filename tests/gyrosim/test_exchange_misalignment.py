@@ -6,12 +6,11 @@ from __future__ import annotations
 import re
 
 import numpy as np
-import pytest
+from imucal_reference import assert_imucal_applies_as_calib_apply
 
 from gyrosim import effects as E
 from gyrosim.calibration import Calibration
-from gyrosim.exchange import imucal_json, kalibr_imu_yaml
-from gyrosim.recording import Recording
+from gyrosim.exchange import kalibr_imu_yaml
 
 ALPHA = np.radians([0.85, -0.43, -0.02])   # imu_tk's Xsens gyro against its accelerometer (°, about x, y, z)
 
@@ -52,23 +51,4 @@ def test_kalibr_comment_holds_c_gyro_i_as_the_gyros_rotation():
 
 
 def test_imucal_export_compensates_the_rotation_as_we_do():
-    pytest.importorskip("imucal", reason="imucal is the optional 'peers' extra (pip install .[peers])")
-    import json
-    import tempfile
-    from pathlib import Path
-
-    from imucal.management import load_calibration_info
-
-    cal = _cal()
-    rng = np.random.default_rng(3)
-    t = np.arange(200) / 100.0
-    rec = Recording(t, rng.normal(size=(200, 3)), rng.normal(size=(200, 3)) + [0, 0, 9.8], meta={"rate_hz": 100.0})
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "imucal.json"
-        path.write_text(imucal_json(cal))
-        info = load_calibration_info(path)
-        assert json.loads(path.read_text())["cal_type"] == "Ferraris"
-    acc, gyr = info.calibrate(acc=rec.acc_m_s2, gyr=np.degrees(rec.gyro_rad_s), acc_unit="m/s^2", gyr_unit="deg/s")
-    ours = cal.compensate(rec)
-    np.testing.assert_allclose(np.radians(gyr), ours.gyro_rad_s, atol=1e-11)
-    np.testing.assert_allclose(acc, ours.acc_m_s2, atol=1e-9)
+    assert_imucal_applies_as_calib_apply(_cal(), seed=3)
