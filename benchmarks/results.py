@@ -210,6 +210,9 @@ REGISTRY: tuple[Result, ...] = (
     Result("sz_ferraris", "imucal's Ferraris session: what pulls the gyro's S_z, per move and per kf_hand variant",
            (S("python benchmarks/sz_ferraris.py", capture="sz_ferraris.md", fmt="markdown"),),
            ("sz_ferraris.md",), 1, data=True),
+    Result("compile_floor", "the filter's first compile per numba setting: numba's own share, LLVM's, and what each "
+           "setting's code then runs at", (S("python benchmarks/compile_floor.py", capture="compile_floor.md",
+                                             fmt="markdown"),), ("compile_floor.md",), 2),
     Result("readme_examples", "every README command run as written in a fresh folder: exit code and wall time",
            (S("python benchmarks/readme_examples.py --out {results}/readme_examples.md"),),
            ("readme_examples.md",), 2),
