@@ -20,10 +20,13 @@
    accelerometer when the ``accelerometer`` variant agrees (and not when S, G alone agree and ``full``
    disagrees).  A part the check rejects is left at the prior and the status is not ``ok``; a part it could not
    test (no half determined it) is left at the prior too, with a line saying so, and does not change the status —
+   nor does a part that needs no correction: the check found it no better than the prior's values but nowhere
+   worse, and the session's estimate of it lies within ``null_z`` σ of them on every parameter (a sensor already
+   calibrated, e.g. an accelerometer with only noise, cannot be improved on; that is no inconsistency) —
    except the accelerometer of a session with ≥ 6 rest poses (a designed protocol puts its poses in one stretch,
    so neither half determines it): each pose is left out of the |f| = g fit in turn and predicted by the others
    (:func:`rest_pose_check`); the fit is applied when it predicts the held-out poses better than raw by two
-   standard errors, and rejected otherwise.
+   standard errors, rejected otherwise (unless, as above, it needs no correction).
 4. **Status**: ``ok`` only when the method's own check passed, the motion is the model's, and the held-out
    check rejected nothing the session determined; otherwise the method's status, or ``inconsistent`` with the
    reason.  The bias is applied whatever the status (diverged included: its rests measure it).
@@ -83,6 +86,7 @@ class DecisionParams:
     motion: MotionParams = MotionParams()
     held_out: HeldOutParams = HeldOutParams()
     check: bool = True
+    null_z: float = 3.0   # a part within this many σ of the prior's values on every parameter needs no correction
 
 
 @dataclass(frozen=True)
@@ -174,7 +178,8 @@ def rest_pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: flo
     its poses in one stretch): leave each rest pose out of the |f| = g fit (:func:`rest_pose_accelerometer`) and
     predict |f̂| − g there.  ``agrees`` when the fit's error at the held-out poses is below the raw accelerometer's
     (the prior's) by more than ``z`` standard errors (paired over the poses); the fit on every pose is what is
-    then applied.  None with fewer than ``min_poses`` rests (the nine parameters need poses to spare)."""
+    then applied.  ``worse``: the fit's error is above raw's by more than ``z`` standard errors.  None with fewer
+    than ``min_poses`` rests (the nine parameters need poses to spare)."""
     poses = _rest_means(rec, rests)
     if len(poses) < min_poses:
         return None
@@ -190,8 +195,8 @@ def rest_pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: flo
     se = float(d.std(ddof=1) / np.sqrt(d.size))
     verdict = "agrees" if float(d.mean()) < -z * se else "disagrees"
     theta, sigma = _fit_rest_means(poses, prior, gravity_m_s2)
-    return {"verdict": verdict, "poses": len(poses), "rms_m_s2": {"raw": float(np.sqrt(np.mean(np.square(err_raw)))),
-                                                                  "fit": float(np.sqrt(np.mean(np.square(err_fit))))},
+    rms = {"raw": float(np.sqrt(np.mean(np.square(err_raw)))), "fit": float(np.sqrt(np.mean(np.square(err_fit))))}
+    return {"verdict": verdict, "worse": bool(float(d.mean()) > z * se), "poses": len(poses), "rms_m_s2": rms,
             "mean_difference_m_s2": [float(d.mean()), se], "theta": theta, "sigma": sigma,
             "rule": f"leave one rest pose out of the |f| = g fit, predict |f| − g there: better than raw by {z:g} "
                     "standard errors"}
@@ -359,22 +364,38 @@ def _check(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
     return CrossCheck(tuple(folds), params.held_out)
 
 
-def _permitted(det: Determination, check: CrossCheck | None) -> tuple[np.ndarray, np.ndarray]:
-    """After the held-out check: (may be applied, rejected by the check), masks (18,) over the determined
-    parameters beyond the bias.  A part (S, G; the accelerometer) is applied when its variant agrees, rejected when
-    it disagrees (the accelerometer too when S, G alone agree and everything together disagrees) and held back,
-    untested, when the check could not judge it (no half determined it, or no source had enough items)."""
+def _permitted(det: Determination, check: CrossCheck | None, theta: np.ndarray, sigma: np.ndarray,
+               null_z: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """After the held-out check: (may be applied, rejected by the check, needs no correction), masks (18,) over the
+    determined parameters beyond the bias.  A part (S, G; the accelerometer) is applied when its variant agrees,
+    rejected when it disagrees (the accelerometer too when S, G alone agree and everything together disagrees) —
+    unless no source found it worse and its estimate is within ``null_z`` σ of the prior's values
+    (:func:`_no_correction`) — and held back, untested, when the check could not judge it (no half determined it,
+    or no source had enough items)."""
     sg, acc = _mask(SG), _mask(ACC)
-    allowed, rejected = np.zeros(18, bool), np.zeros(18, bool)
+    allowed, rejected, unneeded = np.zeros(18, bool), np.zeros(18, bool), np.zeros(18, bool)
     if check is None:
-        return allowed, rejected
+        return allowed, rejected, unneeded
     g, a = _sg_verdict(check), check.verdict("accelerometer")
     if g == "agrees" and a == "agrees" and check.verdict("full") == "disagrees":
         a = "disagrees"
-    for part, verdict in ((sg, g), (acc, a)):
-        allowed |= part & det.determined & (verdict == "agrees")
-        rejected |= part & det.determined & (verdict == "disagrees")
-    return allowed, rejected
+    for part, verdict, variant in ((sg, g, "gyro"), (acc, a, "accelerometer")):
+        concerned = part & det.determined
+        allowed |= concerned & (verdict == "agrees")
+        if verdict == "disagrees" and not check.worse(variant) and _no_correction(theta, sigma, concerned, null_z):
+            unneeded |= concerned
+        elif verdict == "disagrees":
+            rejected |= concerned
+    return allowed, rejected, unneeded
+
+
+def _no_correction(theta: np.ndarray, sigma: np.ndarray, mask: np.ndarray, null_z: float) -> bool:
+    """Whether the estimate θ (a correction on the recording read through the prior: 0 is the prior's value) lies
+    within ``null_z`` σ of 0 on every parameter in ``mask`` — the session then finds nothing to correct there."""
+    if not mask.any():
+        return False
+    z = np.abs(theta[mask]) / np.where(sigma[mask] > 0, sigma[mask], np.inf)
+    return bool(np.all(np.isfinite(theta[mask])) and np.all(z <= null_z))
 
 
 def _sg_verdict(check: CrossCheck) -> str:
@@ -403,16 +424,18 @@ def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
     check = None
     if params.check and beyond_bias:
         check = _check(rec, cal, estimate, prior, motion, rests, gravity_m_s2, params)
-    allowed, rejected = _permitted(det, check)
-    poses = _pose_check(rec, rests, prior, gravity_m_s2, params, det, allowed, rejected, theta, sigma)
+    allowed, rejected, unneeded = _permitted(det, check, theta, sigma, params.null_z)
+    poses = _pose_check(rec, rests, prior, gravity_m_s2, params, det, allowed, rejected, unneeded, theta, sigma)
     session = det.determined.copy()
     session[3:] &= allowed[3:]
     values, sig = _session_values(theta, sigma, prior, replace(det, determined=session))
-    untested = det.determined & ~session & ~rejected
+    untested = det.determined & ~session & ~rejected & ~unneeded
     status, why = _status(cal.status, motion, det, rejected)
     alpha = determined_misalignment(cal, motion, params.ratio) if session[SG].any() else None
     summary = _summary(det, session, prior, ("its misalignment to the accelerometer",) if alpha is not None else ())
-    lines = _lines(motion, motion_note, det, rejected, untested, check, prior, summary)
+    by_poses = rejected & _mask(ACC) if poses is not None and poses["verdict"] == "disagrees" else np.zeros(18, bool)
+    lines = _lines(motion, motion_note, det, (rejected & ~by_poses, by_poses, unneeded, untested), check, prior,
+                   summary, params.null_z)
     if poses is not None:
         lines.insert(next(i for i, line in enumerate(lines) if line.startswith("applied:")), _pose_line(poses))
     applied = Applied(values, sig, session, det.determined, prior.source, summary, tuple(lines),
@@ -423,11 +446,13 @@ def decide(rec: Recording, cal: Calibration, estimate: Callable[[Recording], Cal
               "held_out_check": None if check is None else check.to_dict()}
     if poses is not None and report["held_out_check"] is not None:
         report["held_out_check"]["rest_poses"] = {k: v for k, v in poses.items() if k not in ("theta", "sigma")}
+    if report["held_out_check"] is not None:
+        report["held_out_check"]["no_correction"] = det.grouped(unneeded)
     return Decision(applied, status, det, motion, check, warnings, tuple(lines), motion_note, report)
 
 
 def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, params: DecisionParams,
-                det: Determination, allowed: np.ndarray, rejected: np.ndarray, theta: np.ndarray,
+                det: Determination, allowed: np.ndarray, rejected: np.ndarray, unneeded: np.ndarray, theta: np.ndarray,
                 sigma: np.ndarray) -> dict | None:
     """The accelerometer by its rest poses (:func:`rest_pose_check`, each pose left out and predicted by the
     others), in two cases: the halves could not test it (a designed protocol puts its poses in one stretch); or
@@ -435,9 +460,10 @@ def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, 
     than the method's estimate on every one of the nine parameters — a motion filter weighs the moves as well,
     where the hand's acceleration and the gyro's errors enter; the rests measure the accelerometer alone (imu_tk's
     and Tedaldi's method).  Agrees → the fit on every pose is applied (``theta``, ``sigma``, ``allowed`` updated in
-    place); disagrees → rejected.  None when there was nothing to check or too few poses."""
+    place); disagrees → rejected, or needs no correction (``unneeded``, in place) when the fit was nowhere worse than
+    raw and lies within ``null_z`` σ of the prior's values.  None when there was nothing to check or too few poses."""
     acc = _mask(ACC)
-    untested = det.determined & ~allowed & ~rejected & acc
+    untested = det.determined & ~allowed & ~rejected & ~unneeded & acc
     if not params.check or not (det.determined & acc).any():
         return None
     poses = rest_pose_check(rec, rests, prior, gravity_m_s2, params.held_out.z,
@@ -453,9 +479,19 @@ def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, 
         theta[ACC], sigma[ACC] = poses["theta"], poses["sigma"]
         allowed |= concerned
         rejected &= ~concerned
+        unneeded &= ~concerned
+        return poses
+    allowed &= ~concerned
+    fit = np.full(18, np.nan)
+    fit[ACC] = poses["theta"]
+    fit_sigma = np.zeros(18)
+    fit_sigma[ACC] = poses["sigma"]
+    if not poses["worse"] and _no_correction(fit, fit_sigma, concerned, params.null_z):
+        unneeded |= concerned
+        rejected &= ~concerned
     else:
         rejected |= concerned
-        allowed &= ~concerned
+        unneeded &= ~concerned
     return poses
 
 
@@ -466,7 +502,9 @@ def _pose_line(poses: dict) -> str:
                 "out, each pose predicted by the others")
     else:
         head = f"accelerometer held out by rest pose ({poses['poses']} poses, each predicted by the others)"
-    return f"{head}: |f| − g RMS raw {r['raw']:.3f}, calibrated {r['fit']:.3f} m/s² — {poses['verdict']}"
+    verdict = ("agrees" if poses["verdict"] == "agrees" else "worse than raw" if poses.get("worse")
+               else "no better than raw")
+    return f"{head}: |f| − g RMS raw {r['raw']:.3f}, calibrated {r['fit']:.3f} m/s² — {verdict}"
 
 
 def _status(method_status: str, motion: MotionClassification, det: Determination, rejected: np.ndarray
@@ -492,17 +530,25 @@ def _summary(det: Determination, session: np.ndarray, prior: Prior, gyro_also: t
     return f"from this session: gyro {det.grouped(session, gyro_also)}" + tail
 
 
-def _lines(motion: MotionClassification, motion_note: str, det: Determination, rejected: np.ndarray,
-           untested: np.ndarray, check: CrossCheck | None, prior: Prior, summary: str) -> list[str]:
+def _lines(motion: MotionClassification, motion_note: str, det: Determination, held_back: tuple,
+           check: CrossCheck | None, prior: Prior, summary: str, null_z: float) -> list[str]:
     """The terminal's lines of the decision, one each: the motion, the check, what is applied, and why the rest
-    is not."""
+    is not (``held_back``: masks (18,) rejected by the halves, rejected by the rest poses, needing no correction,
+    untested)."""
+    rejected, by_poses, unneeded, untested = held_back
     out = motion.lines() + ([motion_note] if motion_note else [])
     if check is not None:
         out.append(_check_line(check))
     out.append(f"applied: {summary}")
     if rejected.any():
         out.append(f"not applied: {det.grouped(rejected)} — calibrated on one half, they predicted the other half "
-                   "worse than the bias alone; this file leaves them at the prior")
+                   "no better than the bias alone; this file leaves them at the prior")
+    if by_poses.any():
+        out.append(f"not applied: {det.grouped(by_poses)} — fitted without each rest pose, they predicted it no better "
+                   "than the raw accelerometer; this file leaves them at the prior")
+    if unneeded.any():
+        out.append(f"not applied: {det.grouped(unneeded)} — nothing to correct: within {null_z:g}σ of the prior's "
+                   "values, and no better or worse than them on the held-out data; this file leaves them there")
     if untested.any():
         out.append(f"not applied: {det.grouped(untested)} — no half of the recording determines them, so the held-out "
                    "check could not test them; this file leaves them at the prior")
