@@ -203,10 +203,19 @@ REGISTRY: tuple[Result, ...] = (
            ("false_alarm.json",), 25,
            note="false_alarm_before.json is the same run on the code before the verdict's rule changed (its stamp "
                 "names that commit); it is an input of the table, not regenerated"),
+    Result("false_alarm_demo_sensor", "the same on the demo's sensor (zhou2020_sim: an accelerometer with only "
+           "noise), 50 seeds",
+           (S("python benchmarks/false_alarm.py --seeds 50 --sensor zhou2020_sim "
+              "--out {results}/false_alarm_demo_sensor.json"),),
+           ("false_alarm_demo_sensor.json",), 6,
+           note="false_alarm_demo_sensor_before.json is the same run on the code before a part with nothing to "
+                "correct stopped counting as rejected (its stamp names that commit); an input of the table"),
     Result("false_alarm_table", "the false-alarm runs as a table, one row each",
            (S("python benchmarks/false_alarm.py --table {results}/false_alarm_before.json {results}/false_alarm.json "
+              "{results}/false_alarm_demo_sensor_before.json {results}/false_alarm_demo_sensor.json "
               "--markdown {results}/false_alarm.md"),),
-           ("false_alarm.md",), 0.1, inputs=("false_alarm_before.json", "false_alarm.json")),
+           ("false_alarm.md",), 0.1, inputs=("false_alarm_before.json", "false_alarm.json",
+                                             "false_alarm_demo_sensor_before.json", "false_alarm_demo_sensor.json")),
     Result("sz_ferraris", "imucal's Ferraris session: what pulls the gyro's S_z, per move and per kf_hand variant",
            (S("python benchmarks/sz_ferraris.py", capture="sz_ferraris.md", fmt="markdown"),),
            ("sz_ferraris.md",), 1, data=True),
