@@ -20,9 +20,10 @@
    accelerometer when the ``accelerometer`` variant agrees (and not when S, G alone agree and ``full``
    disagrees).  A part the check rejects is left at the prior and the status is not ``ok``; a part it could not
    test (no half determined it) is left at the prior too, with a line saying so, and does not change the status —
-   nor does a part that needs no correction: the check found it no better than the prior's values but nowhere
-   worse, and the session's estimate of it lies within ``null_z`` σ of them on every parameter (a sensor already
-   calibrated, e.g. an accelerometer with only noise, cannot be improved on; that is no inconsistency) —
+   nor does a part that needs no correction: the session's estimate of it lies within ``null_z`` σ of the prior's
+   values on every parameter.  A sensor already calibrated (an accelerometer with only noise) cannot be improved
+   on, and an estimate of nothing applied to held-out data only adds its own error, so the check finds it no
+   better or even worse than raw — the expected outcome, no inconsistency —
    except the accelerometer of a session with ≥ 6 rest poses (a designed protocol puts its poses in one stretch,
    so neither half determines it): each pose is left out of the |f| = g fit in turn and predicted by the others
    (:func:`rest_pose_check`); the fit is applied when it predicts the held-out poses better than raw by two
@@ -369,9 +370,9 @@ def _permitted(det: Determination, check: CrossCheck | None, theta: np.ndarray, 
     """After the held-out check: (may be applied, rejected by the check, needs no correction), masks (18,) over the
     determined parameters beyond the bias.  A part (S, G; the accelerometer) is applied when its variant agrees,
     rejected when it disagrees (the accelerometer too when S, G alone agree and everything together disagrees) —
-    unless no source found it worse and its estimate is within ``null_z`` σ of the prior's values
-    (:func:`_no_correction`) — and held back, untested, when the check could not judge it (no half determined it,
-    or no source had enough items)."""
+    unless its estimate is within ``null_z`` σ of the prior's values (:func:`_no_correction`: nothing to correct)
+    — and held back, untested, when the check could not judge it (no half determined it, or no source had enough
+    items)."""
     sg, acc = _mask(SG), _mask(ACC)
     allowed, rejected, unneeded = np.zeros(18, bool), np.zeros(18, bool), np.zeros(18, bool)
     if check is None:
@@ -379,10 +380,10 @@ def _permitted(det: Determination, check: CrossCheck | None, theta: np.ndarray, 
     g, a = _sg_verdict(check), check.verdict("accelerometer")
     if g == "agrees" and a == "agrees" and check.verdict("full") == "disagrees":
         a = "disagrees"
-    for part, verdict, variant in ((sg, g, "gyro"), (acc, a, "accelerometer")):
+    for part, verdict in ((sg, g), (acc, a)):
         concerned = part & det.determined
         allowed |= concerned & (verdict == "agrees")
-        if verdict == "disagrees" and not check.worse(variant) and _no_correction(theta, sigma, concerned, null_z):
+        if verdict == "disagrees" and _no_correction(theta, sigma, concerned, null_z):
             unneeded |= concerned
         elif verdict == "disagrees":
             rejected |= concerned
@@ -460,8 +461,9 @@ def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, 
     than the method's estimate on every one of the nine parameters — a motion filter weighs the moves as well,
     where the hand's acceleration and the gyro's errors enter; the rests measure the accelerometer alone (imu_tk's
     and Tedaldi's method).  Agrees → the fit on every pose is applied (``theta``, ``sigma``, ``allowed`` updated in
-    place); disagrees → rejected, or needs no correction (``unneeded``, in place) when the fit was nowhere worse than
-    raw and lies within ``null_z`` σ of the prior's values.  None when there was nothing to check or too few poses."""
+    place); disagrees → rejected, or needs no correction (``unneeded``, in place) when the fit lies within
+    ``null_z`` σ of the prior's values (a 9-parameter fit left without one pose predicts it worse than a perfect
+    raw accelerometer: it only adds its own scatter).  None when there was nothing to check or too few poses."""
     acc = _mask(ACC)
     untested = det.determined & ~allowed & ~rejected & ~unneeded & acc
     if not params.check or not (det.determined & acc).any():
@@ -486,7 +488,7 @@ def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, 
     fit[ACC] = poses["theta"]
     fit_sigma = np.zeros(18)
     fit_sigma[ACC] = poses["sigma"]
-    if not poses["worse"] and _no_correction(fit, fit_sigma, concerned, params.null_z):
+    if _no_correction(fit, fit_sigma, concerned, params.null_z):
         unneeded |= concerned
         rejected &= ~concerned
     else:
@@ -547,8 +549,9 @@ def _lines(motion: MotionClassification, motion_note: str, det: Determination, h
         out.append(f"not applied: {det.grouped(by_poses)} — fitted without each rest pose, they predicted it no better "
                    "than the raw accelerometer; this file leaves them at the prior")
     if unneeded.any():
-        out.append(f"not applied: {det.grouped(unneeded)} — nothing to correct: within {null_z:g}σ of the prior's "
-                   "values, and no better or worse than them on the held-out data; this file leaves them there")
+        out.append(f"not applied: {det.grouped(unneeded)} — nothing to correct: the estimate is within {null_z:g}σ of "
+                   "the prior's values, and applying it did not predict the held-out data better; this file leaves "
+                   "them at the prior")
     if untested.any():
         out.append(f"not applied: {det.grouped(untested)} — no half of the recording determines them, so the held-out "
                    "check could not test them; this file leaves them at the prior")

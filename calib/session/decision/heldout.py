@@ -138,12 +138,6 @@ class HeldOutCheck:
     def verdict(self, variant: str) -> str:
         return self.verdicts.get(variant, "inconclusive")
 
-    def worse(self, variant: str) -> bool:
-        """Whether a source with enough items found ``variant`` significantly worse than bias-only or raw — as
-        against a ``disagrees`` that only means no source found it better."""
-        return any(s.worse(variant, self.params) for s in self.sources
-                   if s.name in SOURCES.get(variant, ()) and s.informative(self.params) and variant in s.vs_raw)
-
     def source(self, name: str) -> SourceScore | None:
         return next((s for s in self.sources if s.name == name), None)
 
@@ -406,10 +400,6 @@ class CrossCheck:
         if "disagrees" in v:
             return "disagrees"
         return "agrees" if "agrees" in v else "inconclusive"
-
-    def worse(self, variant: str) -> bool:
-        """Whether a fold found ``variant`` significantly worse (:meth:`HeldOutCheck.worse`)."""
-        return any(f.worse(variant) for f in self.folds)
 
     def to_dict(self) -> dict:
         return {"verdicts": {v: self.verdict(v) for v in VARIANTS + (GYRO_GIVEN_ACC,) if v != "raw"},
