@@ -42,9 +42,12 @@ assumptions can fail without its innovations saying so (measured on the project'
    ``inconsistent``.  Measured: x-io Fusion (hand-held, a 5-s burst of 2.3 m/s² mean |f| − g at
    t ≈ 55 s, rotations to 368 °/s) 3.7 m — ``ok`` before, its fitted a_e 2.85 m/s² RMS, τ 6.3 s; BROAD's
    slow hand-held rotations 0.06–0.09 m; gyrosim's hands (ideal … shaky, both sensors, 20 seeds each)
-   ≤ 0.011 m and the independent generator's ≤ 0.02 m.  White sensor noise of one-sided PSD W alone
-   gives x_rms = 1.3 √W m (W in m²/s⁴/Hz): 0.02 m for 10 mg per sample at 100 Hz — the bound needs
-   ~0.16 g per sample, far beyond any MEMS accelerometer.
+   ≤ 0.011 m and the independent generator's ≤ 0.02 m.  White sensor noise of one-sided PSD W = 2N² alone
+   gives x_rms² = W Σ_band Δf / (2πf)⁴ (x_rms ≈ 1.8 √W m on these bins, W in m²/s⁴/Hz): ~0.007 m for the
+   MPU-9250, but ~0.38 m for the paper's simulated accelerometer (15 mg/√Hz), more than the bound with the
+   hand still.  So that share is taken off (N measured on the first rest), and the bound must be passed by
+   more than the noise's own scatter: rms² − noise² > bound² + 3 σ, σ from Welch's few segments (each bin's
+   relative σ 1/√K for K segments).
 
 And one check of the result itself (:func:`refuse_confounded`): a session whose motion cannot tell the lever arm from S
 or G (posterior correlation above ``CONFOUND_CORRELATION``) is refused with the parameters named and the motion that
@@ -76,26 +79,45 @@ NOISE_Z = 5.0           # the rests' |f| spread must also exceed this many of it
 DISPLACEMENT_MAX_M = LEVER_ARM_MAX_M   # a hand's displacement RMS, at most a forearm (check 4)
 SLOW_BAND_HZ = (0.05, 0.2)             # periods 5–20 s: below the simulator's and a hand's sway (0.2–1 Hz)
 SLOW_SEGMENT_S = 40.0                  # Welch segment: 0.025-Hz bins, the band's lowest bin two above 0 Hz
+SLOW_NOISE_Z = 3.0                     # the noise's scatter allowed above the bound (one-sided, ~1 % on ~7 segments)
 SLOW_WINDOW_S = 10.0                   # where it happened: the largest RMS of the band-limited residual
 
 
 @dataclass(frozen=True)
 class SlowDisplacement:
-    """:func:`slow_displacement`'s result: the displacement RMS (m) the residual implies in ``SLOW_BAND_HZ``
-    and the centre time (s, the recording's clock) of the window where the residual's slow part was largest."""
+    """:func:`slow_displacement`'s result: the displacement RMS (m) the residual implies in ``SLOW_BAND_HZ``,
+    the centre time (s, the recording's clock) of the window where the residual's slow part was largest, and
+    ``noise_m``: the part of ``rms_m`` the accelerometer's white noise alone gives (0 when its density is unknown),
+    and ``noise_sd_m2``: the standard deviation of the noise's share of ``rms_m²`` (Welch's estimate of a PSD
+    averages only a few segments: each bin's relative σ is 1/√K for K segments)."""
 
     rms_m: float
     worst_t_s: float
+    noise_m: float = 0.0
+    noise_sd_m2: float = 0.0
+
+    def exceeds(self, limit_m: float, z: float = SLOW_NOISE_Z) -> bool:
+        """Whether the displacement beyond the noise is above ``limit_m`` by more than the noise's own scatter:
+        rms² − noise² > limit² + z σ(noise's share)."""
+        return self.rms_m**2 - self.noise_m**2 > limit_m**2 + z * self.noise_sd_m2
+
+    @property
+    def beyond_noise_m(self) -> float:
+        """The displacement RMS beyond the noise's: √(max(0, rms² − noise²)) (the two add in power)."""
+        return math.sqrt(max(0.0, self.rms_m**2 - self.noise_m**2))
 
 
-def slow_displacement(residual_m_s2: np.ndarray, t_s: np.ndarray, rate_hz: float) -> SlowDisplacement | None:
+def slow_displacement(residual_m_s2: np.ndarray, t_s: np.ndarray, rate_hz: float,
+                      acc_noise_density_m_s2_sqrt_hz: float | None = None) -> SlowDisplacement | None:
     """Check 4 of the module docstring: x_rms = √(Σ_band Ŝ_e(f) / (2πf)⁴ Δf), Ŝ_e the one-sided Welch PSD of the
     residual with ``SLOW_SEGMENT_S`` Hann segments, each segment's mean removed.  Not a linear detrend: the line fitted
     to a sway tone is ~A/(πk) of it (k its bin), and that ramp × Hann lands in the lowest bins, where 1/f⁴ magnifies it
     (a 1-cm sway at 0.3–1 Hz read 3 mm; with the mean removed 0.04 mm).  A slow drift's ramp falls mostly in bins 0–1,
     which the band leaves out (it starts at bin 2).  None for a recording shorter than two segments' band (<
     2/``SLOW_BAND_HZ[0]`` s), where the band has no bin to read.  Source: x(f) = a(f) / (2πf)² (Fourier transform of ẍ =
-    a); Welch 1967."""
+    a); Welch 1967.  ``acc_noise_density_m_s2_sqrt_hz``: the accelerometer's white density N (per-sample variance
+    N² f_s); its one-sided PSD 2N² through the same bins is ``noise_m`` — what a noisy sensor reads with the hand
+    still (0.27–0.38 m for the paper's simulated 15 mg/√Hz accelerometer, as much as the bound)."""
     e = np.asarray(residual_m_s2, float)
     t = np.asarray(t_s, float)
     if e.size < 16 or e.size / rate_hz < 2.0 / SLOW_BAND_HZ[0] or not np.all(np.isfinite(e)):
@@ -103,12 +125,18 @@ def slow_displacement(residual_m_s2: np.ndarray, t_s: np.ndarray, rate_hz: float
     e = e - e.mean()
     f, pxx = sp_signal.welch(e, fs=rate_hz, nperseg=int(min(e.size, SLOW_SEGMENT_S * rate_hz)), detrend="constant")
     band = (f >= SLOW_BAND_HZ[0]) & (f <= SLOW_BAND_HZ[1])
-    x_rms = math.sqrt(float(np.sum(pxx[band] / (2 * math.pi * f[band]) ** 4)) * (f[1] - f[0]))
+    weight = (f[1] - f[0]) / (2 * math.pi * f[band]) ** 4          # Δf / (2πf)⁴ per bin of the band
+    x_rms = math.sqrt(float(np.sum(pxx[band] * weight)))
+    n = acc_noise_density_m_s2_sqrt_hz
+    noise = math.sqrt(2.0 * n * n * float(np.sum(weight))) if n is not None and math.isfinite(n) else 0.0
+    nper = int(min(e.size, SLOW_SEGMENT_S * rate_hz))
+    segments = 1 + (e.size - nper) // (nper // 2)                  # scipy's default overlap: half a segment
+    noise_sd = noise**2 * math.sqrt(float(np.sum(weight**2))) / float(np.sum(weight)) / math.sqrt(segments)
     b, a = sp_signal.butter(2, SLOW_BAND_HZ[1] / (rate_hz / 2))
     slow = sp_signal.filtfilt(b, a, e)
     w = max(1, int(SLOW_WINDOW_S * rate_hz))
     ms = np.convolve(slow**2, np.ones(w) / w, mode="same")
-    return SlowDisplacement(x_rms, float(t[int(np.argmax(ms))]))
+    return SlowDisplacement(x_rms, float(t[int(np.argmax(ms))]), noise, noise_sd)
 
 
 @dataclass(frozen=True)
@@ -149,13 +177,16 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                            tremor_band_rms_m_s2: float, lever_arm_m: np.ndarray,
                            lever_arm_std_m: np.ndarray, check_accelerometer: bool = True,
                            slow_residual_m_s2: np.ndarray | None = None, slow_residual_t_s: np.ndarray | None = None,
-                           rate_hz: float | None = None, accelerometer_source: str | None = None) -> HandAssumptions:
+                           rate_hz: float | None = None, accelerometer_source: str | None = None,
+                           acc_noise_density_m_s2_sqrt_hz: float | None = None) -> HandAssumptions:
     """The checks of the module docstring.  ``rests``: (start, stop) sample ranges; ``sigma_sg``:
     σ of the six S, G the estimator reports; the rest from ``kf_hand``'s hand diagnostics.
     ``check_accelerometer`` False: the accelerometer is estimated with the gyro (``kf_hand_joint``), whose
     own |f̂| = g test at the rests replaces check 1.  ``slow_residual_m_s2`` (with its times and rate):
     |f_lp − K r̂| − g over the filtered span, for check 4 (skipped when None).  ``accelerometer_source``: what
-    calibrated the accelerometer (None: assumed calibrated), named by check 1 instead of its advice to calibrate it."""
+    calibrated the accelerometer (None: assumed calibrated), named by check 1 instead of its advice to calibrate it.
+    ``acc_noise_density_m_s2_sqrt_hz``: the accelerometer's white density, whose share check 4 takes off
+    (:func:`slow_displacement`; None: nothing taken off)."""
     notes: list[str] = []
     ok = True
     details: dict = {}
@@ -206,16 +237,21 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
         notes.append(f"inconsistent: the lever arm found, {rn * 100:.1f} ± {rsd * 100:.1f} cm, is beyond a hand's "
                      f"({LEVER_ARM_MAX_M * 100:.0f} cm, a forearm): the session's translation was read as a rotation "
                      "about a far point. Turn the device in the hand (wrist), without moving the arm")
-    slow = None if slow_residual_m_s2 is None else slow_displacement(slow_residual_m_s2, slow_residual_t_s, rate_hz)
+    slow = None if slow_residual_m_s2 is None else slow_displacement(slow_residual_m_s2, slow_residual_t_s, rate_hz,
+                                                                      acc_noise_density_m_s2_sqrt_hz)
     if slow is not None:
-        details.update({"slow_displacement_rms_m": slow.rms_m, "slow_displacement_max_m": DISPLACEMENT_MAX_M,
-                        "slow_band_hz": list(SLOW_BAND_HZ)})
-        if slow.rms_m > DISPLACEMENT_MAX_M:
+        details.update({"slow_displacement_rms_m": slow.rms_m, "slow_displacement_noise_m": slow.noise_m,
+                        "slow_displacement_beyond_noise_m": slow.beyond_noise_m,
+                        "slow_displacement_noise_sd_m2": slow.noise_sd_m2, "slow_displacement_noise_z": SLOW_NOISE_Z,
+                        "slow_displacement_max_m": DISPLACEMENT_MAX_M, "slow_band_hz": list(SLOW_BAND_HZ)})
+        if slow.exceeds(DISPLACEMENT_MAX_M):
             ok = False
             notes.append(
                 f"inconsistent: the acceleration kf_hand attributes to the hand has slow content (periods "
                 f"{1 / SLOW_BAND_HZ[1]:.0f}–{1 / SLOW_BAND_HZ[0]:.0f} s) that would move a hand by "
-                f"{slow.rms_m:.2f} m RMS, beyond the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device moves at most "
+                f"{slow.beyond_noise_m:.2f} m RMS"
+                + (f" (beyond the {slow.noise_m:.2f} m the accelerometer's noise accounts for)" if slow.noise_m else "")
+                + f", more than the {DISPLACEMENT_MAX_M:.2f} m a hand turning a device moves at most "
                 f"(largest around t = {slow.worst_t_s:.0f} s). Either the device travelled (carried, walked, "
                 "swung at arm's length about a moving pivot) or it is a sensor effect the model lacks — an "
                 "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "

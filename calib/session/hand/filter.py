@@ -766,7 +766,8 @@ def _hand(ses: _Session, fit: _Fit, cov: np.ndarray, sig: _Sigma, tremor: _Tremo
                                          np.sqrt(np.diag(cov[3:9, 3:9])), tremor.rms, r_hat, r_sd,
                                          check_accelerometer=not ses.estimate, slow_residual_m_s2=sig.slow_resid,
                                          slow_residual_t_s=ses.t, rate_hz=ses.fs,
-                                         accelerometer_source=ses.params.accelerometer_source)
+                                         accelerometer_source=ses.params.accelerometer_source,
+                                         acc_noise_density_m_s2_sqrt_hz=ses.prep.noise.acc_density_m_s2_sqrt_hz)
     hand = {
         "lever_arm_m": r_hat.tolist(),
         "lever_arm_std_m": r_sd.tolist(),
