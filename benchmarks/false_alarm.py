@@ -122,15 +122,16 @@ def table(docs: list[dict]) -> str:
 
 
 def run(out: str, seeds: int, first_seed: int, schedule: str, hand: str, sensor: str) -> dict:
-    """Score ``seeds`` seeds from ``first_seed``; seeds already in ``out`` (same setting) are kept, so an
-    interrupted run resumes.  Writes ``out`` after every seed."""
+    """Score ``seeds`` seeds from ``first_seed``; seeds already in ``out`` (same setting, same commit) are kept, so
+    an interrupted run resumes — a file written by other code is run again, not resumed.  Writes ``out`` after every
+    seed."""
     rows: dict[int, dict] = {}
     stamp = provenance()   # the code that ran: taken before the first seed
     setting = {"schedule": schedule, "hand": hand, "sensor": sensor, "method": "calib run (default)"}
     resumed: list = []
     if Path(out).exists():
         old = json.loads(Path(out).read_text())
-        if all(old.get(k) == v for k, v in setting.items()):
+        if all(old.get(k) == v for k, v in setting.items()) and old["provenance"]["commit"] == stamp["commit"]:
             rows = {r["seed"]: r for r in old["per_seed"]}
             # the seeds kept were run at the file's stamp; a resumed run's own stamp is listed beside it
             stamp, resumed = old["provenance"], old.get("resumed", []) + [stamp]
