@@ -15,10 +15,15 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
-__all__ = ["FilterWarmup", "WARMUP_COMMAND"]
+__all__ = ["FilterWarmup", "WARMUP_COMMAND", "COMPILING", "announce_if_slow"]
+
+# what the person at the terminal reads while the filter compiles (the first run on a machine)
+COMPILING = "compiling the filter (once per machine; later runs reuse it) …"
 
 # the child: import the kernel from the same calib as this process and compile (or load) its loop
 WARMUP_COMMAND = (sys.executable, "-c", "from calib.session.kernel import warm_up; warm_up()")
@@ -63,7 +68,7 @@ class FilterWarmup:
         if self._proc is None:
             return self.outcome
         if self._proc.poll() is None:
-            log("compiling the filter (once per machine; later runs reuse it) …")
+            log(COMPILING)
             try:
                 self._proc.wait(self.timeout_s)
             except subprocess.TimeoutExpired:
@@ -91,3 +96,18 @@ class FilterWarmup:
 
     def __exit__(self, *exc) -> None:
         self._end()
+
+
+@contextmanager
+def announce_if_slow(log: Callable[[str], None], message: str = COMPILING, after_s: float = 2.0) -> Iterator[None]:
+    """Say ``message`` through ``log`` (from a timer thread) when the block runs longer than ``after_s`` — around the
+    filter's warm-up (:func:`calib.session.kernel.warm_up`), which loads the compiled loop from numba's cache in
+    under a second and compiles it, ~20 s, only when the cache is cold: ``calib run``'s first run on a machine then
+    says why it is silent."""
+    timer = threading.Timer(after_s, log, args=(message,))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()

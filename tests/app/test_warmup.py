@@ -71,3 +71,19 @@ def test_the_child_fills_the_cache_the_command_then_loads(tmp_path, monkeypatch)
             "print(time.perf_counter() - t)")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert float(run.stdout) < 10, run.stdout             # loaded from the cache (a compile: ≥ 15 s on 2 cores)
+
+
+def test_a_slow_block_is_announced_once_and_a_quick_one_not_at_all():
+    """``calib run``'s in-process warm-up: loading the loop from the cache takes under a second and says nothing;
+    compiling it (a cold cache, ~20 s) is announced once, while it runs.  Timings with a 10× margin either way."""
+    from calib.app.warmup import COMPILING, announce_if_slow
+
+    said = []
+    with announce_if_slow(said.append, after_s=0.5):
+        time.sleep(0.05)
+    time.sleep(0.8)                                        # past the delay: a cancelled timer stays silent
+    assert said == []
+    with announce_if_slow(said.append, after_s=0.05):
+        time.sleep(0.5)
+        assert said == [COMPILING]                         # said while the block still runs
+    assert said == [COMPILING]

@@ -192,6 +192,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"warning: {note}", file=sys.stderr)
         options = replace(options, method=name, accelerometer=mode)
     loaded = open_input(args, KF)
+    from calib.app.warmup import announce_if_slow
+    from calib.session.kernel import warm_up
+
+    with announce_if_slow(lambda msg: print(msg, file=sys.stderr, flush=True)):
+        warm_up()   # every method runs the compiled filter: a cold cache compiles it here, and says so
     cal = run_session(loaded, replace(options, turns=_turns(args, loaded.recording)))
     _print_run(args.recording, cal, args.verbose)
     if args.json:
