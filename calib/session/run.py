@@ -222,7 +222,7 @@ def run_session(source: Recording | Loaded, options: RunOptions = RunOptions()) 
         raise GyrosimError(f"turns of a known angle enter the hand-aware filter only, not {name}: leave out "
                            "--method (or give kf_hand_joint / kf_hand)")
     result, prep, name, mode, fell_back = _estimate_or_fall_back(rec, name, mode, options, options.keep_history)
-    motion = classify_motion(rec, prep.bias.value_rad_s, options.decision.motion)
+    motion = classify_motion(rec, prep.bias.value_rad_s, options.decision.motion, prep.noise.acc_density_m_s2_sqrt_hz)
     gravity = float((result.diagnostics.get("noise") or {}).get("gravity_m_s2") or prep.config.gravity_m_s2)
     def part(half: Recording) -> Calibration:   # the held-out check's: through the boundary, the same method
         half = prepare_recording(half, KF).recording

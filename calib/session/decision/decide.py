@@ -238,7 +238,7 @@ def _motion(rec: Recording, cal: Calibration, before: MotionClassification, para
 
     rec_c = rec.with_signals(gyro_rad_s=linear_compensate(rec.gyro_rad_s, theta[0:9]),
                              acc_m_s2=linear_compensate(rec.acc_m_s2, theta[9:18]))
-    after = classify_motion(rec_c, np.zeros(3), params.motion)
+    after = classify_motion(rec_c, np.zeros(3), params.motion, before.acc_noise_density_m_s2_sqrt_hz)
     if after.model_holds:
         return after, ("motion: the path seen in the raw signals was the sensor's own error (an uncalibrated gyro or "
                        "accelerometer turns gravity into apparent acceleration); with the estimate applied it is a "

@@ -25,7 +25,10 @@ Per window of ``window_s`` (4 s by default; a hand-held board needs a few second
   combined rotation and translation 10–19 cm; gyrosim's hands stay below a few millimetres.  The band
   starts at 0.2 Hz because the gyro-propagated attitude's slow errors (a residual bias) leak gravity
   into the lowest frequencies, where 1/f² magnifies them; hand-held paths have most of their power
-  above it;
+  above it.  The accelerometer's white noise (density N, one-sided PSD 2N² per axis) reads as a displacement
+  too, x_n² = 3 Σ_band 2N² |G(f)|² Δf / (2πf)⁴ (G the filters'): with the density given, a window is carried when
+  d² − x_n² exceeds the threshold² — negligible for MEMS accelerometers (~0.1 mm at 200 µg/√Hz), but ~6 cm for the
+  paper's simulated 15 mg/√Hz one, which called a fifth of its windows carried with the hand turning it;
 * **tapping or vibration**: the specific force above the 4-Hz tremor band, less the lever arm's part,
   has impulses: a peak above ``tap_peak_m_s2`` (2 g) with a kurtosis above ``tap_kurtosis`` within the
   window (BROAD's tapping trial: peaks 78 m/s² median, kurtosis 172; every other trial and gyrosim's
@@ -99,6 +102,8 @@ class MotionClassification:
     magnet: np.ndarray | None = field(repr=False)
     lever_arm_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
     params: MotionParams = MotionParams()
+    acc_noise_density_m_s2_sqrt_hz: float | None = None   # the density whose share was taken off (None: none)
+    noise_displacement_m: float = 0.0                       # that share, per window (RMS, 3-D)
 
     def fraction(self, label: str) -> float:
         """Share of all windows with ``label``."""
@@ -173,6 +178,7 @@ class MotionClassification:
                                                if self._is(lb).any() else None) for lb in LABELS},
                 "turning_displacement_m_p90": float(np.percentile(disp, 90)) if disp.size else None,
                 "lever_arm_m": [float(v) for v in self.lever_arm_m],
+                "noise_displacement_m": self.noise_displacement_m,
                 "magnet_nearby": self.magnet_nearby,
                 "magnet_fraction": None if self.magnet is None else round(float(np.mean(self.magnet)), 4),
                 "thresholds": {"rest_rate_deg_s": self.params.rest_rate_deg_s,
@@ -231,12 +237,28 @@ def _windows(n: int, w: int) -> list[slice]:
     return [slice(i * w, (i + 1) * w) for i in range(max(1, n // w))]
 
 
-def classify_motion(rec: Recording, bias_rad_s: np.ndarray | None = None,
-                    params: MotionParams = MotionParams()) -> MotionClassification:
+def classify_motion(rec: Recording, bias_rad_s: np.ndarray | None = None, params: MotionParams = MotionParams(),
+                    acc_noise_density_m_s2_sqrt_hz: float | None = None) -> MotionClassification:
     """Label each window of ``rec`` and judge the session (module docstring).  ``bias_rad_s``: the gyro's rest
-    level (default: the median gyro over the windows that turn least, :func:`calib.inputs.motion.summarise_motion`)."""
+    level (default: the median gyro over the windows that turn least, :func:`calib.inputs.motion.summarise_motion`);
+    ``acc_noise_density_m_s2_sqrt_hz``: the accelerometer's white density, whose share of the displacement is taken
+    off (None: nothing taken off)."""
     with np.errstate(all="ignore"):
-        return _classify(rec, bias_rad_s, params)
+        return _classify(rec, bias_rad_s, params, acc_noise_density_m_s2_sqrt_hz)
+
+
+def _noise_displacement2(density: float | None, rate_hz: float, band_hz: tuple[float, float], cut_hz: float,
+                         params: MotionParams) -> float:
+    """x_n² (m²): the mean square 3-D displacement white accelerometer noise of ``density`` gives through the
+    classifier's filters — the gravity high-pass and the ``cut_hz`` low-pass (second order, forward and backward:
+    |H|⁴ of a Butterworth's |H|²) — in ``band_hz`` (module docstring)."""
+    if density is None or not math.isfinite(density):
+        return 0.0
+    f = np.linspace(band_hz[0], band_hz[1], 2001)
+    lp2 = 1.0 / (1.0 + (f / cut_hz) ** 4)                      # |H|² of the 2nd-order low-pass at cut_hz
+    hp2 = 1.0 - 1.0 / (1.0 + (f / params.gravity_cutoff_hz) ** 4)
+    psd = 2.0 * density**2 * lp2**2 * hp2**2 / (2 * math.pi * f) ** 4
+    return 3.0 * float(np.sum(0.5 * (psd[1:] + psd[:-1]) * np.diff(f)))
 
 
 def _rest_level(rec: Recording) -> np.ndarray:
@@ -246,7 +268,8 @@ def _rest_level(rec: Recording) -> np.ndarray:
     return np.zeros(3) if level is None else np.asarray(level, float)
 
 
-def _classify(rec: Recording, bias_rad_s: np.ndarray | None, params: MotionParams) -> MotionClassification:
+def _classify(rec: Recording, bias_rad_s: np.ndarray | None, params: MotionParams,
+              acc_noise_density: float | None) -> MotionClassification:
     fs, t = rec.rate_hz, np.asarray(rec.t_s, float)
     b = _rest_level(rec) if bias_rad_s is None else np.asarray(bias_rad_s, float)
     w = np.asarray(rec.gyro_rad_s, float) - b
@@ -263,6 +286,7 @@ def _classify(rec: Recording, bias_rad_s: np.ndarray | None, params: MotionParam
     moving = rate > params.rest_rate_deg_s
     r = _fit_lever(k_slow, a_body, moving)
     x = _band_displacement(a_nav - quat_rotate(q, k_slow @ r), fs, params.band_hz)
+    noise2 = _noise_displacement2(acc_noise_density, fs, params.band_hz, cut, params)
     # above the tremor band: the specific force less the lever arm's part there (its own fit)
     k_fast = _lever(_lowpass(w, fs, min(25.0, 0.4 * fs)), t)
     k_hf = k_fast - _lowpass(k_fast.reshape(-1, 9), fs, 4.0).reshape(-1, 3, 3)
@@ -286,7 +310,7 @@ def _classify(rec: Recording, bias_rad_s: np.ndarray | None, params: MotionParam
             label = "rest"
         elif (peak > params.tap_peak_m_s2 and kurt > params.tap_kurtosis) or vib:
             label = "tapping"
-        elif d > params.carried_displacement_m:
+        elif d * d - noise2 > params.carried_displacement_m**2:
             label = "carried"
         else:
             label = "turning"
@@ -298,4 +322,5 @@ def _classify(rec: Recording, bias_rad_s: np.ndarray | None, params: MotionParam
         if mag is not None:
             magnet.append(bool(np.mean(mag[s]) > 0.5))
     return MotionClassification(params.window_s, np.array(t_w), tuple(labels), np.array(disp), np.array(rates),
-                                np.array(peaks), None if mag is None else np.array(magnet, bool), r, params)
+                                np.array(peaks), None if mag is None else np.array(magnet, bool), r, params,
+                                acc_noise_density, math.sqrt(noise2))
