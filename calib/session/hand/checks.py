@@ -257,10 +257,10 @@ def check_hand_assumptions(acc_m_s2: np.ndarray, t_s: np.ndarray, rests, sigma_s
                 "accelerometer calibration error, a time offset between gyro and accelerometer, a drifting "
                 "accelerometer bias; kf_hand fitted it as the hand's acceleration and weighted S, G by it, so "
                 "S, G and σ are not trustworthy. "
-                + ("Check the accelerometer calibration (calib run --method kf_hand_joint estimates it), "
-                   if check_accelerometer else "")
-                + "Check the gyro–accelerometer time alignment, trace the residual with calib closeloop, and record "
-                "again turning the device at the wrist without moving the arm"
+                + ("Check the accelerometer calibration (calib run --method kf_hand_joint estimates it) and the "
+                   if check_accelerometer else "Check the ")
+                + "gyro–accelerometer time alignment, trace the residual with calib closeloop, and record again "
+                "turning the device at the wrist without moving the arm"
             )
     return HandAssumptions(ok, tuple(notes), eps, spread, float(tremor_band_rms_m_s2), rn, details)
 
