@@ -188,32 +188,47 @@ class GyroAccMisalignmentFamily(MisalignmentFamily):
         return math.radians(3.0)
 
 
-@register_family
-class ScaleNonlinearityFamily(_RateDriven):
-    effects = (ScaleNonlinearity,)
-    driver = "ω·|ω| on the same axis"
-    separated_by = "rotations at several rates, slow and fast, in both directions"
+class _SameAxisRegressor(_RateDriven):
+    """A rate-driven error that each axis makes from its own rate through a fixed function (``regressor`` of ω,
+    per axis; ``regressor_text`` says which): the candidate regresses on it, plausible up to ``max_value``."""
+
+    regressor_text = ""
+    max_value = 0.0
+
+    @staticmethod
+    def regressor(w: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
 
     def build(self, kind, ctx, ref, options):
-        w = ctx.omega_true_rad_s
-        return _class_candidate(self, ctx, "ω·|ω| on the same axis", w * np.abs(w))
+        return _class_candidate(self, ctx, self.regressor_text, self.regressor(ctx.omega_true_rad_s))
 
     def plausible_max(self, kind, ctx):
-        return 5e-3
+        return self.max_value
 
 
 @register_family
-class ScaleAsymmetryFamily(_RateDriven):
+class ScaleNonlinearityFamily(_SameAxisRegressor):
+    effects = (ScaleNonlinearity,)
+    driver = regressor_text = "ω·|ω| on the same axis"
+    separated_by = "rotations at several rates, slow and fast, in both directions"
+    max_value = 5e-3
+
+    @staticmethod
+    def regressor(w):
+        return w * np.abs(w)
+
+
+@register_family
+class ScaleAsymmetryFamily(_SameAxisRegressor):
     effects = (ScaleAsymmetry,)
     driver = "|ω| on the same axis"
+    regressor_text = "|ω| on the same axis (the scale differs with the turn's sign)"
     separated_by = "turns of the same size in both directions about every axis"
+    max_value = 0.02
 
-    def build(self, kind, ctx, ref, options):
-        return _class_candidate(self, ctx, "|ω| on the same axis (the scale differs with the turn's sign)",
-                                np.abs(ctx.omega_true_rad_s))
-
-    def plausible_max(self, kind, ctx):
-        return 0.02
+    @staticmethod
+    def regressor(w):
+        return np.abs(w)
 
 
 @register_family
