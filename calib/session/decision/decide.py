@@ -383,20 +383,21 @@ def _permitted(det: Determination, check: CrossCheck | None, theta: np.ndarray, 
     for part, verdict in ((sg, g), (acc, a)):
         concerned = part & det.determined
         allowed |= concerned & (verdict == "agrees")
-        if verdict == "disagrees" and _no_correction(theta, sigma, concerned, null_z):
+        if verdict == "disagrees" and _no_correction(theta[concerned], sigma[concerned], null_z):
             unneeded |= concerned
         elif verdict == "disagrees":
             rejected |= concerned
     return allowed, rejected, unneeded
 
 
-def _no_correction(theta: np.ndarray, sigma: np.ndarray, mask: np.ndarray, null_z: float) -> bool:
-    """Whether the estimate θ (a correction on the recording read through the prior: 0 is the prior's value) lies
-    within ``null_z`` σ of 0 on every parameter in ``mask`` — the session then finds nothing to correct there."""
-    if not mask.any():
+def _no_correction(theta: np.ndarray, sigma: np.ndarray, null_z: float) -> bool:
+    """Whether the estimates θ (corrections on the recording read through the prior: 0 is the prior's value) lie
+    within ``null_z`` σ of 0, every one of them (none given: False) — the session then finds nothing to correct."""
+    theta, sigma = np.asarray(theta, float), np.asarray(sigma, float)
+    if theta.size == 0:
         return False
-    z = np.abs(theta[mask]) / np.where(sigma[mask] > 0, sigma[mask], np.inf)
-    return bool(np.all(np.isfinite(theta[mask])) and np.all(z <= null_z))
+    z = np.abs(theta) / np.where(sigma > 0, sigma, np.inf)
+    return bool(np.all(np.isfinite(theta)) and np.all(z <= null_z))
 
 
 def _sg_verdict(check: CrossCheck) -> str:
@@ -484,11 +485,8 @@ def _pose_check(rec: Recording, rests: list, prior: Prior, gravity_m_s2: float, 
         unneeded &= ~concerned
         return poses
     allowed &= ~concerned
-    fit = np.full(18, np.nan)
-    fit[ACC] = poses["theta"]
-    fit_sigma = np.zeros(18)
-    fit_sigma[ACC] = poses["sigma"]
-    if _no_correction(fit, fit_sigma, concerned, params.null_z):
+    part = concerned[ACC]                                   # the concerned parameters among the fit's nine
+    if _no_correction(np.asarray(poses["theta"])[part], np.asarray(poses["sigma"])[part], params.null_z):
         unneeded |= concerned
         rejected &= ~concerned
     else:

@@ -123,13 +123,13 @@ def slow_displacement(residual_m_s2: np.ndarray, t_s: np.ndarray, rate_hz: float
     if e.size < 16 or e.size / rate_hz < 2.0 / SLOW_BAND_HZ[0] or not np.all(np.isfinite(e)):
         return None
     e = e - e.mean()
-    f, pxx = sp_signal.welch(e, fs=rate_hz, nperseg=int(min(e.size, SLOW_SEGMENT_S * rate_hz)), detrend="constant")
+    nper = int(min(e.size, SLOW_SEGMENT_S * rate_hz))
+    f, pxx = sp_signal.welch(e, fs=rate_hz, nperseg=nper, detrend="constant")
     band = (f >= SLOW_BAND_HZ[0]) & (f <= SLOW_BAND_HZ[1])
     weight = (f[1] - f[0]) / (2 * math.pi * f[band]) ** 4          # Δf / (2πf)⁴ per bin of the band
     x_rms = math.sqrt(float(np.sum(pxx[band] * weight)))
     n = acc_noise_density_m_s2_sqrt_hz
     noise = math.sqrt(2.0 * n * n * float(np.sum(weight))) if n is not None and math.isfinite(n) else 0.0
-    nper = int(min(e.size, SLOW_SEGMENT_S * rate_hz))
     segments = 1 + (e.size - nper) // (nper // 2)                  # scipy's default overlap: half a segment
     noise_sd = noise**2 * math.sqrt(float(np.sum(weight**2))) / float(np.sum(weight)) / math.sqrt(segments)
     b, a = sp_signal.butter(2, SLOW_BAND_HZ[1] / (rate_hz / 2))
